@@ -1,0 +1,10 @@
+//! DigiView: an onboard fisheye "virtual camera" video head.
+//!
+//! The modules follow the data's path: `lens` (fisheye models and lens.cal) and `geometry`
+//! (frames, attitudes, the ground) are the shared math; `layout` places views in the output
+//! frame; `state` is everything an operator can set; `scene` synthesises fisheye input and
+//! ground truth from a known world; `render` turns a fisheye frame into the output frame;
+//! `image_ops` holds the sampling and image metrics both sides share; `cli` is the command line.
+
+pub mod lens;
+pub mod units;
