@@ -6,5 +6,6 @@
 //! ground truth from a known world; `render` turns a fisheye frame into the output frame;
 //! `image_ops` holds the sampling and image metrics both sides share; `cli` is the command line.
 
+pub mod geometry;
 pub mod lens;
 pub mod units;

@@ -1,0 +1,57 @@
+//! Vehicle attitude over time: timestamped samples, and the attitude at a frame's capture time
+//! by spherical interpolation between the two samples around it.
+
+use super::rotation::Euler;
+use glam::DQuat;
+use std::collections::VecDeque;
+
+/// A bounded history of attitude samples, oldest first, timestamps in microseconds.
+#[derive(Clone, Debug)]
+pub struct AttitudeTrack {
+    samples: VecDeque<(u64, DQuat)>,
+    capacity: usize,
+}
+
+impl AttitudeTrack {
+    pub fn new(capacity: usize) -> Self {
+        AttitudeTrack { samples: VecDeque::with_capacity(capacity), capacity: capacity.max(2) }
+    }
+
+    /// Adds a sample. Samples may arrive out of order; one with the time of an existing sample
+    /// replaces it. The oldest is dropped when full.
+    pub fn push(&mut self, t_us: u64, attitude: Euler) {
+        let q = attitude.quat().normalize();
+        match self.samples.binary_search_by_key(&t_us, |s| s.0) {
+            Ok(i) => self.samples[i].1 = q,
+            Err(i) => self.samples.insert(i, (t_us, q)),
+        }
+        while self.samples.len() > self.capacity {
+            self.samples.pop_front();
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// The attitude at time `t_us`: slerp between the samples around it, the nearest sample
+    /// outside the covered span, None with no samples.
+    pub fn at(&self, t_us: u64) -> Option<Euler> {
+        let i = self.samples.partition_point(|s| s.0 <= t_us);
+        let q = match (i.checked_sub(1).map(|j| self.samples[j]), self.samples.get(i)) {
+            (Some((t0, q0)), Some(&(t1, q1))) => {
+                let s = (t_us - t0) as f64 / (t1 - t0) as f64;
+                // Shortest path: q and -q are the same rotation.
+                let q1 = if q0.dot(q1) < 0.0 { -q1 } else { q1 };
+                q0.slerp(q1, s)
+            }
+            (Some((_, q)), None) | (None, Some(&(_, q))) => q,
+            (None, None) => return None,
+        };
+        Some(Euler::from_quat(q))
+    }
+}
