@@ -7,5 +7,7 @@
 //! `image_ops` holds the sampling and image metrics both sides share; `cli` is the command line.
 
 pub mod geometry;
+pub mod layout;
 pub mod lens;
+pub mod state;
 pub mod units;

@@ -84,3 +84,8 @@ mod tests {
         assert!(parse_size("0x10").is_err());
     }
 }
+
+/// `deserialize_with` for an f64 angle written as radians or `"30deg"`.
+pub fn de_angle<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Angle::deserialize(d).map(|a| a.0)
+}
