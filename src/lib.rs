@@ -7,7 +7,10 @@
 //! `image_ops` holds the sampling and image metrics both sides share; `cli` is the command line.
 
 pub mod geometry;
+pub mod image_ops;
 pub mod layout;
 pub mod lens;
+pub mod render;
+pub mod scene;
 pub mod state;
 pub mod units;

@@ -1,0 +1,164 @@
+//! The frame plan: for each view and detection tile of the output frame, its rectangle and how
+//! its pixels map to world rays and fisheye pixels. Built once per frame from the state, the
+//! lens and the vehicle's attitude; both the CPU reference and the ground-truth renderer
+//! walk the same plan, so they differ only in where the colour comes from.
+
+use crate::geometry::view::{crop, lens_from_world, view_orientation};
+use crate::geometry::{Euler, Projection, rotation::direction};
+use crate::layout::{Layout, LayoutError, Rect, Slot, layout};
+use crate::lens::Lens;
+use crate::state::{State, Tracked};
+use glam::{DMat3, DVec2, DVec3};
+
+/// The most samples per axis a minified view takes per output pixel.
+pub const MAX_SAMPLES: u32 = 8;
+/// Margin around a tracked object's angular size in its tile.
+pub const TILE_MARGIN: f64 = 1.6;
+pub const TILE_FOV_RANGE: (f64, f64) = (0.02, 1.2);
+
+/// How a view's pixels find their colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewMap {
+    /// A rectified view (crop modes 1, 2, 3 and detection tiles): view point → world ray.
+    Rays { projection: Projection, world_from_view: DMat3 },
+    /// An unrectified view (crop modes 0 and 4): view point p → fisheye point
+    /// `origin + p · scale` (fisheye coordinates measured from its top-left corner).
+    Fisheye { origin: DVec2, scale: f64 },
+    /// An unknown crop mode, or a crop whose centre is outside the lens's view.
+    Black,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannedView {
+    pub rect: Rect,
+    pub map: ViewMap,
+    /// Supersampling per axis: enough that a minified view does not alias.
+    pub samples: u32,
+}
+
+#[derive(Clone, Debug)]
+pub struct FramePlan {
+    pub layout: Layout,
+    pub views: Vec<PlannedView>,
+    /// The lens at the fisheye frame's size.
+    pub lens: Lens,
+    pub lens_from_world: DMat3,
+}
+
+impl FramePlan {
+    /// Plans the output frame of `state` for fisheye frames that `lens` describes.
+    pub fn new(state: &State, lens: &Lens) -> Result<FramePlan, LayoutError> {
+        let out = &state.output;
+        let layout = layout(out.width, out.height, out.layout, out.overlay)?;
+        let vehicle = state.vehicle.attitude.euler();
+        let lens_from_world = lens_from_world(vehicle, state.mount.euler());
+        let mut views = Vec::new();
+        for (i, &(rect, slot)) in layout.views.iter().enumerate() {
+            let map = match slot {
+                Slot::Debug => debug_map(rect, lens),
+                _ => {
+                    let cam = &state.cameras[i];
+                    camera_map(rect, cam.crop, cam.fov, view_orientation(cam.euler(), cam.locks(), vehicle), lens, &lens_from_world)
+                }
+            };
+            views.push(PlannedView { rect, map, samples: 1 });
+        }
+        for (rect, obj) in layout.tiles.iter().zip(&state.tracked) {
+            views.push(PlannedView { rect: *rect, map: tile_map(*rect, obj), samples: 1 });
+        }
+        let mut plan = FramePlan { layout, views, lens: lens.clone(), lens_from_world };
+        for i in 0..plan.views.len() {
+            plan.views[i].samples = plan.samples_for(&plan.views[i]);
+        }
+        Ok(plan)
+    }
+
+    /// The fisheye pixel (OpenCV coordinates) seen at point `p` of a view, None where the
+    /// output is black (outside the lens's fov or the fisheye frame).
+    pub fn fisheye_pixel(&self, view: &PlannedView, p: DVec2) -> Option<DVec2> {
+        let q = match view.map {
+            ViewMap::Rays { projection, world_from_view } => {
+                self.lens.project(self.lens_from_world * world_from_view * projection.ray(p))?
+            }
+            ViewMap::Fisheye { origin, scale } => {
+                let q = origin + p * scale - DVec2::splat(0.5);
+                self.lens.unproject(q)?;
+                q
+            }
+            ViewMap::Black => return None,
+        };
+        self.lens.in_frame(q).then_some(q)
+    }
+
+    /// The world ray seen at point `p` of a view, None where the output is black. Same mask as
+    /// [`FramePlan::fisheye_pixel`].
+    pub fn world_ray(&self, view: &PlannedView, p: DVec2) -> Option<DVec3> {
+        let q = self.fisheye_pixel(view, p)?;
+        match view.map {
+            ViewMap::Rays { projection, world_from_view } => Some(world_from_view * projection.ray(p)),
+            _ => Some(self.lens_from_world.transpose() * self.lens.unproject(q)?),
+        }
+    }
+
+    /// Fisheye pixels per output pixel, worst case over a grid of the view, rounded up.
+    fn samples_for(&self, view: &PlannedView) -> u32 {
+        let r = view.rect;
+        let mut worst: f64 = 0.0;
+        for i in 0..=8 {
+            for j in 0..=8 {
+                let p = DVec2::new(r.w as f64 * (0.05 + 0.9 * i as f64 / 8.0), r.h as f64 * (0.05 + 0.9 * j as f64 / 8.0));
+                let (Some(a), Some(bx), Some(by)) = (
+                    self.fisheye_pixel(view, p),
+                    self.fisheye_pixel(view, p + DVec2::X),
+                    self.fisheye_pixel(view, p + DVec2::Y),
+                ) else {
+                    continue;
+                };
+                worst = worst.max((bx - a).length()).max((by - a).length());
+            }
+        }
+        (worst.ceil() as u32).clamp(1, MAX_SAMPLES)
+    }
+}
+
+fn camera_map(rect: Rect, crop_mode: u8, fov: f64, world_from_view: DMat3, lens: &Lens, lens_from_world: &DMat3) -> ViewMap {
+    let (w, h) = (rect.w as f64, rect.h as f64);
+    match crop_mode {
+        crop::RECTILINEAR | crop::RECTIFIED_CROP | crop::PANORAMA => {
+            let view = Euler::from_matrix(&world_from_view);
+            let projection = Projection::for_view(crop_mode, w, h, fov, view).expect("rectified crop mode");
+            ViewMap::Rays { projection, world_from_view }
+        }
+        crop::FISHEYE_CROP => {
+            // An axis-aligned crop of the fisheye around where the view's forward ray lands,
+            // as wide as the view's fov at the lens's radial scale there.
+            let fwd = *lens_from_world * world_from_view * DVec3::X;
+            let Some(centre) = lens.project(fwd) else { return ViewMap::Black };
+            let theta = fwd.x.hypot(fwd.y).atan2(fwd.z);
+            let scale = fov * lens.pixels_per_radian(theta) / w;
+            let centre = centre + DVec2::splat(0.5);
+            ViewMap::Fisheye { origin: centre - DVec2::new(w, h) * 0.5 * scale, scale }
+        }
+        crop::DEBUG => debug_map(rect, lens),
+        _ => ViewMap::Black,
+    }
+}
+
+/// The whole fisheye frame fitted into the view, aspect kept, centred.
+fn debug_map(rect: Rect, lens: &Lens) -> ViewMap {
+    let (fw, fh) = (lens.width as f64, lens.height as f64);
+    let scale = (fw / rect.w as f64).max(fh / rect.h as f64);
+    let origin = DVec2::new(fw, fh) * 0.5 - DVec2::new(rect.w as f64, rect.h as f64) * 0.5 * scale;
+    ViewMap::Fisheye { origin, scale }
+}
+
+/// A level rectilinear view aimed at a tracked object, framing it with a margin.
+fn tile_map(rect: Rect, obj: &Tracked) -> ViewMap {
+    let fov = (obj.size * TILE_MARGIN).clamp(TILE_FOV_RANGE.0, TILE_FOV_RANGE.1);
+    let aim = direction(obj.yaw, obj.pitch);
+    let (yaw, pitch) = crate::geometry::rotation::yaw_pitch(aim);
+    ViewMap::Rays {
+        projection: Projection::Rectilinear { width: rect.w as f64, height: rect.h as f64, fov },
+        world_from_view: Euler::new(yaw, pitch, 0.0).matrix(),
+    }
+}

@@ -1,0 +1,102 @@
+//! Shared by the integration tests: the shipped lenses, a standard test state, and landmark
+//! measurement in rendered frames.
+#![allow(dead_code)]
+
+use digiview::geometry::rotation::yaw_pitch;
+use digiview::image_ops::{centroid, pixel};
+use digiview::layout::Rect;
+use digiview::lens::{Lens, LensCal};
+use digiview::render::{FramePlan, ViewMap};
+use digiview::scene::GridWorld;
+use digiview::scene::synth::eye;
+use digiview::state::State;
+use glam::{DVec2, DVec3};
+use image::RgbImage;
+use std::path::PathBuf;
+
+pub const DEG: f64 = std::f64::consts::PI / 180.0;
+
+pub fn lens_cal() -> LensCal {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
+    LensCal::load(&path).expect("the shipped lens.cal parses")
+}
+
+/// A shipped lens scaled to a small fisheye frame (tests keep frames small).
+pub fn small_lens(name: &str) -> Lens {
+    lens_cal().find(name).unwrap().lens().for_frame(1280, 720, None)
+}
+
+/// Layout 4 at 640x480 with views at pitch 0, -45°, -90° and (yaw 180°) -45°, 90° rectilinear.
+pub fn four_view_state(lock: u8) -> State {
+    let mut s = State::default();
+    s.output.width = 640;
+    s.output.height = 480;
+    s.output.layout = 4;
+    s.output.overlay = 0;
+    let views = [(0.0, 0.0), (0.0, -45.0), (0.0, -90.0), (180.0, -45.0)];
+    for (cam, (yaw, pitch)) in s.cameras.iter_mut().zip(views) {
+        cam.yaw = yaw * DEG;
+        cam.pitch = pitch * DEG;
+        cam.roll = 0.0;
+        cam.fov = 90.0 * DEG;
+        cam.crop = 1;
+        cam.lock = lock;
+    }
+    s
+}
+
+/// A landmark's centroid in a rendered view and in the ground truth.
+#[derive(Debug)]
+pub struct Match {
+    pub name: &'static str,
+    pub view: usize,
+    pub truth: DVec2,
+    pub got: DVec2,
+    pub area: f64,
+}
+
+impl Match {
+    pub fn error(&self) -> f64 {
+        (self.truth - self.got).length()
+    }
+}
+
+/// Where each landmark of the grid world should appear in each rectified view (from the
+/// geometry), measured as a colour centroid in the truth and in `got` over the same window.
+/// Landmarks too small (under 12 px of weight) or too close to a view's edge are skipped.
+pub fn landmark_matches(plan: &FramePlan, state: &State, truth: &RgbImage, got: &RgbImage) -> Vec<Match> {
+    let world = GridWorld::default();
+    let eye = eye(state);
+    let mut out = vec![];
+    for (vi, view) in plan.views.iter().enumerate() {
+        let ViewMap::Rays { projection, world_from_view } = view.map else { continue };
+        for l in &world.landmarks {
+            let ray = (DVec3::new(l.position.x, l.position.y, 0.0) - eye).normalize();
+            let Some(p) = projection.point(world_from_view.transpose() * ray) else { continue };
+            let r = view.rect;
+            let margin = 16.0;
+            if p.x < margin || p.y < margin || p.x > r.w as f64 - margin || p.y > r.h as f64 - margin {
+                continue;
+            }
+            let (cx, cy) = (r.x + p.x as u32, r.y + p.y as u32);
+            if plan.world_ray(view, p).is_none() {
+                continue; // outside the lens's image
+            }
+            let window = Rect::new(cx - 14, cy - 14, 28, 28);
+            let colour = pixel(truth, cx, cy);
+            let (Some((t, area)), Some((g, _))) = (centroid(truth, window, colour, 70.0), centroid(got, window, colour, 70.0)) else {
+                continue;
+            };
+            if area < 12.0 {
+                continue;
+            }
+            out.push(Match { name: l.name, view: vi, truth: t, got: g, area });
+        }
+    }
+    out
+}
+
+/// Yaw and pitch of a landmark seen from the state's eye, for messages.
+pub fn landmark_direction(state: &State, position: DVec2) -> (f64, f64) {
+    yaw_pitch(DVec3::new(position.x, position.y, 0.0) - eye(state))
+}
