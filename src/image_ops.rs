@@ -43,7 +43,11 @@ pub fn psnr(a: &RgbImage, b: &RgbImage, rect: Rect) -> f64 {
         }
     }
     let mse = sum / (3.0 * rect.area() as f64);
-    if mse == 0.0 { f64::INFINITY } else { 10.0 * (255.0 * 255.0 / mse).log10() }
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0 * 255.0 / mse).log10()
+    }
 }
 
 /// Weighted centroid (pixel-centre coordinates) of the pixels near `colour` inside `rect`:
@@ -69,9 +73,19 @@ mod tests {
     fn bilinear_sampling_hits_pixel_centres_and_blends_between_them() {
         let mut img = RgbImage::new(2, 1);
         img.put_pixel(1, 0, image::Rgb([200, 100, 0]));
-        assert_eq!(bilinear(&img, DVec2::new(1.0, 0.0)), DVec3::new(200.0, 100.0, 0.0));
-        assert_eq!(bilinear(&img, DVec2::new(0.5, 0.0)), DVec3::new(100.0, 50.0, 0.0));
-        assert_eq!(bilinear(&img, DVec2::new(-3.0, 5.0)), DVec3::ZERO, "edges clamp");
+        assert_eq!(
+            bilinear(&img, DVec2::new(1.0, 0.0)),
+            DVec3::new(200.0, 100.0, 0.0)
+        );
+        assert_eq!(
+            bilinear(&img, DVec2::new(0.5, 0.0)),
+            DVec3::new(100.0, 50.0, 0.0)
+        );
+        assert_eq!(
+            bilinear(&img, DVec2::new(-3.0, 5.0)),
+            DVec3::ZERO,
+            "edges clamp"
+        );
     }
 
     #[test]
@@ -82,7 +96,13 @@ mod tests {
         b.put_pixel(3, 4, image::Rgb([110, 100, 100]));
         // MSE = 100 / 300 → 10 log10(65025 · 3) = 52.9 dB
         assert!((psnr(&a, &b, Rect::new(0, 0, 10, 10)) - 52.90).abs() < 0.01);
-        let (c, w) = centroid(&b, Rect::new(0, 0, 10, 10), DVec3::new(110.0, 100.0, 100.0), 5.0).unwrap();
+        let (c, w) = centroid(
+            &b,
+            Rect::new(0, 0, 10, 10),
+            DVec3::new(110.0, 100.0, 100.0),
+            5.0,
+        )
+        .unwrap();
         assert_eq!((c, w), (DVec2::new(3.5, 4.5), 1.0));
     }
 }

@@ -97,7 +97,11 @@ pub fn layout(width: u32, height: u32, mode: u8, overlay: u8) -> Result<Layout, 
             let x = if overlay == 2 { width - s } else { 0 };
             let strip = Rect::new(x, 0, s, height);
             let area = Rect::new(if overlay == 2 { 0 } else { s }, 0, width - s, height);
-            (strip, area, (0..height / s).map(|i| Rect::new(x, i * s, s, s)).collect())
+            (
+                strip,
+                area,
+                (0..height / s).map(|i| Rect::new(x, i * s, s, s)).collect(),
+            )
         }
         _ => {
             if height <= s || width < s {
@@ -106,14 +110,24 @@ pub fn layout(width: u32, height: u32, mode: u8, overlay: u8) -> Result<Layout, 
             let y = if overlay == 4 { 0 } else { height - s };
             let strip = Rect::new(0, y, width, s);
             let area = Rect::new(0, if overlay == 4 { s } else { 0 }, width, height - s);
-            (strip, area, (0..width / s).map(|i| Rect::new(i * s, y, s, s)).collect())
+            (
+                strip,
+                area,
+                (0..width / s).map(|i| Rect::new(i * s, y, s, s)).collect(),
+            )
         }
     };
     let views = place_views(area, mode);
     if views.iter().any(|(r, _)| r.w == 0 || r.h == 0) {
         return Err(too_small);
     }
-    Ok(Layout { width, height, views, overlay_box, tiles })
+    Ok(Layout {
+        width,
+        height,
+        views,
+        overlay_box,
+        tiles,
+    })
 }
 
 /// A row of `n` squares of side `side` centred horizontally in `area`, at `y`.
@@ -133,12 +147,16 @@ fn place_views(a: Rect, mode: u8) -> Vec<(Rect, Slot)> {
         1 => {
             let side = a.w.min(a.h / 2);
             let y0 = a.y + (a.h - 2 * side) / 2;
-            square_row(a, 1, side, y0).chain(square_row(a, 1, side, y0 + side)).collect()
+            square_row(a, 1, side, y0)
+                .chain(square_row(a, 1, side, y0 + side))
+                .collect()
         }
         // Two full-width panoramas stacked.
         2 => {
             let h = a.h / 2;
-            (0..2).map(|i| (Rect::new(a.x, a.y + i * h, a.w, h), Slot::Panorama)).collect()
+            (0..2)
+                .map(|i| (Rect::new(a.x, a.y + i * h, a.w, h), Slot::Panorama))
+                .collect()
         }
         // n squares on top of one full-width panorama that takes the rest of the height; the
         // squares take at most two thirds of it so the panorama stays useful.
@@ -153,7 +171,9 @@ fn place_views(a: Rect, mode: u8) -> Vec<(Rect, Slot)> {
         4 => {
             let side = (a.w / 2).min(a.h / 2);
             let y0 = a.y + (a.h - 2 * side) / 2;
-            square_row(a, 2, side, y0).chain(square_row(a, 2, side, y0 + side)).collect()
+            square_row(a, 2, side, y0)
+                .chain(square_row(a, 2, side, y0 + side))
+                .collect()
         }
         _ => vec![(a, Slot::Debug)],
     }

@@ -6,6 +6,7 @@
 //! ground truth from a known world; `render` turns a fisheye frame into the output frame;
 //! `image_ops` holds the sampling and image metrics both sides share; `cli` is the command line.
 
+pub mod cli;
 pub mod geometry;
 pub mod image_ops;
 pub mod layout;

@@ -25,7 +25,13 @@ pub struct Output {
 
 impl Default for Output {
     fn default() -> Self {
-        Output { width: 1920, height: 1080, fps: 30, layout: 4, overlay: 2 }
+        Output {
+            width: 1920,
+            height: 1080,
+            fps: 30,
+            layout: 4,
+            overlay: 2,
+        }
     }
 }
 
@@ -110,12 +116,20 @@ pub struct Vehicle {
 
 impl Default for Vehicle {
     fn default() -> Self {
-        Vehicle { attitude: Angles::default(), position: DEFAULT_POSITION }
+        Vehicle {
+            attitude: Angles::default(),
+            position: DEFAULT_POSITION,
+        }
     }
 }
 
 /// 50 m above a home at 100 m AMSL (the synthetic world's origin).
-pub const DEFAULT_POSITION: GeoPosition = GeoPosition { lat: 58.0, lon: 15.0, alt: 150.0, relative_alt: 50.0 };
+pub const DEFAULT_POSITION: GeoPosition = GeoPosition {
+    lat: 58.0,
+    lon: 15.0,
+    alt: 150.0,
+    relative_alt: 50.0,
+};
 
 /// The fisheye camera: its frame size and optional sensor crop (GENERAL_SETTINGS).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -130,7 +144,12 @@ pub struct Sensor {
 
 impl Default for Sensor {
     fn default() -> Self {
-        Sensor { width: 3840, height: 2160, fps: 30, roi: None }
+        Sensor {
+            width: 3840,
+            height: 2160,
+            fps: 30,
+            roi: None,
+        }
     }
 }
 
@@ -151,7 +170,13 @@ pub struct Tracked {
 
 impl Default for Tracked {
     fn default() -> Self {
-        Tracked { id: 0, yaw: 0.0, pitch: -FRAC_PI_4, size: 0.05, score: 100 }
+        Tracked {
+            id: 0,
+            yaw: 0.0,
+            pitch: -FRAC_PI_4,
+            size: 0.05,
+            score: 100,
+        }
     }
 }
 
@@ -181,7 +206,11 @@ impl Default for State {
             lens: 0,
             cameras: (0..MAX_CAMERAS).map(Camera::numbered).collect(),
             vehicle: Vehicle::default(),
-            mount: Angles { yaw: 0.0, pitch: -std::f64::consts::FRAC_PI_2, roll: 0.0 },
+            mount: Angles {
+                yaw: 0.0,
+                pitch: -std::f64::consts::FRAC_PI_2,
+                roll: 0.0,
+            },
             sensor: Sensor::default(),
             tracked: vec![],
             time: 0.0,
@@ -192,9 +221,16 @@ impl Default for State {
 #[derive(Debug, thiserror::Error)]
 pub enum StateError {
     #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("{path}:{line}: {message}")]
-    Parse { path: String, line: usize, message: String },
+    Parse {
+        path: String,
+        line: usize,
+        message: String,
+    },
     #[error("{0}")]
     Invalid(String),
 }
@@ -202,18 +238,25 @@ pub enum StateError {
 impl State {
     pub fn load(path: &Path) -> Result<State, StateError> {
         let shown = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| StateError::Io { path: shown.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| StateError::Io {
+            path: shown.clone(),
+            source,
+        })?;
         State::parse(&text, &shown)
     }
 
     pub fn parse(text: &str, path: &str) -> Result<State, StateError> {
         let mut state: State = toml::from_str(text).map_err(|e| StateError::Parse {
             path: path.to_string(),
-            line: e.span().map_or(1, |s| text[..s.start].matches('\n').count() + 1),
+            line: e
+                .span()
+                .map_or(1, |s| text[..s.start].matches('\n').count() + 1),
             message: e.message().trim().to_string(),
         })?;
         state.place_cameras()?;
-        state.validate().map_err(|e| StateError::Invalid(format!("{path}: {e}")))?;
+        state
+            .validate()
+            .map_err(|e| StateError::Invalid(format!("{path}: {e}")))?;
         Ok(state)
     }
 
@@ -221,17 +264,26 @@ impl State {
     fn place_cameras(&mut self) -> Result<(), StateError> {
         let given = std::mem::take(&mut self.cameras);
         if given.len() > MAX_CAMERAS {
-            return Err(StateError::Invalid(format!("{} cameras given, at most {MAX_CAMERAS}", given.len())));
+            return Err(StateError::Invalid(format!(
+                "{} cameras given, at most {MAX_CAMERAS}",
+                given.len()
+            )));
         }
         let mut slots: Vec<Option<Camera>> = vec![None; MAX_CAMERAS];
         for (i, cam) in given.into_iter().enumerate() {
             let id = cam.id.unwrap_or(i);
             if id >= MAX_CAMERAS || slots[id].is_some() {
-                return Err(StateError::Invalid(format!("camera id {id} is out of range (0..=3) or given twice")));
+                return Err(StateError::Invalid(format!(
+                    "camera id {id} is out of range (0..=3) or given twice"
+                )));
             }
             slots[id] = Some(Camera { id: None, ..cam });
         }
-        self.cameras = slots.into_iter().enumerate().map(|(i, c)| c.unwrap_or_else(|| Camera::numbered(i))).collect();
+        self.cameras = slots
+            .into_iter()
+            .enumerate()
+            .map(|(i, c)| c.unwrap_or_else(|| Camera::numbered(i)))
+            .collect();
         Ok(())
     }
 
@@ -239,7 +291,10 @@ impl State {
     pub fn validate(&self) -> Result<(), String> {
         let o = &self.output;
         if !(640..=1920).contains(&o.width) || !(480..=1080).contains(&o.height) {
-            return Err(format!("output size {}x{} is outside 640x480..=1920x1080", o.width, o.height));
+            return Err(format!(
+                "output size {}x{} is outside 640x480..=1920x1080",
+                o.width, o.height
+            ));
         }
         if !(5..=30).contains(&o.fps) {
             return Err(format!("output fps {} is outside 5..=30", o.fps));
@@ -252,17 +307,28 @@ impl State {
         }
         for (i, c) in self.cameras.iter().enumerate() {
             if c.lock > 7 {
-                return Err(format!("camera {i}: lock flags {} are outside 0..=7", c.lock));
+                return Err(format!(
+                    "camera {i}: lock flags {} are outside 0..=7",
+                    c.lock
+                ));
             }
             if c.control > 3 {
-                return Err(format!("camera {i}: control mode {} is outside 0..=3", c.control));
+                return Err(format!(
+                    "camera {i}: control mode {} is outside 0..=3",
+                    c.control
+                ));
             }
             if clamp_fov(c.fov, c.crop) != c.fov && c.crop <= crop::DEBUG {
                 let (lo, hi) = crate::geometry::view::fov_range(c.crop);
-                return Err(format!("camera {i}: fov {:.3} rad is outside {lo}..={hi:.3} for crop mode {}", c.fov, c.crop));
+                return Err(format!(
+                    "camera {i}: fov {:.3} rad is outside {lo}..={hi:.3} for crop mode {}",
+                    c.fov, c.crop
+                ));
             }
             if c.control == 2 && c.target.is_none() {
-                return Err(format!("camera {i}: control mode 2 needs a target (lat, lon, alt)"));
+                return Err(format!(
+                    "camera {i}: control mode 2 needs a target (lat, lon, alt)"
+                ));
             }
         }
         let s = &self.sensor;
@@ -271,16 +337,27 @@ impl State {
         }
         let p = &self.vehicle.position;
         if !(-90.0..=90.0).contains(&p.lat) || !(-180.0..=180.0).contains(&p.lon) {
-            return Err(format!("vehicle position {}, {} is not a latitude, longitude", p.lat, p.lon));
+            return Err(format!(
+                "vehicle position {}, {} is not a latitude, longitude",
+                p.lat, p.lon
+            ));
         }
         Ok(())
     }
 
     /// Applies `--cam 0:yaw=45deg,pitch=-30deg,fov=90deg,crop=1,lock=7`.
     pub fn apply_camera_flag(&mut self, flag: &str) -> Result<(), String> {
-        let (id, pairs) = flag.split_once(':').ok_or_else(|| format!("`{flag}`: expected N:key=value,..."))?;
-        let id: usize = id.trim().parse().map_err(|_| format!("`{flag}`: camera id `{id}` is not a number"))?;
-        let cam = self.cameras.get_mut(id).ok_or_else(|| format!("`{flag}`: camera id {id} is outside 0..=3"))?;
+        let (id, pairs) = flag
+            .split_once(':')
+            .ok_or_else(|| format!("`{flag}`: expected N:key=value,..."))?;
+        let id: usize = id
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{flag}`: camera id `{id}` is not a number"))?;
+        let cam = self
+            .cameras
+            .get_mut(id)
+            .ok_or_else(|| format!("`{flag}`: camera id {id} is outside 0..=3"))?;
         for (key, value) in key_values(pairs)? {
             match key {
                 "yaw" => cam.yaw = parse_angle(value)?,
@@ -291,7 +368,11 @@ impl State {
                 "crop" => cam.crop = number(key, value)?,
                 "lock" => cam.lock = number(key, value)?,
                 "control" => cam.control = number(key, value)?,
-                _ => return Err(format!("`{key}` is not a camera field (yaw, pitch, roll, fov, zoom, crop, lock, control)")),
+                _ => {
+                    return Err(format!(
+                        "`{key}` is not a camera field (yaw, pitch, roll, fov, zoom, crop, lock, control)"
+                    ));
+                }
             }
         }
         Ok(())
@@ -319,7 +400,11 @@ impl State {
                 "lon" => p.lon = number(key, value)?,
                 "alt" => p.alt = number(key, value)?,
                 "rel" | "relative_alt" => p.relative_alt = number(key, value)?,
-                _ => return Err(format!("`{key}` is not a position field (lat, lon, alt, rel)")),
+                _ => {
+                    return Err(format!(
+                        "`{key}` is not a position field (lat, lon, alt, rel)"
+                    ));
+                }
             }
         }
         Ok(())
@@ -327,7 +412,10 @@ impl State {
 
     /// Adds a tracked object from `--track yaw=10deg,pitch=-40deg,size=3deg,score=90`.
     pub fn add_tracked(&mut self, flag: &str) -> Result<(), String> {
-        let mut t = Tracked { id: self.tracked.len() as u32, ..Tracked::default() };
+        let mut t = Tracked {
+            id: self.tracked.len() as u32,
+            ..Tracked::default()
+        };
         for (key, value) in key_values(flag)? {
             match key {
                 "yaw" => t.yaw = parse_angle(value)?,
@@ -335,7 +423,11 @@ impl State {
                 "size" => t.size = parse_angle(value)?,
                 "score" => t.score = number(key, value)?,
                 "id" => t.id = number(key, value)?,
-                _ => return Err(format!("`{key}` is not a tracked-object field (yaw, pitch, size, score, id)")),
+                _ => {
+                    return Err(format!(
+                        "`{key}` is not a tracked-object field (yaw, pitch, size, score, id)"
+                    ));
+                }
             }
         }
         self.tracked.push(t);
@@ -355,7 +447,9 @@ fn key_values(text: &str) -> Result<Vec<(&str, &str)>, String> {
 }
 
 fn number<T: std::str::FromStr>(key: &str, value: &str) -> Result<T, String> {
-    value.parse().map_err(|_| format!("{key}=`{value}` is not a valid number here"))
+    value
+        .parse()
+        .map_err(|_| format!("{key}=`{value}` is not a valid number here"))
 }
 
 #[cfg(test)]
@@ -390,13 +484,21 @@ mod tests {
 
     #[test]
     fn bad_state_files_name_the_line_or_the_field() {
-        let e = State::parse("[output]\nwidht = 3\n", "s.toml").unwrap_err().to_string();
+        let e = State::parse("[output]\nwidht = 3\n", "s.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
-        let e = State::parse("[output]\nlayout = 9\n", "s.toml").unwrap_err().to_string();
+        let e = State::parse("[output]\nlayout = 9\n", "s.toml")
+            .unwrap_err()
+            .to_string();
         assert_eq!(e, "s.toml: layout 9 does not exist (0..=6)");
-        let e = State::parse("[[camera]]\nyaw = \"north\"\n", "s.toml").unwrap_err().to_string();
+        let e = State::parse("[[camera]]\nyaw = \"north\"\n", "s.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("s.toml:2: "), "{e}");
-        let e = State::parse("[[camera]]\nfov = \"200deg\"\n", "s.toml").unwrap_err().to_string();
+        let e = State::parse("[[camera]]\nfov = \"200deg\"\n", "s.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("camera 0: fov 3.491 rad is outside"), "{e}");
     }
 
@@ -405,8 +507,16 @@ mod tests {
         let mut s = State::default();
         s.apply_camera_flag("1:yaw=10deg,crop=2,lock=3").unwrap();
         assert_eq!((s.cameras[1].crop, s.cameras[1].lock), (2, 3));
-        assert!(s.apply_camera_flag("4:yaw=0").unwrap_err().contains("outside 0..=3"));
-        assert!(s.apply_camera_flag("0:colour=red").unwrap_err().contains("not a camera field"));
+        assert!(
+            s.apply_camera_flag("4:yaw=0")
+                .unwrap_err()
+                .contains("outside 0..=3")
+        );
+        assert!(
+            s.apply_camera_flag("0:colour=red")
+                .unwrap_err()
+                .contains("not a camera field")
+        );
         State::apply_angles(&mut s.vehicle.attitude, "roll=20deg,pitch=0.1").unwrap();
         assert_eq!(s.vehicle.attitude.pitch, 0.1);
         s.apply_position("lat=1,lon=2,alt=30,rel=20").unwrap();

@@ -15,10 +15,9 @@ pub fn parse_angle(text: &str) -> Result<f64, String> {
     } else {
         (t, 1.0)
     };
-    let value: f64 = number
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{text}` is not an angle (radians, or degrees with a `deg` suffix)"))?;
+    let value: f64 = number.trim().parse().map_err(|_| {
+        format!("`{text}` is not an angle (radians, or degrees with a `deg` suffix)")
+    })?;
     if !value.is_finite() {
         return Err(format!("`{text}` is not a finite angle"));
     }
@@ -29,7 +28,10 @@ pub fn parse_angle(text: &str) -> Result<f64, String> {
 pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
     let err = || format!("`{text}` is not a size like 1920x1080");
     let (w, h) = text.trim().split_once(['x', 'X']).ok_or_else(err)?;
-    let (w, h): (u32, u32) = (w.trim().parse().map_err(|_| err())?, h.trim().parse().map_err(|_| err())?);
+    let (w, h): (u32, u32) = (
+        w.trim().parse().map_err(|_| err())?,
+        h.trim().parse().map_err(|_| err())?,
+    );
     if w == 0 || h == 0 {
         return Err(format!("`{text}`: width and height must be positive"));
     }
@@ -63,6 +65,11 @@ impl<'de> Deserialize<'de> for Angle {
     }
 }
 
+/// `deserialize_with` for an f64 angle written as radians or `"30deg"`.
+pub fn de_angle<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Angle::deserialize(d).map(|a| a.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -83,9 +90,4 @@ mod tests {
         assert!(parse_size("1920").is_err());
         assert!(parse_size("0x10").is_err());
     }
-}
-
-/// `deserialize_with` for an f64 angle written as radians or `"30deg"`.
-pub fn de_angle<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    Angle::deserialize(d).map(|a| a.0)
 }

@@ -29,13 +29,30 @@ fn check(world: &dyn World, lens_name: &str, label: &str) {
     for (i, v) in plan.views.iter().enumerate() {
         let p = psnr(&got, &want, v.rect);
         eprintln!("{label} {lens_name} view {i}: PSNR {p:.2} dB");
-        assert!(p >= 32.0, "{label} {lens_name} view {i}: PSNR {p:.2} dB < 32 dB");
+        assert!(
+            p >= 32.0,
+            "{label} {lens_name} view {i}: PSNR {p:.2} dB < 32 dB"
+        );
     }
     let matches = landmark_matches(&plan, &state, &want, &got);
-    assert!(matches.len() >= 4, "{label} {lens_name}: only {} landmarks visible: {matches:?}", matches.len());
+    assert!(
+        matches.len() >= 4,
+        "{label} {lens_name}: only {} landmarks visible: {matches:?}",
+        matches.len()
+    );
     for m in &matches {
-        eprintln!("{label} {lens_name} {} in view {}: error {:.3} px (area {:.0} px)", m.name, m.view, m.error(), m.area);
-        assert!(m.error() <= 0.5, "{label} {lens_name}: {m:?} off by {:.3} px", m.error());
+        eprintln!(
+            "{label} {lens_name} {} in view {}: error {:.3} px (area {:.0} px)",
+            m.name,
+            m.view,
+            m.error(),
+            m.area
+        );
+        assert!(
+            m.error() <= 0.5,
+            "{label} {lens_name}: {m:?} off by {:.3} px",
+            m.error()
+        );
     }
 }
 

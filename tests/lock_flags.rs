@@ -14,7 +14,13 @@ use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;
 use glam::DVec2;
 
-const ATTITUDES: [(f64, f64, f64); 5] = [(0.0, 0.0, 0.0), (30.0, 0.0, 0.0), (0.0, 15.0, 0.0), (0.0, 0.0, -25.0), (-40.0, 10.0, 20.0)];
+const ATTITUDES: [(f64, f64, f64); 5] = [
+    (0.0, 0.0, 0.0),
+    (30.0, 0.0, 0.0),
+    (0.0, 15.0, 0.0),
+    (0.0, 0.0, -25.0),
+    (-40.0, 10.0, 20.0),
+];
 
 fn at_attitude(lock: u8, (yaw, pitch, roll): (f64, f64, f64)) -> State {
     let mut s = four_view_state(lock);
@@ -35,9 +41,19 @@ fn locked_views_hold_their_landmarks_still_while_the_vehicle_yaws_pitches_and_ro
         let plan = FramePlan::new(&s, &lens).unwrap();
         let got = cpu::render(&plan, &fisheye(&world, &lens, &s));
         let matches = landmark_matches(&plan, &s, &first, &got);
-        assert!(matches.len() >= 4, "{attitude:?}: only {} landmarks to follow", matches.len());
+        assert!(
+            matches.len() >= 4,
+            "{attitude:?}: only {} landmarks to follow",
+            matches.len()
+        );
         for m in &matches {
-            assert!(m.error() <= 0.5, "attitude {attitude:?}: {} in view {} moved {:.3} px", m.name, m.view, m.error());
+            assert!(
+                m.error() <= 0.5,
+                "attitude {attitude:?}: {} in view {} moved {:.3} px",
+                m.name,
+                m.view,
+                m.error()
+            );
         }
     }
 }
@@ -53,13 +69,25 @@ fn unlocked_views_turn_with_the_vehicle_exactly() {
         let plan = FramePlan::new(&s, &lens).unwrap();
         // Fixed to the vehicle: every view pixel samples the same fisheye pixel as when level.
         let yaw_only = attitude.1 == 0.0 && attitude.2 == 0.0;
-        let rigid = |i: usize| yaw_only || s.cameras[i].euler() == digiview::geometry::Euler::default();
+        let rigid =
+            |i: usize| yaw_only || s.cameras[i].euler() == digiview::geometry::Euler::default();
         assert!(rigid(0), "camera 0 looks straight ahead");
-        for (i, (v0, v)) in plan0.views.iter().zip(&plan.views).enumerate().filter(|(i, _)| rigid(*i)) {
-            for p in [DVec2::new(10.5, 20.5), DVec2::new(120.0, 120.0), DVec2::new(200.5, 37.5)] {
+        for (i, (v0, v)) in plan0
+            .views
+            .iter()
+            .zip(&plan.views)
+            .enumerate()
+            .filter(|(i, _)| rigid(*i))
+        {
+            for p in [
+                DVec2::new(10.5, 20.5),
+                DVec2::new(120.0, 120.0),
+                DVec2::new(200.5, 37.5),
+            ] {
                 let (a, b) = (plan0.fisheye_pixel(v0, p), plan.fisheye_pixel(v, p));
                 assert!(
-                    a.zip(b).is_none_or(|(a, b)| (a - b).length() < 1e-9) && a.is_some() == b.is_some(),
+                    a.zip(b).is_none_or(|(a, b)| (a - b).length() < 1e-9)
+                        && a.is_some() == b.is_some(),
                     "{attitude:?}: view {i} pixel {p} moved on the fisheye: {a:?} -> {b:?}"
                 );
             }
@@ -70,9 +98,21 @@ fn unlocked_views_turn_with_the_vehicle_exactly() {
         let matches = landmark_matches(&plan, &s, &want, &got);
         assert!(!matches.is_empty(), "{attitude:?}: no landmark to follow");
         for m in &matches {
-            assert!(m.error() <= 0.5, "{attitude:?}: {} off by {:.3} px", m.name, m.error());
+            assert!(
+                m.error() <= 0.5,
+                "{attitude:?}: {} off by {:.3} px",
+                m.name,
+                m.error()
+            );
         }
-        let changed = plan.views.iter().map(|v| psnr(&truth0, &want, v.rect)).fold(f64::INFINITY, f64::min);
-        assert!(changed < 25.0, "{attitude:?}: the world did not move in the views (PSNR to level {changed:.1} dB)");
+        let changed = plan
+            .views
+            .iter()
+            .map(|v| psnr(&truth0, &want, v.rect))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            changed < 25.0,
+            "{attitude:?}: the world did not move in the views (PSNR to level {changed:.1} dB)"
+        );
     }
 }

@@ -14,7 +14,10 @@ pub struct AttitudeTrack {
 
 impl AttitudeTrack {
     pub fn new(capacity: usize) -> Self {
-        AttitudeTrack { samples: VecDeque::with_capacity(capacity), capacity: capacity.max(2) }
+        AttitudeTrack {
+            samples: VecDeque::with_capacity(capacity),
+            capacity: capacity.max(2),
+        }
     }
 
     /// Adds a sample. Samples may arrive out of order; one with the time of an existing sample
@@ -42,7 +45,10 @@ impl AttitudeTrack {
     /// outside the covered span, None with no samples.
     pub fn at(&self, t_us: u64) -> Option<Euler> {
         let i = self.samples.partition_point(|s| s.0 <= t_us);
-        let q = match (i.checked_sub(1).map(|j| self.samples[j]), self.samples.get(i)) {
+        let q = match (
+            i.checked_sub(1).map(|j| self.samples[j]),
+            self.samples.get(i),
+        ) {
             (Some((t0, q0)), Some(&(t1, q1))) => {
                 let s = (t_us - t0) as f64 / (t1 - t0) as f64;
                 // Shortest path: q and -q are the same rotation.

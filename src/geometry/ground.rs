@@ -32,13 +32,22 @@ pub struct GeoPosition {
 impl Default for GeoPosition {
     /// 50 m above a home at sea level on the equator and prime meridian.
     fn default() -> Self {
-        GeoPosition { lat: 0.0, lon: 0.0, alt: 50.0, relative_alt: 50.0 }
+        GeoPosition {
+            lat: 0.0,
+            lon: 0.0,
+            alt: 50.0,
+            relative_alt: 50.0,
+        }
     }
 }
 
 impl GeoPosition {
     pub fn point(&self) -> GeoPoint {
-        GeoPoint { lat: self.lat, lon: self.lon, alt: self.alt }
+        GeoPoint {
+            lat: self.lat,
+            lon: self.lon,
+            alt: self.alt,
+        }
     }
     pub fn home_alt(&self) -> f64 {
         self.alt - self.relative_alt
@@ -63,10 +72,18 @@ pub fn from_ecef(e: DVec3) -> GeoPoint {
     let mut alt = 0.0;
     for _ in 0..10 {
         let n = A / (1.0 - E2 * lat.sin().powi(2)).sqrt();
-        alt = if lat.cos().abs() > 1e-9 { p / lat.cos() - n } else { e.z.abs() - n * (1.0 - E2) };
+        alt = if lat.cos().abs() > 1e-9 {
+            p / lat.cos() - n
+        } else {
+            e.z.abs() - n * (1.0 - E2)
+        };
         lat = e.z.atan2(p * (1.0 - E2 * n / (n + alt)));
     }
-    GeoPoint { lat: lat.to_degrees(), lon: lon.to_degrees(), alt }
+    GeoPoint {
+        lat: lat.to_degrees(),
+        lon: lon.to_degrees(),
+        alt,
+    }
 }
 
 /// Rotation from ECEF to the NED frame at a point.
@@ -97,7 +114,7 @@ pub fn from_ned(origin: GeoPoint, ned: DVec3) -> GeoPoint {
 pub fn ray_to_ground(position: &GeoPosition, ray: DVec3) -> Option<DVec3> {
     let ray = ray.normalize();
     let height = position.relative_alt;
-    if !(height > 0.0) || ray.z <= 1e-9 {
+    if height.is_nan() || height <= 0.0 || ray.z <= 1e-9 {
         return None;
     }
     let range = height / ray.z;

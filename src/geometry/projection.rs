@@ -13,7 +13,12 @@ pub enum Projection {
     /// Cylindrical panorama: azimuth linear over the width (fov up to 2π), elevation linear
     /// with the same angle per pixel, centred on the view's pitch. Seen from the world it is the
     /// level cylinder about the vertical, turned by the view's roll about its centre ray.
-    Panorama { width: f64, height: f64, fov: f64, pitch: f64 },
+    Panorama {
+        width: f64,
+        height: f64,
+        fov: f64,
+        pitch: f64,
+    },
 }
 
 impl Projection {
@@ -36,7 +41,12 @@ impl Projection {
                 let f = Self::focal(width, fov);
                 DVec3::new(f, p.x - 0.5 * width, p.y - 0.5 * height).normalize()
             }
-            Projection::Panorama { width, height, fov, pitch } => {
+            Projection::Panorama {
+                width,
+                height,
+                fov,
+                pitch,
+            } => {
                 let k = fov / width;
                 let a = (p.x - 0.5 * width) * k;
                 let e = -(p.y - 0.5 * height) * k;
@@ -54,9 +64,17 @@ impl Projection {
                     return None;
                 }
                 let f = Self::focal(width, fov);
-                Some(DVec2::new(0.5 * width + f * ray.y / ray.x, 0.5 * height + f * ray.z / ray.x))
+                Some(DVec2::new(
+                    0.5 * width + f * ray.y / ray.x,
+                    0.5 * height + f * ray.z / ray.x,
+                ))
             }
-            Projection::Panorama { width, height, fov, pitch } => {
+            Projection::Panorama {
+                width,
+                height,
+                fov,
+                pitch,
+            } => {
                 // Undo the pitch offset, then read azimuth and elevation.
                 let level = DMat3::from_rotation_y(pitch) * ray;
                 let (a, el) = yaw_pitch(level);
@@ -71,11 +89,24 @@ impl Projection {
     }
 
     /// The projection for a view of crop mode 1/3 or 2 with the composed angles `view`.
-    pub fn for_view(crop_mode: u8, width: f64, height: f64, fov: f64, view: Euler) -> Option<Projection> {
+    pub fn for_view(
+        crop_mode: u8,
+        width: f64,
+        height: f64,
+        fov: f64,
+        view: Euler,
+    ) -> Option<Projection> {
         use super::view::crop;
         match crop_mode {
-            crop::RECTILINEAR | crop::RECTIFIED_CROP => Some(Projection::Rectilinear { width, height, fov }),
-            crop::PANORAMA => Some(Projection::Panorama { width, height, fov, pitch: view.pitch }),
+            crop::RECTILINEAR | crop::RECTIFIED_CROP => {
+                Some(Projection::Rectilinear { width, height, fov })
+            }
+            crop::PANORAMA => Some(Projection::Panorama {
+                width,
+                height,
+                fov,
+                pitch: view.pitch,
+            }),
             _ => None,
         }
     }

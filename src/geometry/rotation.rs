@@ -18,7 +18,9 @@ impl Euler {
     }
 
     pub fn matrix(&self) -> DMat3 {
-        DMat3::from_rotation_z(self.yaw) * DMat3::from_rotation_y(self.pitch) * DMat3::from_rotation_x(self.roll)
+        DMat3::from_rotation_z(self.yaw)
+            * DMat3::from_rotation_y(self.pitch)
+            * DMat3::from_rotation_x(self.roll)
     }
 
     pub fn quat(&self) -> DQuat {
@@ -37,7 +39,11 @@ impl Euler {
             }
         } else {
             // Gimbal lock: only yaw - roll (or yaw + roll) is defined; put it all in yaw.
-            Euler { yaw: wrap_pi((-m.y_axis.x).atan2(m.y_axis.y)), pitch, roll: 0.0 }
+            Euler {
+                yaw: wrap_pi((-m.y_axis.x).atan2(m.y_axis.y)),
+                pitch,
+                roll: 0.0,
+            }
         }
     }
 

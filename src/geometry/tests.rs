@@ -17,17 +17,33 @@ fn euler_is_rz_ry_rx_with_the_conventions_signs() {
     let g = DMat3::from_euler(EulerRot::ZYX, 0.3, -0.4, 1.1);
     assert!(e.matrix().abs_diff_eq(g, 1e-12));
     // Yaw 90°: the nose points east. Pitch +: the nose goes up (-down). Roll +: right side down.
-    assert!(close(Euler::new(FRAC_PI_2, 0.0, 0.0).matrix() * DVec3::X, DVec3::Y, 1e-12));
-    assert!(close(Euler::new(0.0, 0.3, 0.0).matrix() * DVec3::X, DVec3::new(0.3f64.cos(), 0.0, -0.3f64.sin()), 1e-12));
+    assert!(close(
+        Euler::new(FRAC_PI_2, 0.0, 0.0).matrix() * DVec3::X,
+        DVec3::Y,
+        1e-12
+    ));
+    assert!(close(
+        Euler::new(0.0, 0.3, 0.0).matrix() * DVec3::X,
+        DVec3::new(0.3f64.cos(), 0.0, -0.3f64.sin()),
+        1e-12
+    ));
     assert!((Euler::new(0.0, 0.0, 0.3).matrix() * DVec3::Y).z > 0.0);
 }
 
 #[test]
 fn euler_angles_survive_matrix_and_quaternion_round_trips() {
-    for &(y, p, r) in &[(0.1, 0.2, 0.3), (-3.0, 1.2, -2.5), (3.1, -1.5, 0.0), (-0.7, 0.0, 3.0)] {
+    for &(y, p, r) in &[
+        (0.1, 0.2, 0.3),
+        (-3.0, 1.2, -2.5),
+        (3.1, -1.5, 0.0),
+        (-0.7, 0.0, 3.0),
+    ] {
         let e = Euler::new(y, p, r);
         for back in [Euler::from_matrix(&e.matrix()), Euler::from_quat(e.quat())] {
-            assert!(back.matrix().abs_diff_eq(e.matrix(), 1e-9), "{e:?} -> {back:?}");
+            assert!(
+                back.matrix().abs_diff_eq(e.matrix(), 1e-9),
+                "{e:?} -> {back:?}"
+            );
             assert!((back.yaw - wrap_pi(y)).abs() < 1e-9 && (back.pitch - p).abs() < 1e-9);
         }
     }
@@ -39,9 +55,18 @@ fn euler_angles_survive_matrix_and_quaternion_round_trips() {
 #[test]
 fn the_default_mount_looks_down_with_the_image_top_towards_the_nose() {
     let r = lens_from_world(Euler::default(), Euler::new(0.0, -FRAC_PI_2, 0.0)).transpose();
-    assert!(close(r * DVec3::Z, DVec3::Z, 1e-12), "optical axis points down");
-    assert!(close(r * DVec3::NEG_Y, DVec3::X, 1e-12), "image up is north (the nose)");
-    assert!(close(r * DVec3::X, DVec3::Y, 1e-12), "image right is east (the right wing)");
+    assert!(
+        close(r * DVec3::Z, DVec3::Z, 1e-12),
+        "optical axis points down"
+    );
+    assert!(
+        close(r * DVec3::NEG_Y, DVec3::X, 1e-12),
+        "image up is north (the nose)"
+    );
+    assert!(
+        close(r * DVec3::X, DVec3::Y, 1e-12),
+        "image right is east (the right wing)"
+    );
 }
 
 #[test]
@@ -49,7 +74,10 @@ fn all_locked_views_ignore_the_vehicle_and_unlocked_views_follow_it() {
     let cam = Euler::new(0.5, -0.3, 0.1);
     let v1 = Euler::new(0.2, 0.1, -0.3);
     let v2 = Euler::new(-1.0, -0.2, 0.4);
-    assert!(view_orientation(cam, LockFlags::ALL, v1).abs_diff_eq(view_orientation(cam, LockFlags::ALL, v2), 1e-12));
+    assert!(
+        view_orientation(cam, LockFlags::ALL, v1)
+            .abs_diff_eq(view_orientation(cam, LockFlags::ALL, v2), 1e-12)
+    );
     let zero = Euler::default();
     assert!(view_orientation(zero, LockFlags::NONE, v1).abs_diff_eq(v1.matrix(), 1e-12));
     // Each bit locks its own axis only.
@@ -83,44 +111,90 @@ fn zoom_steps_are_relative_and_clamped_per_crop_mode() {
     let z = zoomed_fov(f, 32, crop::RECTILINEAR);
     assert!((z - 0.6).abs() < 1e-12);
     assert!((zoomed_fov(z, -32, crop::RECTILINEAR) - f).abs() < 1e-12);
-    assert_eq!(zoomed_fov(3.0, -127, crop::RECTILINEAR), MAX_RECTILINEAR_FOV);
+    assert_eq!(
+        zoomed_fov(3.0, -127, crop::RECTILINEAR),
+        MAX_RECTILINEAR_FOV
+    );
     assert_eq!(zoomed_fov(3.0, -127, crop::PANORAMA), 2.0 * PI);
     assert_eq!(zoomed_fov(0.2, 127, crop::PANORAMA), MIN_FOV);
 }
 
 #[test]
 fn wgs84_conversions_round_trip_and_match_known_distances() {
-    let origin = GeoPoint { lat: 59.3293, lon: 18.0686, alt: 30.0 };
-    let p = GeoPoint { lat: 59.34, lon: 18.09, alt: 120.0 };
+    let origin = GeoPoint {
+        lat: 59.3293,
+        lon: 18.0686,
+        alt: 30.0,
+    };
+    let p = GeoPoint {
+        lat: 59.34,
+        lon: 18.09,
+        alt: 120.0,
+    };
     let back = from_ecef(to_ecef(p));
-    assert!((back.lat - p.lat).abs() < 1e-10 && (back.lon - p.lon).abs() < 1e-10 && (back.alt - p.alt).abs() < 1e-6);
+    assert!(
+        (back.lat - p.lat).abs() < 1e-10
+            && (back.lon - p.lon).abs() < 1e-10
+            && (back.alt - p.alt).abs() < 1e-6
+    );
     let ned = to_ned(origin, p);
     let again = from_ned(origin, ned);
     assert!((again.lat - p.lat).abs() < 1e-10 && (again.alt - p.alt).abs() < 1e-6);
     // A degree of latitude at the equator is 110.574 km, of longitude 111.320 km; over a
     // thousandth of a degree the tangent plane and the arc agree to the millimetre.
-    let eq = GeoPoint { lat: 0.0, lon: 0.0, alt: 0.0 };
+    let eq = GeoPoint {
+        lat: 0.0,
+        lon: 0.0,
+        alt: 0.0,
+    };
     let n = to_ned(eq, GeoPoint { lat: 0.001, ..eq });
     let e = to_ned(eq, GeoPoint { lon: 0.001, ..eq });
     assert!((n.x - 110.574).abs() < 0.002, "{n}");
     assert!((e.y - 111.320).abs() < 0.002, "{e}");
     let n = to_ned(eq, GeoPoint { lat: 1.0, ..eq });
-    assert!(n.z > 0.0, "the curved earth falls away below the tangent plane");
+    assert!(
+        n.z > 0.0,
+        "the curved earth falls away below the tangent plane"
+    );
 }
 
 #[test]
 fn rays_meet_the_ground_plane_below_the_vehicle_or_nowhere() {
-    let pos = GeoPosition { lat: 47.0, lon: 8.0, alt: 550.0, relative_alt: 50.0 };
-    assert!(close(ray_to_ground(&pos, DVec3::Z).unwrap(), DVec3::new(0.0, 0.0, 50.0), 1e-9));
+    let pos = GeoPosition {
+        lat: 47.0,
+        lon: 8.0,
+        alt: 550.0,
+        relative_alt: 50.0,
+    };
+    assert!(close(
+        ray_to_ground(&pos, DVec3::Z).unwrap(),
+        DVec3::new(0.0, 0.0, 50.0),
+        1e-9
+    ));
     let d = ray_to_ground(&pos, direction(0.0, -45.0 * DEG)).unwrap();
     assert!((d.x - 50.0).abs() < 1e-9 && (d.z - 50.0).abs() < 1e-9);
-    assert_eq!(ray_to_ground(&pos, DVec3::X), None, "the horizon never meets the ground");
-    assert_eq!(ray_to_ground(&pos, direction(0.0, 0.1)), None, "nor does a ray above it");
-    assert_eq!(ray_to_ground(&pos, direction(0.0, -0.004)), None, "12.5 km is beyond 10 km");
+    assert_eq!(
+        ray_to_ground(&pos, DVec3::X),
+        None,
+        "the horizon never meets the ground"
+    );
+    assert_eq!(
+        ray_to_ground(&pos, direction(0.0, 0.1)),
+        None,
+        "nor does a ray above it"
+    );
+    assert_eq!(
+        ray_to_ground(&pos, direction(0.0, -0.004)),
+        None,
+        "12.5 km is beyond 10 km"
+    );
     let (geo, range) = ground_point(&pos, direction(1.0, -0.5)).unwrap();
     assert!((range - 50.0 / 0.5f64.sin()).abs() < 1e-6);
     let aim = ray_to_target(&pos, geo).unwrap();
-    assert!(close(aim, direction(1.0, -0.5), 1e-9), "aiming at a ground point gives its ray back");
+    assert!(
+        close(aim, direction(1.0, -0.5), 1e-9),
+        "aiming at a ground point gives its ray back"
+    );
 }
 
 #[test]
@@ -131,8 +205,14 @@ fn attitude_is_slerped_between_the_samples_around_the_capture_time() {
     track.push(1_000, Euler::new(10.0 * DEG, 0.0, 0.0)); // out of order
     let mid = track.at(1_500).unwrap();
     assert!((mid.yaw - 20.0 * DEG).abs() < 1e-12, "{mid:?}");
-    assert!((track.at(0).unwrap().yaw - 10.0 * DEG).abs() < 1e-12, "before the span: the first sample");
-    assert!((track.at(9_000).unwrap().yaw - 30.0 * DEG).abs() < 1e-12, "after it: the last");
+    assert!(
+        (track.at(0).unwrap().yaw - 10.0 * DEG).abs() < 1e-12,
+        "before the span: the first sample"
+    );
+    assert!(
+        (track.at(9_000).unwrap().yaw - 30.0 * DEG).abs() < 1e-12,
+        "after it: the last"
+    );
     // Across ±180° the short way round.
     let mut t = AttitudeTrack::new(4);
     t.push(0, Euler::new(170.0 * DEG, 0.0, 0.0));
@@ -148,17 +228,29 @@ fn attitude_is_slerped_between_the_samples_around_the_capture_time() {
 #[test]
 fn rectilinear_and_panorama_pixels_round_trip_and_centre_on_the_forward_axis() {
     let views = [
-        Projection::Rectilinear { width: 320.0, height: 240.0, fov: 90.0 * DEG },
-        Projection::Panorama { width: 640.0, height: 160.0, fov: 2.0 * PI, pitch: -20.0 * DEG },
+        Projection::Rectilinear {
+            width: 320.0,
+            height: 240.0,
+            fov: 90.0 * DEG,
+        },
+        Projection::Panorama {
+            width: 640.0,
+            height: 160.0,
+            fov: 2.0 * PI,
+            pitch: -20.0 * DEG,
+        },
     ];
     for v in views {
         let c = match v {
-            Projection::Rectilinear { width, height, .. } | Projection::Panorama { width, height, .. } => {
-                DVec2::new(width / 2.0, height / 2.0)
-            }
+            Projection::Rectilinear { width, height, .. }
+            | Projection::Panorama { width, height, .. } => DVec2::new(width / 2.0, height / 2.0),
         };
         assert!(close(v.ray(c), DVec3::X, 1e-12), "{v:?}");
-        for p in [DVec2::new(3.0, 7.5), DVec2::new(300.0, 150.0), DVec2::new(100.5, 20.0)] {
+        for p in [
+            DVec2::new(3.0, 7.5),
+            DVec2::new(300.0, 150.0),
+            DVec2::new(100.5, 20.0),
+        ] {
             let q = v.point(v.ray(p)).unwrap();
             assert!((q - p).length() < 1e-9, "{v:?}: {p} -> {q}");
         }
@@ -168,5 +260,8 @@ fn rectilinear_and_panorama_pixels_round_trip_and_centre_on_the_forward_axis() {
     assert!((r.y.atan2(r.x) - 45.0 * DEG).abs() < 1e-12);
     let world = Euler::new(0.0, -20.0 * DEG, 0.0).matrix();
     let (yaw, pitch) = yaw_pitch(world * views[1].ray(DVec2::new(480.0, 80.0)));
-    assert!((yaw - 90.0 * DEG).abs() < 1e-9 && (pitch + 20.0 * DEG).abs() < 1e-9, "level cylinder: {yaw} {pitch}");
+    assert!(
+        (yaw - 90.0 * DEG).abs() < 1e-9 && (pitch + 20.0 * DEG).abs() < 1e-9,
+        "level cylinder: {yaw} {pitch}"
+    );
 }

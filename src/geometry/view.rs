@@ -41,7 +41,10 @@ impl LockFlags {
     /// inverse of [`LockFlags::compose`] for those two axes; roll is left to the caller.
     pub fn decompose(self, yaw: f64, pitch: f64, vehicle: Euler) -> (f64, f64) {
         let follow = |locked: bool, v: f64| if locked { 0.0 } else { v };
-        (wrap_pi(yaw - follow(self.yaw(), vehicle.yaw)), pitch - follow(self.pitch(), vehicle.pitch))
+        (
+            wrap_pi(yaw - follow(self.yaw(), vehicle.yaw)),
+            pitch - follow(self.pitch(), vehicle.pitch),
+        )
     }
 }
 
@@ -59,7 +62,11 @@ pub fn lens_from_world(vehicle: Euler, mount: Euler) -> DMat3 {
 pub fn aim(ray_world: DVec3, cam: Euler, locks: LockFlags, vehicle: Euler) -> Euler {
     let (yaw, pitch) = yaw_pitch(ray_world);
     let (yaw, pitch) = locks.decompose(yaw, pitch, vehicle);
-    Euler { yaw, pitch, roll: cam.roll }
+    Euler {
+        yaw,
+        pitch,
+        roll: cam.roll,
+    }
 }
 
 /// Crop modes of a user camera (conventions.md).

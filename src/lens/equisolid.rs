@@ -5,7 +5,9 @@ pub fn r_of_theta(theta: f64) -> f64 {
 }
 
 pub fn theta_of_r(r: f64) -> Option<f64> {
-    (0.0..=2.0 + 1e-9).contains(&r).then(|| 2.0 * (r / 2.0).min(1.0).asin())
+    (0.0..=2.0 + 1e-9)
+        .contains(&r)
+        .then(|| 2.0 * (r / 2.0).min(1.0).asin())
 }
 
 pub const MAX_THETA: f64 = std::f64::consts::PI;

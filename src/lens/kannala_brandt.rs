@@ -24,5 +24,11 @@ pub fn max_theta(k: &[f64; 4]) -> f64 {
 
 /// Inverse by Newton's method, bracketed on [0, max_theta] so it never leaves the monotone branch.
 pub fn theta_of_r(k: &[f64; 4], theta_max: f64, r: f64) -> Option<f64> {
-    newton_monotone(|t| r_of_theta(k, t), |t| dr_dtheta(k, t), r, theta_max, Some(r))
+    newton_monotone(
+        |t| r_of_theta(k, t),
+        |t| dr_dtheta(k, t),
+        r,
+        theta_max,
+        Some(r),
+    )
 }

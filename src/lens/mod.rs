@@ -12,6 +12,7 @@
 //! part; `shaders/lens.wgsl` has a twin function of the same name for each.
 
 pub mod calfile;
+pub mod check;
 pub mod double_sphere;
 pub mod equidistant;
 pub mod equisolid;
@@ -34,10 +35,18 @@ pub enum Model {
     Stereographic,
     Orthographic,
     /// OpenCV fisheye coefficients k1..k4.
-    KannalaBrandt { k: [f64; 4] },
-    DoubleSphere { xi: f64, alpha: f64 },
+    KannalaBrandt {
+        k: [f64; 4],
+    },
+    DoubleSphere {
+        xi: f64,
+        alpha: f64,
+    },
     /// OCamCalib polynomials, lowest order first, in pixel units of the calibration frame.
-    Ocam { pol: Vec<f64>, invpol: Vec<f64> },
+    Ocam {
+        pol: Vec<f64>,
+        invpol: Vec<f64>,
+    },
 }
 
 impl Model {
@@ -86,7 +95,10 @@ impl Radial {
         };
         let mut radial = Radial {
             model,
-            limits: ModelLimits { theta_max, r_max: f64::INFINITY },
+            limits: ModelLimits {
+                theta_max,
+                r_max: f64::INFINITY,
+            },
         };
         radial.limits.r_max = match &radial.model {
             Model::Ocam { pol, .. } => ocam::max_radius(pol, OCAM_SEARCH_RADIUS),
@@ -202,7 +214,14 @@ pub struct Lens {
 }
 
 impl Lens {
-    pub fn new(name: &str, id: u8, model: Model, affine: PixelAffine, size: (u32, u32), fov: f64) -> Self {
+    pub fn new(
+        name: &str,
+        id: u8,
+        model: Model,
+        affine: PixelAffine,
+        size: (u32, u32),
+        fov: f64,
+    ) -> Self {
         let radial = Radial::new(model);
         let half_fov = (fov / 2.0).min(radial.limits.theta_max);
         Lens {
@@ -220,11 +239,15 @@ impl Lens {
     pub fn project(&self, ray: DVec3) -> Option<DVec2> {
         let rho = ray.x.hypot(ray.y);
         let theta = rho.atan2(ray.z);
-        if !(theta <= self.half_fov + 1e-9) {
+        if theta.is_nan() || theta > self.half_fov + 1e-9 {
             return None;
         }
         let r = self.radial.r_of_theta(theta)?;
-        let dir = if rho > 0.0 { DVec2::new(ray.x, ray.y) / rho } else { DVec2::ZERO };
+        let dir = if rho > 0.0 {
+            DVec2::new(ray.x, ray.y) / rho
+        } else {
+            DVec2::ZERO
+        };
         Some(self.affine.to_pixel(dir * r))
     }
 
@@ -258,7 +281,10 @@ impl Lens {
     /// Pixels per radian at angle θ from the axis, radially: how fine the fisheye samples there.
     pub fn pixels_per_radian(&self, theta: f64) -> f64 {
         let h = 1e-5;
-        let (a, b) = ((theta - h).max(0.0), (theta + h).min(self.radial.limits.theta_max));
+        let (a, b) = (
+            (theta - h).max(0.0),
+            (theta + h).min(self.radial.limits.theta_max),
+        );
         match (self.radial.r_of_theta(a), self.radial.r_of_theta(b)) {
             (Some(ra), Some(rb)) if b > a => (rb - ra) / (b - a) * self.affine.mean_scale(),
             _ => self.affine.mean_scale(),
@@ -267,7 +293,10 @@ impl Lens {
 
     /// Whether a pixel position lies inside the frame (pixel centres 0..w-1 plus half a pixel).
     pub fn in_frame(&self, p: DVec2) -> bool {
-        p.x >= -0.5 && p.y >= -0.5 && p.x <= self.width as f64 - 0.5 && p.y <= self.height as f64 - 0.5
+        p.x >= -0.5
+            && p.y >= -0.5
+            && p.x <= self.width as f64 - 0.5
+            && p.y <= self.height as f64 - 0.5
     }
 
     /// The same lens for a frame of another size, optionally after a sensor crop (ROI given in

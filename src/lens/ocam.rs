@@ -41,5 +41,11 @@ pub fn max_radius(pol: &[f64], search_to: f64) -> f64 {
 pub fn r_of_theta(pol: &[f64], invpol: &[f64], r_max: f64, theta: f64) -> Option<f64> {
     // invpol takes OCam's angle from the image plane, θ - π/2.
     let guess = (!invpol.is_empty()).then(|| poly(invpol, theta - std::f64::consts::FRAC_PI_2));
-    newton_monotone(|r| theta_of_r(pol, r), |r| dtheta_dr(pol, r), theta, r_max, guess)
+    newton_monotone(
+        |r| theta_of_r(pol, r),
+        |r| dtheta_dr(pol, r),
+        theta,
+        r_max,
+        guess,
+    )
 }

@@ -8,7 +8,8 @@ pub fn first_fold(deriv: impl Fn(f64) -> f64, limit: f64) -> f64 {
     let mut prev = 0.0;
     for i in 1..=STEPS {
         let x = step * i as f64;
-        if !(deriv(x) > 0.0) {
+        let d = deriv(x);
+        if d.is_nan() || d <= 0.0 {
             let (mut lo, mut hi) = (prev, x);
             for _ in 0..60 {
                 let mid = 0.5 * (lo + hi);
@@ -41,7 +42,9 @@ pub fn newton_monotone(
         return None;
     }
     let (mut lo, mut hi) = (0.0, x_max);
-    let mut x = guess.filter(|g| g.is_finite() && *g > lo && *g < hi).unwrap_or(0.5 * (lo + hi));
+    let mut x = guess
+        .filter(|g| g.is_finite() && *g > lo && *g < hi)
+        .unwrap_or(0.5 * (lo + hi));
     for _ in 0..100 {
         let fx = f(x) - y;
         if fx.abs() <= tol {
@@ -54,7 +57,11 @@ pub fn newton_monotone(
         }
         let d = df(x);
         let next = x - fx / d;
-        x = if d > 0.0 && next > lo && next < hi { next } else { 0.5 * (lo + hi) };
+        x = if d > 0.0 && next > lo && next < hi {
+            next
+        } else {
+            0.5 * (lo + hi)
+        };
         if hi - lo < 1e-15 {
             break;
         }

@@ -7,14 +7,44 @@ pub(crate) fn sample_lenses() -> Vec<Lens> {
     let pin = |f: f64| PixelAffine::pinhole(f, f * 1.002, 641.3, 479.2);
     let deg = |d: f64| d.to_radians();
     vec![
-        Lens::new("equidistant", 0, Model::Equidistant, pin(300.0), size, deg(190.0)),
-        Lens::new("equisolid", 1, Model::Equisolid, pin(300.0), size, deg(190.0)),
-        Lens::new("stereographic", 2, Model::Stereographic, pin(220.0), size, deg(190.0)),
-        Lens::new("orthographic", 3, Model::Orthographic, pin(470.0), size, deg(180.0)),
+        Lens::new(
+            "equidistant",
+            0,
+            Model::Equidistant,
+            pin(300.0),
+            size,
+            deg(190.0),
+        ),
+        Lens::new(
+            "equisolid",
+            1,
+            Model::Equisolid,
+            pin(300.0),
+            size,
+            deg(190.0),
+        ),
+        Lens::new(
+            "stereographic",
+            2,
+            Model::Stereographic,
+            pin(220.0),
+            size,
+            deg(190.0),
+        ),
+        Lens::new(
+            "orthographic",
+            3,
+            Model::Orthographic,
+            pin(470.0),
+            size,
+            deg(180.0),
+        ),
         Lens::new(
             "kb4",
             4,
-            Model::KannalaBrandt { k: [0.0423, -0.0126, 0.0031, -0.0004] },
+            Model::KannalaBrandt {
+                k: [0.0423, -0.0126, 0.0031, -0.0004],
+            },
             pin(290.0),
             size,
             deg(195.0),
@@ -22,7 +52,10 @@ pub(crate) fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "double_sphere",
             5,
-            Model::DoubleSphere { xi: -0.22, alpha: 0.58 },
+            Model::DoubleSphere {
+                xi: -0.22,
+                alpha: 0.58,
+            },
             pin(180.0),
             size,
             deg(190.0),
@@ -48,7 +81,11 @@ fn circle_pixels(lens: &Lens) -> Vec<DVec2> {
         let theta = lens.half_fov * ring as f64 / 60.0;
         for k in 0..72 {
             let phi = 2.0 * PI * k as f64 / 72.0 + ring as f64 * 0.01;
-            let ray = DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+            let ray = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
             out.push(lens.project(ray).expect("rays inside the fov project"));
         }
     }
@@ -62,7 +99,12 @@ fn every_model_round_trips_pixels_over_its_whole_image_circle_within_a_thousandt
         for p in circle_pixels(&lens) {
             let ray = lens.unproject(p).unwrap_or_else(|| {
                 let m = lens.affine.to_normalized(p).length();
-                panic!("{}: {p} (r {m}, θ {:?}, half fov {}) unprojects", lens.name, lens.radial.theta_of_r(m), lens.half_fov)
+                panic!(
+                    "{}: {p} (r {m}, θ {:?}, half fov {}) unprojects",
+                    lens.name,
+                    lens.radial.theta_of_r(m),
+                    lens.half_fov
+                )
             });
             let back = lens.project(ray).unwrap();
             worst = worst.max((back - p).length());
@@ -73,12 +115,19 @@ fn every_model_round_trips_pixels_over_its_whole_image_circle_within_a_thousandt
 
 #[test]
 fn every_model_round_trips_rays_beyond_ninety_degrees() {
-    for lens in sample_lenses().into_iter().filter(|l| l.half_fov > PI / 2.0 + 0.01) {
+    for lens in sample_lenses()
+        .into_iter()
+        .filter(|l| l.half_fov > PI / 2.0 + 0.01)
+    {
         let theta = lens.half_fov - 0.005;
         let ray = DVec3::new(theta.sin() * 0.6, theta.sin() * -0.8, theta.cos());
         assert!(ray.z < 0.0, "the test ray points backwards");
         let back = lens.unproject(lens.project(ray).unwrap()).unwrap();
-        assert!((back - ray).length() < 1e-9, "{}: {back} vs {ray}", lens.name);
+        assert!(
+            (back - ray).length() < 1e-9,
+            "{}: {back} vs {ray}",
+            lens.name
+        );
     }
 }
 
@@ -130,8 +179,18 @@ fn kannala_brandt_stops_at_the_fold_where_its_polynomial_turns_back() {
     let theta_max = kannala_brandt::max_theta(&k);
     let expect = (1.0_f64 / 0.9).sqrt(); // dr/dθ = 1 - 0.9 θ² = 0
     assert!((theta_max - expect).abs() < 1e-9, "{theta_max} vs {expect}");
-    let lens = Lens::new("fold", 0, Model::KannalaBrandt { k }, PixelAffine::pinhole(300.0, 300.0, 0.0, 0.0), (10, 10), 3.0);
-    assert!((lens.half_fov - theta_max).abs() < 1e-12, "the valid fov is cut at the fold");
+    let lens = Lens::new(
+        "fold",
+        0,
+        Model::KannalaBrandt { k },
+        PixelAffine::pinhole(300.0, 300.0, 0.0, 0.0),
+        (10, 10),
+        3.0,
+    );
+    assert!(
+        (lens.half_fov - theta_max).abs() < 1e-12,
+        "the valid fov is cut at the fold"
+    );
     // Past the fold the same radius has two preimages; the inverse returns the one on the branch.
     let r = kannala_brandt::r_of_theta(&k, 0.8);
     let theta = lens.radial.theta_of_r(r).unwrap();
@@ -141,11 +200,20 @@ fn kannala_brandt_stops_at_the_fold_where_its_polynomial_turns_back() {
 #[test]
 fn ocam_projection_is_exact_even_when_the_inverse_polynomial_is_only_a_rough_fit() {
     let pol = vec![-190.0, 0.0, 1.1e-3, 2.0e-7, 1.0e-9];
-    let rough = Radial::new(Model::Ocam { pol: pol.clone(), invpol: vec![250.0, 150.0] });
-    let none = Radial::new(Model::Ocam { pol, invpol: vec![] });
+    let rough = Radial::new(Model::Ocam {
+        pol: pol.clone(),
+        invpol: vec![250.0, 150.0],
+    });
+    let none = Radial::new(Model::Ocam {
+        pol,
+        invpol: vec![],
+    });
     for i in 1..50 {
         let theta = rough.limits.theta_max * i as f64 / 50.0;
-        let (a, b) = (rough.r_of_theta(theta).unwrap(), none.r_of_theta(theta).unwrap());
+        let (a, b) = (
+            rough.r_of_theta(theta).unwrap(),
+            none.r_of_theta(theta).unwrap(),
+        );
         assert!((a - b).abs() < 1e-9, "{a} vs {b}");
         let back = rough.theta_of_r(a).unwrap();
         assert!((back - theta).abs() < 1e-11, "θ {theta} → r {a} → θ {back}");
@@ -160,7 +228,11 @@ fn rescaling_to_another_frame_size_moves_pixels_with_the_frame() {
         let (p, q) = (lens.project(ray).unwrap(), half.project(ray).unwrap());
         // Pixel centres: full-res pixel centres 0 and 1 map to half-res 0.25 - 0.5 = -0.25 and 0.25.
         let expect = (p + 0.5) * 0.5 - 0.5;
-        assert!((q - expect).length() < 1e-9, "{}: {q} vs {expect}", lens.name);
+        assert!(
+            (q - expect).length() < 1e-9,
+            "{}: {q} vs {expect}",
+            lens.name
+        );
         assert!((half.circle_radius() - lens.circle_radius() * 0.5).abs() < 1e-6);
     }
 }
@@ -168,7 +240,12 @@ fn rescaling_to_another_frame_size_moves_pixels_with_the_frame() {
 #[test]
 fn a_sensor_crop_shifts_the_principal_point_by_the_crop_origin() {
     let lens = &sample_lenses()[0];
-    let roi = Roi { x: 100.0, y: 60.0, width: 1080.0, height: 840.0 };
+    let roi = Roi {
+        x: 100.0,
+        y: 60.0,
+        width: 1080.0,
+        height: 840.0,
+    };
     let cropped = lens.for_frame(1080, 840, Some(roi));
     let d = lens.centre() - cropped.centre();
     assert!((d - DVec2::new(100.0, 60.0)).length() < 1e-9);

@@ -17,7 +17,9 @@ pub fn render(plan: &FramePlan, fisheye: &RgbImage) -> RgbImage {
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    render_with(plan, |view, p| plan.fisheye_pixel(view, p).map(|q| bilinear(fisheye, q)))
+    render_with(plan, |view, p| {
+        plan.fisheye_pixel(view, p).map(|q| bilinear(fisheye, q))
+    })
 }
 
 /// Renders every view of a plan with `colour(view, point)`; None is black. Rows in parallel.
@@ -27,18 +29,24 @@ where
 {
     let (w, h) = (plan.layout.width, plan.layout.height);
     let mut out = vec![0u8; (w * h * 3) as usize];
-    out.par_chunks_mut((w * 3) as usize).enumerate().for_each(|(y, row)| {
-        let y = y as u32;
-        // Later views (tiles) are drawn over earlier ones, so overlay mode 1 covers its corner.
-        for view in plan.views.iter().filter(|v| y >= v.rect.y && y < v.rect.bottom()) {
-            let offsets: Vec<DVec2> = sample_offsets(view.samples).collect();
-            for x in view.rect.x..view.rect.right() {
-                let base = DVec2::new((x - view.rect.x) as f64, (y - view.rect.y) as f64);
-                let sum: DVec3 = offsets.iter().filter_map(|o| colour(view, base + *o)).sum();
-                let rgb = to_rgb8(sum / offsets.len() as f64);
-                row[(x * 3) as usize..(x * 3 + 3) as usize].copy_from_slice(&rgb);
+    out.par_chunks_mut((w * 3) as usize)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let y = y as u32;
+            // Later views (tiles) are drawn over earlier ones, so overlay mode 1 covers its corner.
+            for view in plan
+                .views
+                .iter()
+                .filter(|v| y >= v.rect.y && y < v.rect.bottom())
+            {
+                let offsets: Vec<DVec2> = sample_offsets(view.samples).collect();
+                for x in view.rect.x..view.rect.right() {
+                    let base = DVec2::new((x - view.rect.x) as f64, (y - view.rect.y) as f64);
+                    let sum: DVec3 = offsets.iter().filter_map(|o| colour(view, base + *o)).sum();
+                    let rgb = to_rgb8(sum / offsets.len() as f64);
+                    row[(x * 3) as usize..(x * 3 + 3) as usize].copy_from_slice(&rgb);
+                }
             }
-        }
-    });
+        });
     RgbImage::from_raw(w, h, out).expect("buffer sized to the frame")
 }

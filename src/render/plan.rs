@@ -20,7 +20,10 @@ pub const TILE_FOV_RANGE: (f64, f64) = (0.02, 1.2);
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ViewMap {
     /// A rectified view (crop modes 1, 2, 3 and detection tiles): view point → world ray.
-    Rays { projection: Projection, world_from_view: DMat3 },
+    Rays {
+        projection: Projection,
+        world_from_view: DMat3,
+    },
     /// An unrectified view (crop modes 0 and 4): view point p → fisheye point
     /// `origin + p · scale` (fisheye coordinates measured from its top-left corner).
     Fisheye { origin: DVec2, scale: f64 },
@@ -58,15 +61,35 @@ impl FramePlan {
                 Slot::Debug => debug_map(rect, lens),
                 _ => {
                     let cam = &state.cameras[i];
-                    camera_map(rect, cam.crop, cam.fov, view_orientation(cam.euler(), cam.locks(), vehicle), lens, &lens_from_world)
+                    camera_map(
+                        rect,
+                        cam.crop,
+                        cam.fov,
+                        view_orientation(cam.euler(), cam.locks(), vehicle),
+                        lens,
+                        &lens_from_world,
+                    )
                 }
             };
-            views.push(PlannedView { rect, map, samples: 1 });
+            views.push(PlannedView {
+                rect,
+                map,
+                samples: 1,
+            });
         }
         for (rect, obj) in layout.tiles.iter().zip(&state.tracked) {
-            views.push(PlannedView { rect: *rect, map: tile_map(*rect, obj), samples: 1 });
+            views.push(PlannedView {
+                rect: *rect,
+                map: tile_map(*rect, obj),
+                samples: 1,
+            });
         }
-        let mut plan = FramePlan { layout, views, lens: lens.clone(), lens_from_world };
+        let mut plan = FramePlan {
+            layout,
+            views,
+            lens: lens.clone(),
+            lens_from_world,
+        };
         for i in 0..plan.views.len() {
             plan.views[i].samples = plan.samples_for(&plan.views[i]);
         }
@@ -77,9 +100,12 @@ impl FramePlan {
     /// output is black (outside the lens's fov or the fisheye frame).
     pub fn fisheye_pixel(&self, view: &PlannedView, p: DVec2) -> Option<DVec2> {
         let q = match view.map {
-            ViewMap::Rays { projection, world_from_view } => {
-                self.lens.project(self.lens_from_world * world_from_view * projection.ray(p))?
-            }
+            ViewMap::Rays {
+                projection,
+                world_from_view,
+            } => self
+                .lens
+                .project(self.lens_from_world * world_from_view * projection.ray(p))?,
             ViewMap::Fisheye { origin, scale } => {
                 let q = origin + p * scale - DVec2::splat(0.5);
                 self.lens.unproject(q)?;
@@ -95,7 +121,10 @@ impl FramePlan {
     pub fn world_ray(&self, view: &PlannedView, p: DVec2) -> Option<DVec3> {
         let q = self.fisheye_pixel(view, p)?;
         match view.map {
-            ViewMap::Rays { projection, world_from_view } => Some(world_from_view * projection.ray(p)),
+            ViewMap::Rays {
+                projection,
+                world_from_view,
+            } => Some(world_from_view * projection.ray(p)),
             _ => Some(self.lens_from_world.transpose() * self.lens.unproject(q)?),
         }
     }
@@ -106,7 +135,10 @@ impl FramePlan {
         let mut worst: f64 = 0.0;
         for i in 0..=8 {
             for j in 0..=8 {
-                let p = DVec2::new(r.w as f64 * (0.05 + 0.9 * i as f64 / 8.0), r.h as f64 * (0.05 + 0.9 * j as f64 / 8.0));
+                let p = DVec2::new(
+                    r.w as f64 * (0.05 + 0.9 * i as f64 / 8.0),
+                    r.h as f64 * (0.05 + 0.9 * j as f64 / 8.0),
+                );
                 let (Some(a), Some(bx), Some(by)) = (
                     self.fisheye_pixel(view, p),
                     self.fisheye_pixel(view, p + DVec2::X),
@@ -121,23 +153,39 @@ impl FramePlan {
     }
 }
 
-fn camera_map(rect: Rect, crop_mode: u8, fov: f64, world_from_view: DMat3, lens: &Lens, lens_from_world: &DMat3) -> ViewMap {
+fn camera_map(
+    rect: Rect,
+    crop_mode: u8,
+    fov: f64,
+    world_from_view: DMat3,
+    lens: &Lens,
+    lens_from_world: &DMat3,
+) -> ViewMap {
     let (w, h) = (rect.w as f64, rect.h as f64);
     match crop_mode {
         crop::RECTILINEAR | crop::RECTIFIED_CROP | crop::PANORAMA => {
             let view = Euler::from_matrix(&world_from_view);
-            let projection = Projection::for_view(crop_mode, w, h, fov, view).expect("rectified crop mode");
-            ViewMap::Rays { projection, world_from_view }
+            let projection =
+                Projection::for_view(crop_mode, w, h, fov, view).expect("rectified crop mode");
+            ViewMap::Rays {
+                projection,
+                world_from_view,
+            }
         }
         crop::FISHEYE_CROP => {
             // An axis-aligned crop of the fisheye around where the view's forward ray lands,
             // as wide as the view's fov at the lens's radial scale there.
             let fwd = *lens_from_world * world_from_view * DVec3::X;
-            let Some(centre) = lens.project(fwd) else { return ViewMap::Black };
+            let Some(centre) = lens.project(fwd) else {
+                return ViewMap::Black;
+            };
             let theta = fwd.x.hypot(fwd.y).atan2(fwd.z);
             let scale = fov * lens.pixels_per_radian(theta) / w;
             let centre = centre + DVec2::splat(0.5);
-            ViewMap::Fisheye { origin: centre - DVec2::new(w, h) * 0.5 * scale, scale }
+            ViewMap::Fisheye {
+                origin: centre - DVec2::new(w, h) * 0.5 * scale,
+                scale,
+            }
         }
         crop::DEBUG => debug_map(rect, lens),
         _ => ViewMap::Black,
@@ -158,7 +206,11 @@ fn tile_map(rect: Rect, obj: &Tracked) -> ViewMap {
     let aim = direction(obj.yaw, obj.pitch);
     let (yaw, pitch) = crate::geometry::rotation::yaw_pitch(aim);
     ViewMap::Rays {
-        projection: Projection::Rectilinear { width: rect.w as f64, height: rect.h as f64, fov },
+        projection: Projection::Rectilinear {
+            width: rect.w as f64,
+            height: rect.h as f64,
+            fov,
+        },
         world_from_view: Euler::new(yaw, pitch, 0.0).matrix(),
     }
 }

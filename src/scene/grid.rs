@@ -56,7 +56,12 @@ fn rgb(r: f64, g: f64, b: f64) -> DVec3 {
 
 impl Default for GridWorld {
     fn default() -> Self {
-        let lm = |name, n, e, colour| Landmark { name, position: DVec2::new(n, e), radius: 4.0, colour };
+        let lm = |name, n, e, colour| Landmark {
+            name,
+            position: DVec2::new(n, e),
+            radius: 4.0,
+            colour,
+        };
         GridWorld {
             landmarks: vec![
                 lm("red", 25.0, -25.0, rgb(230.0, 40.0, 40.0)),
@@ -70,9 +75,30 @@ impl Default for GridWorld {
                 lm("black", -15.0, 85.0, rgb(15.0, 15.0, 20.0)),
             ],
             movers: vec![
-                Mover { centre: DVec2::ZERO, orbit: 32.0, speed: 0.12, phase: 0.3, radius: 2.0, colour: rgb(255.0, 150.0, 180.0) },
-                Mover { centre: DVec2::new(40.0, 40.0), orbit: 20.0, speed: -0.2, phase: 2.0, radius: 2.0, colour: rgb(150.0, 255.0, 60.0) },
-                Mover { centre: DVec2::new(-40.0, -20.0), orbit: 15.0, speed: 0.3, phase: 4.0, radius: 1.5, colour: rgb(90.0, 60.0, 30.0) },
+                Mover {
+                    centre: DVec2::ZERO,
+                    orbit: 32.0,
+                    speed: 0.12,
+                    phase: 0.3,
+                    radius: 2.0,
+                    colour: rgb(255.0, 150.0, 180.0),
+                },
+                Mover {
+                    centre: DVec2::new(40.0, 40.0),
+                    orbit: 20.0,
+                    speed: -0.2,
+                    phase: 2.0,
+                    radius: 2.0,
+                    colour: rgb(150.0, 255.0, 60.0),
+                },
+                Mover {
+                    centre: DVec2::new(-40.0, -20.0),
+                    orbit: 15.0,
+                    speed: 0.3,
+                    phase: 4.0,
+                    radius: 1.5,
+                    colour: rgb(90.0, 60.0, 30.0),
+                },
             ],
             haze_distance: 900.0,
         }
@@ -96,10 +122,20 @@ impl GridWorld {
         let major = line(p.x, 50.0, 0.6).max(line(p.y, 50.0, 0.6));
         c = c.lerp(GRID, minor.max(major) * fade);
         for l in &self.landmarks {
-            c = c.lerp(l.colour, smoothstep(l.radius + EDGE, l.radius - EDGE, (p - l.position).length()));
+            c = c.lerp(
+                l.colour,
+                smoothstep(l.radius + EDGE, l.radius - EDGE, (p - l.position).length()),
+            );
         }
         for m in &self.movers {
-            c = c.lerp(m.colour, smoothstep(m.radius + EDGE, m.radius - EDGE, (p - m.position(t)).length()));
+            c = c.lerp(
+                m.colour,
+                smoothstep(
+                    m.radius + EDGE,
+                    m.radius - EDGE,
+                    (p - m.position(t)).length(),
+                ),
+            );
         }
         c
     }

@@ -41,7 +41,13 @@ impl World for PanoramaWorld {
         let p = self.point(ray);
         let (x0, y0) = (p.x.floor(), p.y.floor());
         let (fx, fy) = (p.x - x0, p.y - y0);
-        let at = |x: i64, y: i64| pixel(&self.image, x.rem_euclid(w) as u32, y.clamp(0, h - 1) as u32);
+        let at = |x: i64, y: i64| {
+            pixel(
+                &self.image,
+                x.rem_euclid(w) as u32,
+                y.clamp(0, h - 1) as u32,
+            )
+        };
         let (x0, y0) = (x0 as i64, y0 as i64);
         let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
         let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);

@@ -21,7 +21,11 @@ pub const TRUTH_SAMPLES: u32 = 4;
 
 /// The synthetic world's origin: the home under the default vehicle position, on the ground.
 pub fn world_origin(position: &GeoPosition) -> GeoPoint {
-    GeoPoint { lat: crate::state::DEFAULT_POSITION.lat, lon: crate::state::DEFAULT_POSITION.lon, alt: position.home_alt() }
+    GeoPoint {
+        lat: crate::state::DEFAULT_POSITION.lat,
+        lon: crate::state::DEFAULT_POSITION.lon,
+        alt: position.home_alt(),
+    }
 }
 
 /// The eye (vehicle) position in the world's NED frame.
@@ -34,20 +38,24 @@ pub fn eye(state: &State) -> DVec3 {
 fn supersample<F: Fn(DVec2) -> Option<DVec3> + Sync>(w: u32, h: u32, n: u32, f: F) -> RgbImage {
     let offsets: Vec<DVec2> = sample_offsets(n).collect();
     let mut buf = vec![0u8; (w * h * 3) as usize];
-    buf.par_chunks_mut((w * 3) as usize).enumerate().for_each(|(y, row)| {
-        for x in 0..w {
-            let base = DVec2::new(x as f64, y as f64);
-            let sum: DVec3 = offsets.iter().filter_map(|o| f(base + *o)).sum();
-            row[(x * 3) as usize..(x * 3 + 3) as usize].copy_from_slice(&to_rgb8(sum / offsets.len() as f64));
-        }
-    });
+    buf.par_chunks_mut((w * 3) as usize)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..w {
+                let base = DVec2::new(x as f64, y as f64);
+                let sum: DVec3 = offsets.iter().filter_map(|o| f(base + *o)).sum();
+                row[(x * 3) as usize..(x * 3 + 3) as usize]
+                    .copy_from_slice(&to_rgb8(sum / offsets.len() as f64));
+            }
+        });
     RgbImage::from_raw(w, h, buf).expect("sized buffer")
 }
 
 /// The fisheye frame `lens` captures of `world` at the state's attitude, position, mount and
 /// time: black outside the image circle, each pixel the mean of 3 × 3 rays over its area.
 pub fn fisheye(world: &dyn World, lens: &Lens, state: &State) -> RgbImage {
-    let world_from_lens = lens_from_world(state.vehicle.attitude.euler(), state.mount.euler()).transpose();
+    let world_from_lens =
+        lens_from_world(state.vehicle.attitude.euler(), state.mount.euler()).transpose();
     let (eye, t) = (eye(state), state.time);
     // Sample points measured from the top-left corner; OpenCV pixel coordinates are 0.5 less.
     supersample(lens.width, lens.height, SYNTH_SAMPLES, |p| {
@@ -64,12 +72,16 @@ pub fn truth(world: &dyn World, plan: &FramePlan, state: &State) -> RgbImage {
         v.samples = v.samples.max(TRUTH_SAMPLES);
     }
     let (eye, t) = (eye(state), state.time);
-    render_with(&fine, |view, p| fine.world_ray(view, p).map(|ray| world.colour(eye, ray, t)))
+    render_with(&fine, |view, p| {
+        fine.world_ray(view, p).map(|ray| world.colour(eye, ray, t))
+    })
 }
 
 /// An equirectangular panorama of `world` seen from the state's vehicle position.
 pub fn equirect(world: &dyn World, state: &State, width: u32, height: u32) -> RgbImage {
     let pano = super::PanoramaWorld::new(RgbImage::new(width, height));
     let (eye, t) = (eye(state), state.time);
-    supersample(width, height, 2, |p| Some(world.colour(eye, pano.ray(p - DVec2::splat(0.5)), t)))
+    supersample(width, height, 2, |p| {
+        Some(world.colour(eye, pano.ray(p - DVec2::splat(0.5)), t))
+    })
 }

@@ -23,7 +23,11 @@ pub fn lens_cal() -> LensCal {
 
 /// A shipped lens scaled to a small fisheye frame (tests keep frames small).
 pub fn small_lens(name: &str) -> Lens {
-    lens_cal().find(name).unwrap().lens().for_frame(1280, 720, None)
+    lens_cal()
+        .find(name)
+        .unwrap()
+        .lens()
+        .for_frame(1280, 720, None)
 }
 
 /// Layout 4 at 640x480 with views at pitch 0, -45°, -90° and (yaw 180°) -45°, 90° rectilinear.
@@ -64,18 +68,35 @@ impl Match {
 /// Where each landmark of the grid world should appear in each rectified view (from the
 /// geometry), measured as a colour centroid in the truth and in `got` over the same window.
 /// Landmarks too small (under 12 px of weight) or too close to a view's edge are skipped.
-pub fn landmark_matches(plan: &FramePlan, state: &State, truth: &RgbImage, got: &RgbImage) -> Vec<Match> {
+pub fn landmark_matches(
+    plan: &FramePlan,
+    state: &State,
+    truth: &RgbImage,
+    got: &RgbImage,
+) -> Vec<Match> {
     let world = GridWorld::default();
     let eye = eye(state);
     let mut out = vec![];
     for (vi, view) in plan.views.iter().enumerate() {
-        let ViewMap::Rays { projection, world_from_view } = view.map else { continue };
+        let ViewMap::Rays {
+            projection,
+            world_from_view,
+        } = view.map
+        else {
+            continue;
+        };
         for l in &world.landmarks {
             let ray = (DVec3::new(l.position.x, l.position.y, 0.0) - eye).normalize();
-            let Some(p) = projection.point(world_from_view.transpose() * ray) else { continue };
+            let Some(p) = projection.point(world_from_view.transpose() * ray) else {
+                continue;
+            };
             let r = view.rect;
             let margin = 16.0;
-            if p.x < margin || p.y < margin || p.x > r.w as f64 - margin || p.y > r.h as f64 - margin {
+            if p.x < margin
+                || p.y < margin
+                || p.x > r.w as f64 - margin
+                || p.y > r.h as f64 - margin
+            {
                 continue;
             }
             let (cx, cy) = (r.x + p.x as u32, r.y + p.y as u32);
@@ -84,13 +105,22 @@ pub fn landmark_matches(plan: &FramePlan, state: &State, truth: &RgbImage, got: 
             }
             let window = Rect::new(cx - 14, cy - 14, 28, 28);
             let colour = pixel(truth, cx, cy);
-            let (Some((t, area)), Some((g, _))) = (centroid(truth, window, colour, 70.0), centroid(got, window, colour, 70.0)) else {
+            let (Some((t, area)), Some((g, _))) = (
+                centroid(truth, window, colour, 70.0),
+                centroid(got, window, colour, 70.0),
+            ) else {
                 continue;
             };
             if area < 12.0 {
                 continue;
             }
-            out.push(Match { name: l.name, view: vi, truth: t, got: g, area });
+            out.push(Match {
+                name: l.name,
+                view: vi,
+                truth: t,
+                got: g,
+                area,
+            });
         }
     }
     out

@@ -48,13 +48,25 @@ struct Profile {
 }
 
 pub fn parse(text: &str) -> Result<Imported, String> {
-    let p: Profile = serde_json::from_str(text).map_err(|e| format!("not a Gyroflow lens profile: {e}"))?;
-    if let Some(m) = p.distortion_model.as_deref().filter(|m| *m != "opencv_fisheye") {
-        return Err(format!("distortion_model `{m}` is not supported (only opencv_fisheye)"));
+    let p: Profile =
+        serde_json::from_str(text).map_err(|e| format!("not a Gyroflow lens profile: {e}"))?;
+    if let Some(m) = p
+        .distortion_model
+        .as_deref()
+        .filter(|m| *m != "opencv_fisheye")
+    {
+        return Err(format!(
+            "distortion_model `{m}` is not supported (only opencv_fisheye)"
+        ));
     }
-    for s in [p.input_horizontal_stretch, p.input_vertical_stretch].into_iter().flatten() {
+    for s in [p.input_horizontal_stretch, p.input_vertical_stretch]
+        .into_iter()
+        .flatten()
+    {
         if (s - 1.0).abs() > 1e-6 && s > 0.01 {
-            return Err(format!("anamorphic profiles (input stretch {s}) are not supported"));
+            return Err(format!(
+                "anamorphic profiles (input stretch {s}) are not supported"
+            ));
         }
     }
     let k = &p.fisheye_params.camera_matrix;
@@ -66,12 +78,20 @@ pub fn parse(text: &str) -> Result<Imported, String> {
     let (cx, cy) = if p.asymmetrical {
         (k[0][2], k[1][2])
     } else {
-        (p.calib_dimension.w as f64 / 2.0, p.calib_dimension.h as f64 / 2.0)
+        (
+            p.calib_dimension.w as f64 / 2.0,
+            p.calib_dimension.h as f64 / 2.0,
+        )
     };
     if !(fx > 0.0 && fy > 0.0) {
         return Err("camera_matrix's focal lengths must be positive".into());
     }
-    let what = [p.camera_brand.as_str(), &p.camera_model, &p.lens_model].iter().filter(|s| !s.is_empty()).cloned().collect::<Vec<_>>().join(" ");
+    let what = [p.camera_brand.as_str(), &p.camera_model, &p.lens_model]
+        .iter()
+        .filter(|s| !s.is_empty())
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(" ");
     Ok(Imported {
         model: kb4(&p.fisheye_params.distortion_coeffs, "distortion_coeffs")?,
         affine: PixelAffine::pinhole(fx, fy, cx, cy),

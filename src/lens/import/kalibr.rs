@@ -9,9 +9,15 @@ use yaml_rust2::{Yaml, YamlLoader};
 pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
     let docs = YamlLoader::load_from_str(text).map_err(|e| format!("not valid YAML: {e}"))?;
     let root = docs.into_iter().next().ok_or("empty file")?;
-    let map = root.as_hash().ok_or("the top level is not a mapping of cameras")?;
+    let map = root
+        .as_hash()
+        .ok_or("the top level is not a mapping of cameras")?;
     let (name, cam) = match camera {
-        Some(c) => (c.to_string(), map.get(&Yaml::String(c.into())).ok_or_else(|| format!("no camera `{c}` in the file"))?),
+        Some(c) => (
+            c.to_string(),
+            map.get(&Yaml::String(c.into()))
+                .ok_or_else(|| format!("no camera `{c}` in the file"))?,
+        ),
         None => {
             let (k, v) = map.iter().next().ok_or("no cameras in the file")?;
             (k.as_str().unwrap_or("cam0").to_string(), v)
@@ -19,17 +25,27 @@ pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
     };
     let field = |f: &str| {
         let v = &cam[f];
-        if v.is_badvalue() { Err(format!("{name}: no `{f}`")) } else { Ok(v) }
+        if v.is_badvalue() {
+            Err(format!("{name}: no `{f}`"))
+        } else {
+            Ok(v)
+        }
     };
     let list = |f: &str| -> Result<Vec<f64>, String> {
         field(f)?
             .as_vec()
             .ok_or_else(|| format!("{name}: `{f}` is not a list"))?
             .iter()
-            .map(|x| x.as_f64().or_else(|| x.as_i64().map(|i| i as f64)).ok_or_else(|| format!("{name}: `{f}` holds a non-number")))
+            .map(|x| {
+                x.as_f64()
+                    .or_else(|| x.as_i64().map(|i| i as f64))
+                    .ok_or_else(|| format!("{name}: `{f}` holds a non-number"))
+            })
             .collect()
     };
-    let camera_model = field("camera_model")?.as_str().ok_or("camera_model is not text")?;
+    let camera_model = field("camera_model")?
+        .as_str()
+        .ok_or("camera_model is not text")?;
     let distortion = cam["distortion_model"].as_str().unwrap_or("none");
     let intr = list("intrinsics")?;
     let res = list("resolution")?;
@@ -41,15 +57,30 @@ pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
             if intr.len() != 4 {
                 return Err(format!("{name}: pinhole intrinsics need [fu, fv, pu, pv]"));
             }
-            (kb4(&list("distortion_coeffs")?, "distortion_coeffs")?, [intr[0], intr[1], intr[2], intr[3]])
+            (
+                kb4(&list("distortion_coeffs")?, "distortion_coeffs")?,
+                [intr[0], intr[1], intr[2], intr[3]],
+            )
         }
         ("ds", "none") => {
             if intr.len() != 6 {
-                return Err(format!("{name}: ds intrinsics need [xi, alpha, fu, fv, pu, pv]"));
+                return Err(format!(
+                    "{name}: ds intrinsics need [xi, alpha, fu, fv, pu, pv]"
+                ));
             }
-            (Model::DoubleSphere { xi: intr[0], alpha: intr[1] }, [intr[2], intr[3], intr[4], intr[5]])
+            (
+                Model::DoubleSphere {
+                    xi: intr[0],
+                    alpha: intr[1],
+                },
+                [intr[2], intr[3], intr[4], intr[5]],
+            )
         }
-        (m, d) => return Err(format!("{name}: Kalibr model {m}-{d} has no DigiView equivalent (pinhole-equidistant or ds-none)")),
+        (m, d) => {
+            return Err(format!(
+                "{name}: Kalibr model {m}-{d} has no DigiView equivalent (pinhole-equidistant or ds-none)"
+            ));
+        }
     };
     Ok(Imported {
         model,

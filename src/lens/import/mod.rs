@@ -43,7 +43,11 @@ pub struct ImportOptions<'a> {
 
 /// Guesses the format from the file name and contents.
 pub fn detect(path: &Path, text: &str) -> Option<Format> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
     match ext.as_str() {
         "json" => Some(Format::Gyroflow),
         "xml" => Some(Format::Opencv),
@@ -54,12 +58,22 @@ pub fn detect(path: &Path, text: &str) -> Option<Format> {
     }
 }
 
-pub fn import(path: &Path, format: Option<Format>, opts: &ImportOptions) -> Result<LensEntry, LensError> {
-    let err = |message: String| LensError::Import { path: path.into(), message };
-    let text = std::fs::read_to_string(path).map_err(|source| LensError::Io { path: path.into(), source })?;
-    let format = format
-        .or_else(|| detect(path, &text))
-        .ok_or_else(|| err("cannot tell the calibration format from the name; give --format".into()))?;
+pub fn import(
+    path: &Path,
+    format: Option<Format>,
+    opts: &ImportOptions,
+) -> Result<LensEntry, LensError> {
+    let err = |message: String| LensError::Import {
+        path: path.into(),
+        message,
+    };
+    let text = std::fs::read_to_string(path).map_err(|source| LensError::Io {
+        path: path.into(),
+        source,
+    })?;
+    let format = format.or_else(|| detect(path, &text)).ok_or_else(|| {
+        err("cannot tell the calibration format from the name; give --format".into())
+    })?;
     let got = match format {
         Format::Opencv => opencv::parse(path, &text),
         Format::Ocam => ocamcalib::parse(&text),
@@ -88,7 +102,11 @@ pub fn import(path: &Path, format: Option<Format>, opts: &ImportOptions) -> Resu
             kind: "calibrated".into(),
             by: got.by,
             date: got.date,
-            source: format!("imported from {} ({})", path.file_name().and_then(|n| n.to_str()).unwrap_or("?"), got.source),
+            source: format!(
+                "imported from {} ({})",
+                path.file_name().and_then(|n| n.to_str()).unwrap_or("?"),
+                got.source
+            ),
             assumption: String::new(),
             rms_px: got.rms_px,
         },
@@ -110,7 +128,11 @@ fn widest_angle(radial: &Radial, affine: &PixelAffine, w: u32, h: u32) -> f64 {
     let mut widest: f64 = 0.0;
     for (x, y) in border {
         let r = affine.to_normalized(glam::DVec2::new(x, y)).length();
-        widest = widest.max(radial.theta_of_r(r.min(radial.limits.r_max)).unwrap_or(radial.limits.theta_max));
+        widest = widest.max(
+            radial
+                .theta_of_r(r.min(radial.limits.r_max))
+                .unwrap_or(radial.limits.theta_max),
+        );
     }
     widest.min(radial.limits.theta_max).min(100f64.to_radians())
 }
@@ -119,14 +141,20 @@ fn widest_angle(radial: &Radial, affine: &PixelAffine, w: u32, h: u32) -> f64 {
 fn numbers(text: &str) -> Result<Vec<f64>, String> {
     text.split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == ']')
         .filter(|s| !s.is_empty())
-        .map(|s| s.parse::<f64>().map_err(|_| format!("`{s}` is not a number")))
+        .map(|s| {
+            s.parse::<f64>()
+                .map_err(|_| format!("`{s}` is not a number"))
+        })
         .collect()
 }
 
 fn kb4(k: &[f64], what: &str) -> Result<Model, String> {
-    let k: [f64; 4] = k
-        .try_into()
-        .map_err(|_| format!("{what} has {} coefficients; a fisheye (Kannala-Brandt) calibration has 4", k.len()))?;
+    let k: [f64; 4] = k.try_into().map_err(|_| {
+        format!(
+            "{what} has {} coefficients; a fisheye (Kannala-Brandt) calibration has 4",
+            k.len()
+        )
+    })?;
     Ok(Model::KannalaBrandt { k })
 }
 

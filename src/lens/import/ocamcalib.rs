@@ -13,14 +13,21 @@ pub fn parse(text: &str) -> Result<Imported, String> {
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
         .collect();
     let row = |i: usize, what: &str| -> Result<Vec<f64>, String> {
-        let (n, l) = lines.get(i).ok_or_else(|| format!("missing the {what} line"))?;
+        let (n, l) = lines
+            .get(i)
+            .ok_or_else(|| format!("missing the {what} line"))?;
         numbers(l).map_err(|e| format!("line {n} ({what}): {e}"))
     };
     let counted = |i: usize, what: &str| -> Result<Vec<f64>, String> {
         let v = row(i, what)?;
-        let n = *v.first().ok_or_else(|| format!("the {what} line is empty"))? as usize;
+        let n = *v
+            .first()
+            .ok_or_else(|| format!("the {what} line is empty"))? as usize;
         if v.len() != n + 1 {
-            return Err(format!("the {what} line says {n} coefficients but has {}", v.len() - 1));
+            return Err(format!(
+                "the {what} line says {n} coefficients but has {}",
+                v.len() - 1
+            ));
         }
         Ok(v[1..].to_vec())
     };

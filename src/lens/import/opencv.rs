@@ -8,7 +8,13 @@ use std::path::Path;
 use yaml_rust2::{Yaml, YamlLoader};
 
 const K_NAMES: [&str; 4] = ["camera_matrix", "K", "cameraMatrix", "intrinsic_matrix"];
-const D_NAMES: [&str; 5] = ["distortion_coefficients", "D", "dist_coeffs", "distCoeffs", "distortion_coeffs"];
+const D_NAMES: [&str; 5] = [
+    "distortion_coefficients",
+    "D",
+    "dist_coeffs",
+    "distCoeffs",
+    "distortion_coeffs",
+];
 
 pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
     let fields = if text.trim_start().starts_with("<?xml") || text.contains("<opencv_storage>") {
@@ -16,7 +22,12 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
     } else {
         yaml_fields(text)?
     };
-    let get = |names: &[&str]| names.iter().find_map(|n| fields.iter().find(|(k, _)| k == n)).map(|(_, v)| v.clone());
+    let get = |names: &[&str]| {
+        names
+            .iter()
+            .find_map(|n| fields.iter().find(|(k, _)| k == n))
+            .map(|(_, v)| v.clone())
+    };
     let k = get(&K_NAMES).ok_or("no camera matrix (camera_matrix or K)")?;
     let d = get(&D_NAMES).ok_or("no distortion coefficients (distortion_coefficients or D)")?;
     if k.len() != 9 {
@@ -25,7 +36,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
     if k[1].abs() > 1e-9 {
         return Err("the camera matrix has skew; DigiView's lens models have none".into());
     }
-    let (width, height) = match (get(&["image_width"]), get(&["image_height"]), get(&["image_size", "imageSize"])) {
+    let (width, height) = match (
+        get(&["image_width"]),
+        get(&["image_height"]),
+        get(&["image_size", "imageSize"]),
+    ) {
         (Some(w), Some(h), _) if w.len() == 1 && h.len() == 1 => (w[0], h[0]),
         (_, _, Some(s)) if s.len() == 2 => (s[0], s[1]),
         _ => return Err("no image size (image_width and image_height, or image_size)".into()),
@@ -33,15 +48,21 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
     if !(k[0] > 0.0 && k[4] > 0.0) {
         return Err("the camera matrix's focal lengths must be positive".into());
     }
-    let rms = get(&["rms", "avg_reprojection_error", "reprojection_error"]).and_then(|v| v.first().copied());
+    let rms = get(&["rms", "avg_reprojection_error", "reprojection_error"])
+        .and_then(|v| v.first().copied());
     Ok(Imported {
         model: kb4(&d, "the distortion vector")?,
         affine: PixelAffine::pinhole(k[0], k[4], k[2], k[5]),
         width: width as u32,
         height: height as u32,
         by: String::new(),
-        date: get(&["calibration_time"]).map(|_| String::new()).unwrap_or_default(),
-        source: format!("OpenCV fisheye, {}", path.extension().and_then(|e| e.to_str()).unwrap_or("yaml")),
+        date: get(&["calibration_time"])
+            .map(|_| String::new())
+            .unwrap_or_default(),
+        source: format!(
+            "OpenCV fisheye, {}",
+            path.extension().and_then(|e| e.to_str()).unwrap_or("yaml")
+        ),
         rms_px: rms,
     })
 }
@@ -49,7 +70,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
 /// Top-level name → numbers, for YAML FileStorage.
 fn yaml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
     // FileStorage writes `%YAML:1.0`, which is not a YAML 1.x directive; drop it.
-    let cleaned: String = text.lines().filter(|l| !l.starts_with("%YAML")).collect::<Vec<_>>().join("\n");
+    let cleaned: String = text
+        .lines()
+        .filter(|l| !l.starts_with("%YAML"))
+        .collect::<Vec<_>>()
+        .join("\n");
     let docs = YamlLoader::load_from_str(&cleaned).map_err(|e| format!("not valid YAML: {e}"))?;
     let root = docs.into_iter().next().ok_or("empty file")?;
     let map = root.as_hash().ok_or("the top level is not a mapping")?;
@@ -69,9 +94,15 @@ fn yaml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
 
 fn yaml_numbers(v: &Yaml) -> Result<Vec<f64>, String> {
     match v {
-        Yaml::Real(s) => s.parse().map(|x| vec![x]).map_err(|_| format!("`{s}` is not a number")),
+        Yaml::Real(s) => s
+            .parse()
+            .map(|x| vec![x])
+            .map_err(|_| format!("`{s}` is not a number")),
         Yaml::Integer(i) => Ok(vec![*i as f64]),
-        Yaml::Array(a) => a.iter().map(|x| yaml_numbers(x).and_then(|v| v.first().copied().ok_or_else(|| "empty".into()))).collect(),
+        Yaml::Array(a) => a
+            .iter()
+            .map(|x| yaml_numbers(x).and_then(|v| v.first().copied().ok_or_else(|| "empty".into())))
+            .collect(),
         _ => Err("not numeric".into()),
     }
 }
@@ -81,7 +112,10 @@ fn xml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
     let doc = roxmltree::Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
     let root = doc.root_element();
     if root.tag_name().name() != "opencv_storage" {
-        return Err(format!("the root element is <{}>, not <opencv_storage>", root.tag_name().name()));
+        return Err(format!(
+            "the root element is <{}>, not <opencv_storage>",
+            root.tag_name().name()
+        ));
     }
     let mut out = vec![];
     for node in root.children().filter(|n| n.is_element()) {

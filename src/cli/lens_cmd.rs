@@ -1,0 +1,198 @@
+//! `digiview lens list|show|check|import`.
+
+use crate::lens::check::check;
+use crate::lens::import::{Format, ImportOptions, import};
+use crate::lens::{LensCal, LensEntry};
+use crate::units::{deg, parse_angle};
+use anyhow::{Result, bail};
+use clap::Subcommand;
+use std::path::{Path, PathBuf};
+
+#[derive(Subcommand, Debug)]
+pub enum LensCommand {
+    /// One line per lens in lens.cal.
+    List,
+    /// Everything lens.cal says about one lens, and what follows from it.
+    Show { lens: String },
+    /// Check lenses (all by default) for consistency; exits 1 if any check fails.
+    Check { lenses: Vec<String> },
+    /// Turn an existing calibration into a lens.cal entry (printed; --write adds it to lens.cal).
+    Import {
+        file: PathBuf,
+        #[arg(long, value_enum)]
+        format: Option<Format>,
+        #[arg(long)]
+        name: String,
+        #[arg(long)]
+        id: u8,
+        /// The valid field of view (e.g. 190deg); by default the widest the frame shows.
+        #[arg(long, value_parser = parse_angle)]
+        fov: Option<f64>,
+        /// Which camera of a Kalibr camchain (default: the first).
+        #[arg(long)]
+        camera: Option<String>,
+        /// Append the entry to lens.cal.
+        #[arg(long)]
+        write: bool,
+        /// With --write: replace the entry of the same name or id.
+        #[arg(long, requires = "write")]
+        replace: bool,
+    },
+}
+
+pub fn run(path: &Path, cmd: LensCommand) -> Result<()> {
+    match cmd {
+        LensCommand::List => {
+            let cal = LensCal::load(path)?;
+            println!(
+                "{:<10} {:>3}  {:<15} {:>10} {:>10} {:>9}  provenance",
+                "name", "id", "model", "frame", "fov", "circle"
+            );
+            for e in &cal.entries {
+                let lens = e.lens();
+                println!(
+                    "{:<10} {:>3}  {:<15} {:>10} {:>10} {:>7.1}px  {}",
+                    e.name,
+                    e.lens_id,
+                    e.model.name(),
+                    format!("{}x{}", e.width, e.height),
+                    deg(lens.fov()),
+                    lens.circle_radius(),
+                    e.provenance.kind
+                );
+            }
+        }
+        LensCommand::Show { lens } => {
+            let cal = LensCal::load(path)?;
+            let e = cal.find(&lens)?;
+            let l = e.lens();
+            println!(
+                "# {} (lens_id {}), {}:{}",
+                e.name,
+                e.lens_id,
+                path.display(),
+                e.line
+            );
+            println!(
+                "# model {}, valid fov {}, model limit {}",
+                e.model.name(),
+                deg(l.fov()),
+                deg(2.0 * l.radial.limits.theta_max)
+            );
+            println!(
+                "# image circle radius {:.1} px about ({:.1}, {:.1})",
+                l.circle_radius(),
+                l.centre().x,
+                l.centre().y
+            );
+            println!(
+                "# {:.1} px per degree at the centre",
+                l.pixels_per_radian(0.0).to_radians()
+            );
+            print!("{}", e.to_toml());
+        }
+        LensCommand::Check { lenses } => {
+            let cal = LensCal::load(path)?;
+            let chosen: Vec<&LensEntry> = if lenses.is_empty() {
+                cal.entries.iter().collect()
+            } else {
+                lenses
+                    .iter()
+                    .map(|n| cal.find(n))
+                    .collect::<Result<_, _>>()?
+            };
+            let mut failures = 0;
+            for e in chosen {
+                for f in check(e) {
+                    println!(
+                        "{:<10} {}  {}",
+                        e.name,
+                        if f.ok { "ok  " } else { "FAIL" },
+                        f.what
+                    );
+                    failures += usize::from(!f.ok);
+                }
+            }
+            if failures > 0 {
+                bail!("{failures} check(s) failed");
+            }
+        }
+        LensCommand::Import {
+            file,
+            format,
+            name,
+            id,
+            fov,
+            camera,
+            write,
+            replace,
+        } => {
+            let opts = ImportOptions {
+                name: &name,
+                lens_id: id,
+                fov,
+                camera: camera.as_deref(),
+            };
+            let entry = import(&file, format, &opts)?;
+            let text = entry.to_toml();
+            if !write {
+                print!("{text}");
+                return Ok(());
+            }
+            append(path, &entry, &text, replace)?;
+            eprintln!(
+                "added {} (lens_id {}) to {}",
+                entry.name,
+                entry.lens_id,
+                path.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Appends an entry to lens.cal (replacing a clashing one if asked), and only writes a file
+/// that parses.
+fn append(path: &Path, entry: &LensEntry, text: &str, replace: bool) -> Result<()> {
+    let old = std::fs::read_to_string(path).unwrap_or_default();
+    let cal = LensCal::parse(path, &old)?;
+    let clash = cal
+        .entries
+        .iter()
+        .find(|e| e.name.eq_ignore_ascii_case(&entry.name) || e.lens_id == entry.lens_id);
+    let mut body = old.clone();
+    if let Some(c) = clash {
+        if !replace {
+            bail!(
+                "{} already has {} (lens_id {}) on line {}; use --replace",
+                path.display(),
+                c.name,
+                c.lens_id,
+                c.line
+            );
+        }
+        body = remove_table(&old, c.line);
+    }
+    if !body.ends_with('\n') && !body.is_empty() {
+        body.push('\n');
+    }
+    body.push('\n');
+    body.push_str(text);
+    LensCal::parse(path, &body)?;
+    let tmp = path.with_extension("cal.tmp");
+    std::fs::write(&tmp, &body)?;
+    std::fs::rename(&tmp, path)?;
+    Ok(())
+}
+
+/// The text without the `[[lens]]` table that starts on 1-based `line`.
+fn remove_table(text: &str, line: usize) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    let start = line - 1;
+    let end = (start + 1..lines.len())
+        .find(|&i| lines[i].trim_start().starts_with("[[lens]]"))
+        .unwrap_or(lines.len());
+    let mut kept: Vec<&str> = lines[..start].to_vec();
+    kept.extend_from_slice(&lines[end..]);
+    kept.join("\n") + "\n"
+}

@@ -1,0 +1,155 @@
+//! The command line: `digiview lens …`, `digiview synth`, `digiview render`. Parses flags into
+//! the library's plain types and reports errors with anyhow; no rendering logic lives here.
+
+mod lens_cmd;
+mod render_cmd;
+
+use crate::state::State;
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "digiview",
+    version,
+    about = "Onboard fisheye virtual-camera video head"
+)]
+pub struct Cli {
+    /// The lens calibration file.
+    #[arg(
+        long,
+        global = true,
+        env = "DIGIVIEW_LENS_CAL",
+        default_value = "lens-cal/lens.cal"
+    )]
+    pub lens_cal: PathBuf,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// List, show, check and import lens calibrations.
+    #[command(subcommand)]
+    Lens(lens_cmd::LensCommand),
+    /// Render the output frame from a fisheye image.
+    Render(render_cmd::RenderArgs),
+    /// Synthesise a fisheye frame (or, with --truth, the exact output frame) from a known world.
+    Synth(render_cmd::SynthArgs),
+}
+
+/// Everything a state file holds, as flags that override it.
+#[derive(Args, Debug, Default, Clone)]
+pub struct StateArgs {
+    /// A TOML state file (docs/cli.md); flags below override it.
+    #[arg(long)]
+    pub state: Option<PathBuf>,
+    /// Lens by name or lens_id in lens.cal.
+    #[arg(long)]
+    pub lens: Option<String>,
+    /// Layout mode 0..=6.
+    #[arg(long)]
+    pub layout: Option<u8>,
+    /// Detection overlay mode 0..=5.
+    #[arg(long)]
+    pub overlay: Option<u8>,
+    /// Output size WxH.
+    #[arg(long, value_parser = crate::units::parse_size)]
+    pub size: Option<(u32, u32)>,
+    #[arg(long)]
+    pub fps: Option<u32>,
+    /// A camera: N:yaw=45deg,pitch=-30deg,roll=0,fov=90deg,zoom=0,crop=1,lock=7,control=1 (repeatable).
+    #[arg(long = "cam")]
+    pub cams: Vec<String>,
+    /// Vehicle attitude: yaw=..,pitch=..,roll=..
+    #[arg(long)]
+    pub attitude: Option<String>,
+    /// Fisheye mount on the vehicle: yaw=..,pitch=..,roll=.. (default pitch=-90deg, looking down).
+    #[arg(long)]
+    pub mount: Option<String>,
+    /// Vehicle position: lat=..,lon=..,alt=..,rel=.. (degrees; metres AMSL and above home).
+    #[arg(long)]
+    pub position: Option<String>,
+    /// A tracked object for a detection tile: yaw=..,pitch=..,size=..,score=.. (repeatable).
+    #[arg(long = "track")]
+    pub tracks: Vec<String>,
+    /// Scene time in seconds (moves the synthetic world's objects).
+    #[arg(long)]
+    pub time: Option<f64>,
+}
+
+impl StateArgs {
+    /// The state file (or the defaults) with every flag applied, checked for range. The lens
+    /// flag is resolved by the caller, which has lens.cal.
+    pub fn state(&self, cal: &crate::lens::LensCal) -> Result<State> {
+        let mut s = match &self.state {
+            Some(p) => State::load(p)?,
+            None => State::default(),
+        };
+        let bad = |e: String| anyhow::anyhow!(e);
+        if let Some(l) = &self.lens {
+            s.lens = cal.find(l)?.lens_id;
+        }
+        if let Some(v) = self.layout {
+            s.output.layout = v;
+        }
+        if let Some(v) = self.overlay {
+            s.output.overlay = v;
+        }
+        if let Some((w, h)) = self.size {
+            (s.output.width, s.output.height) = (w, h);
+        }
+        if let Some(v) = self.fps {
+            s.output.fps = v;
+        }
+        for c in &self.cams {
+            s.apply_camera_flag(c)
+                .map_err(bad)
+                .with_context(|| format!("--cam {c}"))?;
+        }
+        if let Some(a) = &self.attitude {
+            State::apply_angles(&mut s.vehicle.attitude, a)
+                .map_err(bad)
+                .context("--attitude")?;
+        }
+        if let Some(a) = &self.mount {
+            State::apply_angles(&mut s.mount, a)
+                .map_err(bad)
+                .context("--mount")?;
+        }
+        if let Some(p) = &self.position {
+            s.apply_position(p).map_err(bad).context("--position")?;
+        }
+        for t in &self.tracks {
+            s.add_tracked(t)
+                .map_err(bad)
+                .with_context(|| format!("--track {t}"))?;
+        }
+        if let Some(t) = self.time {
+            s.time = t;
+        }
+        s.validate().map_err(bad)?;
+        Ok(s)
+    }
+}
+
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Lens(cmd) => lens_cmd::run(&cli.lens_cal, cmd),
+        Command::Render(args) => render_cmd::render(&cli.lens_cal, args),
+        Command::Synth(args) => render_cmd::synth(&cli.lens_cal, args),
+    }
+}
+
+/// A spinner on stderr for work that takes seconds; hidden when stderr is not a terminal.
+pub(crate) fn spinner(message: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+            .expect("valid template"),
+    );
+    bar.set_message(message.to_string());
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    bar
+}

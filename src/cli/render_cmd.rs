@@ -1,0 +1,130 @@
+//! `digiview render` (fisheye image → output frame) and `digiview synth` (synthetic fisheye
+//! frames, ground-truth output frames and panoramas).
+
+use super::{StateArgs, spinner};
+use crate::lens::{Lens, LensCal, Roi};
+use crate::render::{FramePlan, cpu};
+use crate::scene::synth::{equirect, fisheye, truth};
+use crate::scene::{GridWorld, PanoramaWorld, World};
+use crate::state::State;
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use image::RgbImage;
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Backend {
+    Cpu,
+    Gpu,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// The fisheye image (PNG or JPEG).
+    #[arg(long)]
+    input: PathBuf,
+    /// Where to write the output frame (.png or .jpg).
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, value_enum, default_value = "cpu")]
+    backend: Backend,
+    #[command(flatten)]
+    state: StateArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct SynthArgs {
+    /// Where to write the image (.png or .jpg).
+    #[arg(long)]
+    out: PathBuf,
+    /// The world: `grid` (procedural) or an equirectangular panorama image.
+    #[arg(long, default_value = "grid")]
+    world: String,
+    /// Draw the exact output frame for the state instead of the fisheye frame.
+    #[arg(long, conflicts_with = "equirect")]
+    truth: bool,
+    /// Draw the world as an equirectangular panorama of this size (e.g. 4096x2048).
+    #[arg(long, value_parser = crate::units::parse_size)]
+    equirect: Option<(u32, u32)>,
+    /// The fisheye frame size (default: the state's sensor size, 3840x2160).
+    #[arg(long, value_parser = crate::units::parse_size)]
+    sensor: Option<(u32, u32)>,
+    #[command(flatten)]
+    state: StateArgs,
+}
+
+/// The state's lens, scaled to a fisheye frame of `size` (after the sensor crop, if any).
+fn lens_for(cal: &LensCal, state: &State, size: (u32, u32)) -> Result<Lens> {
+    let entry = cal
+        .by_id(state.lens)
+        .with_context(|| format!("lens_id {} is not in {}", state.lens, cal.path.display()))?;
+    let roi = state.sensor.roi.map(|[x, y, w, h]| Roi {
+        x: x as f64,
+        y: y as f64,
+        width: w as f64,
+        height: h as f64,
+    });
+    Ok(entry.lens().for_frame(size.0, size.1, roi))
+}
+
+fn save(img: &RgbImage, path: &Path) -> Result<()> {
+    img.save(path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    eprintln!(
+        "wrote {} ({}x{})",
+        path.display(),
+        img.width(),
+        img.height()
+    );
+    Ok(())
+}
+
+pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
+    if args.backend == Backend::Gpu {
+        bail!("the GPU backend is not part of this build yet; use --backend cpu");
+    }
+    let cal = LensCal::load(cal_path)?;
+    let state = args.state.state(&cal)?;
+    let input = image::open(&args.input)
+        .with_context(|| format!("reading {}", args.input.display()))?
+        .to_rgb8();
+    let lens = lens_for(&cal, &state, input.dimensions())?;
+    let plan = FramePlan::new(&state, &lens)?;
+    let bar = spinner("rendering on the CPU");
+    let out = cpu::render(&plan, &input);
+    bar.finish_and_clear();
+    save(&out, &args.out)
+}
+
+pub fn synth(cal_path: &Path, args: SynthArgs) -> Result<()> {
+    let cal = LensCal::load(cal_path)?;
+    let mut state_args = args.state.clone();
+    // Without --truth, --size names the fisheye frame (as in `synth --size 3840x2160`).
+    let mut sensor = args.sensor;
+    if !args.truth && args.equirect.is_none() && sensor.is_none() {
+        sensor = state_args.size.take();
+    }
+    let mut state = state_args.state(&cal)?;
+    if let Some((w, h)) = sensor {
+        (state.sensor.width, state.sensor.height) = (w, h);
+    }
+    let world: Box<dyn World> = if args.world == "grid" {
+        Box::new(GridWorld::default())
+    } else {
+        let img = image::open(&args.world)
+            .with_context(|| format!("reading the panorama {}", args.world))?
+            .to_rgb8();
+        Box::new(PanoramaWorld::new(img))
+    };
+    let lens = lens_for(&cal, &state, (state.sensor.width, state.sensor.height))?;
+    let bar = spinner("synthesising");
+    let img = if let Some((w, h)) = args.equirect {
+        equirect(world.as_ref(), &state, w, h)
+    } else if args.truth {
+        truth(world.as_ref(), &FramePlan::new(&state, &lens)?, &state)
+    } else {
+        fisheye(world.as_ref(), &lens, &state)
+    };
+    bar.finish_and_clear();
+    save(&img, &args.out)
+}

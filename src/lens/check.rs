@@ -1,0 +1,79 @@
+//! `digiview lens check`: is a lens.cal entry self-consistent and usable?
+
+use super::LensEntry;
+use glam::{DVec2, DVec3};
+use std::f64::consts::PI;
+
+/// The round-trip accuracy every lens must reach over its image circle.
+pub const ROUND_TRIP_PX: f64 = 1e-3;
+
+#[derive(Debug)]
+pub struct Finding {
+    pub ok: bool,
+    pub what: String,
+}
+
+/// Checks one entry: the declared fov lies where the model is one-to-one, pixels round-trip
+/// within 1e-3 px over the whole image circle, the declared circle radius matches the model,
+/// and the principal point lies in the frame.
+pub fn check(entry: &LensEntry) -> Vec<Finding> {
+    let lens = entry.lens();
+    let mut out = vec![];
+    let limit = lens.radial.limits.theta_max;
+    out.push(Finding {
+        ok: entry.fov / 2.0 <= limit + 1e-9,
+        what: format!(
+            "declared fov {:.2}deg within the model's one-to-one range ({:.2}deg)",
+            entry.fov.to_degrees(),
+            2.0 * limit.to_degrees()
+        ),
+    });
+    let mut worst: f64 = 0.0;
+    let mut failed = 0;
+    for ring in 0..=40 {
+        let theta = lens.half_fov * ring as f64 / 40.0;
+        for k in 0..48 {
+            let phi = 2.0 * PI * k as f64 / 48.0;
+            let ray = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            match lens.project(ray).and_then(|p| {
+                lens.unproject(p)
+                    .and_then(|r| lens.project(r))
+                    .map(|q| (q - p).length())
+            }) {
+                Some(e) => worst = worst.max(e),
+                None => failed += 1,
+            }
+        }
+    }
+    out.push(Finding {
+        ok: failed == 0 && worst < ROUND_TRIP_PX,
+        what: format!("pixels round-trip over the image circle: worst {worst:.1e} px, {failed} failures (limit {ROUND_TRIP_PX:e} px)"),
+    });
+    let computed = lens.circle_radius();
+    if let Some(declared) = entry.circle_radius {
+        out.push(Finding {
+            ok: (declared - computed).abs() <= 0.005 * computed.max(1.0),
+            what: format!("declared circle radius {declared:.1} px matches the model's {computed:.1} px (0.5%)"),
+        });
+    }
+    let c = lens.centre();
+    out.push(Finding {
+        ok: lens.in_frame(c),
+        what: format!(
+            "principal point ({:.1}, {:.1}) inside the {}x{} frame",
+            c.x, c.y, entry.width, entry.height
+        ),
+    });
+    let visible = lens
+        .unproject(DVec2::new(c.x.clamp(0.0, entry.width as f64 - 1.0), c.y))
+        .is_some();
+    out.push(Finding {
+        ok: visible,
+        what: "the image centre sees the scene".into(),
+    });
+    out
+}

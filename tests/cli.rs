@@ -1,0 +1,198 @@
+//! The `digiview` binary as a user runs it: lens commands, synth → render against truth,
+//! importing into lens.cal, and clear errors for bad input.
+
+mod common;
+use digiview::image_ops::psnr;
+use digiview::layout::layout;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn digiview(args: &[&str], cal: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(args)
+        .env("DIGIVIEW_LENS_CAL", cal)
+        .output()
+        .expect("the binary runs")
+}
+
+fn shipped() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn the_shipped_lenses_pass_lens_check() {
+    let o = digiview(&["lens", "check"], &shipped());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{out}{}", stderr(&o));
+    for name in ["CIL216", "CIL018", "LN007"] {
+        assert_eq!(
+            out.lines()
+                .filter(|l| l.starts_with(name) && l.contains(" ok "))
+                .count(),
+            5,
+            "{out}"
+        );
+    }
+    assert!(!out.contains("FAIL"));
+}
+
+#[test]
+fn a_malformed_lens_cal_is_reported_with_file_line_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.cal");
+    let text = std::fs::read_to_string(shipped())
+        .unwrap()
+        .replacen("fx = 775.0", "fx = -775.0", 1);
+    std::fs::write(&bad, &text).unwrap();
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("fx = -775.0"))
+        .unwrap()
+        + 1;
+    let o = digiview(&["lens", "list"], &bad);
+    assert!(!o.status.success());
+    let want = format!("{}:{line}: fx: must be positive (got -775)", bad.display());
+    assert!(stderr(&o).contains(&want), "{} lacks {want}", stderr(&o));
+}
+
+#[test]
+fn synth_then_render_matches_synth_truth_through_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    let state = [
+        "--lens",
+        "LN007",
+        "--size",
+        "640x480",
+        "--layout",
+        "3",
+        "--overlay",
+        "5",
+        "--attitude",
+        "roll=15deg,pitch=-5deg",
+    ];
+    let run = |extra: &[&str]| {
+        let args: Vec<&str> = extra.iter().chain(state.iter()).copied().collect();
+        let o = digiview(&args, &shipped());
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    };
+    let (fish, out, truth) = (p("fish.png"), p("out.png"), p("truth.png"));
+    run(&["synth", "--sensor", "1280x720", "--out", &fish]);
+    run(&["render", "--input", &fish, "--out", &out]);
+    run(&["synth", "--truth", "--sensor", "1280x720", "--out", &truth]);
+    let (a, b) = (
+        image::open(&out).unwrap().to_rgb8(),
+        image::open(&truth).unwrap().to_rgb8(),
+    );
+    assert_eq!(a.dimensions(), (640, 480));
+    for (rect, _) in layout(640, 480, 3, 5).unwrap().views {
+        let db = psnr(&a, &b, rect);
+        assert!(db >= 32.0, "view {rect:?}: {db:.1} dB");
+    }
+}
+
+#[test]
+fn import_writes_a_new_lens_and_replaces_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let cal = dir.path().join("lens.cal");
+    std::fs::copy(shipped(), &cal).unwrap();
+    let sample =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml");
+    let sample = sample.to_str().unwrap();
+    let o = digiview(
+        &[
+            "lens", "import", sample, "--name", "KAL", "--id", "7", "--fov", "185deg", "--write",
+        ],
+        &cal,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let list = String::from_utf8_lossy(&digiview(&["lens", "list"], &cal).stdout).into_owned();
+    assert!(
+        list.contains("KAL") && list.contains("185.00deg") && list.contains("calibrated"),
+        "{list}"
+    );
+    assert!(list.contains("CIL216"), "existing lenses are kept");
+    let o = digiview(
+        &[
+            "lens", "import", sample, "--name", "KAL", "--id", "8", "--write",
+        ],
+        &cal,
+    );
+    assert!(
+        !o.status.success() && stderr(&o).contains("use --replace"),
+        "{}",
+        stderr(&o)
+    );
+    let o = digiview(
+        &[
+            "lens",
+            "import",
+            sample,
+            "--camera",
+            "cam1",
+            "--name",
+            "KAL",
+            "--id",
+            "7",
+            "--write",
+            "--replace",
+        ],
+        &cal,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let list = String::from_utf8_lossy(&digiview(&["lens", "list"], &cal).stdout).into_owned();
+    assert_eq!(
+        list.lines().count(),
+        5,
+        "header, three shipped lenses, one imported: {list}"
+    );
+    assert!(list.contains("double_sphere"));
+    let o = digiview(&["lens", "check", "KAL"], &cal);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout));
+}
+
+#[test]
+fn bad_flags_and_missing_files_get_clear_errors() {
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &[
+                "render",
+                "--input",
+                "/nonexistent.png",
+                "--out",
+                "/tmp/x.png",
+            ],
+            "reading /nonexistent.png",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--cam", "5:yaw=0"],
+            "camera id 5 is outside 0..=3",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--attitude", "roll=lots"],
+            "`lots` is not an angle",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--lens", "NOPE"],
+            "no lens named or numbered `NOPE`",
+        ),
+        (
+            &["synth", "--truth", "--out", "/tmp/x.png", "--layout", "9"],
+            "layout 9 does not exist",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = digiview(args, &shipped());
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(
+            stderr(&o).contains(want),
+            "{args:?}: `{}` lacks `{want}`",
+            stderr(&o)
+        );
+        assert!(!stderr(&o).contains("panicked"), "{args:?} panicked");
+    }
+}
