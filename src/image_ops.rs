@@ -13,9 +13,23 @@ pub fn pixel(img: &RgbImage, x: u32, y: u32) -> DVec3 {
 /// Bilinear sample at `p` (pixel centres at integers), edges clamped.
 pub fn bilinear(img: &RgbImage, p: DVec2) -> DVec3 {
     let (w, h) = (img.width() as i64, img.height() as i64);
+    bilinear_by(p, |x, y| {
+        pixel(img, x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32)
+    })
+}
+
+/// Bilinear sample at `p`, wrapping around in x (longitude) and clamped in y.
+pub fn bilinear_wrap_x(img: &RgbImage, p: DVec2) -> DVec3 {
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    bilinear_by(p, |x, y| {
+        pixel(img, x.rem_euclid(w) as u32, y.clamp(0, h - 1) as u32)
+    })
+}
+
+/// Bilinear interpolation of `at(x, y)` (which resolves out-of-range pixels) at `p`.
+fn bilinear_by(p: DVec2, at: impl Fn(i64, i64) -> DVec3) -> DVec3 {
     let (x0, y0) = (p.x.floor(), p.y.floor());
     let (fx, fy) = (p.x - x0, p.y - y0);
-    let at = |x: i64, y: i64| pixel(img, x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32);
     let (x0, y0) = (x0 as i64, y0 as i64);
     let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
     let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);

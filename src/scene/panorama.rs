@@ -3,7 +3,7 @@
 //! eye's position does not matter: the panorama is at infinity.
 
 use super::World;
-use crate::image_ops::pixel;
+use crate::image_ops::bilinear_wrap_x;
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -36,21 +36,6 @@ impl PanoramaWorld {
 
 impl World for PanoramaWorld {
     fn colour(&self, _eye: DVec3, ray: DVec3, _t: f64) -> DVec3 {
-        // Bilinear, wrapping in longitude and clamping at the poles.
-        let (w, h) = (self.image.width() as i64, self.image.height() as i64);
-        let p = self.point(ray);
-        let (x0, y0) = (p.x.floor(), p.y.floor());
-        let (fx, fy) = (p.x - x0, p.y - y0);
-        let at = |x: i64, y: i64| {
-            pixel(
-                &self.image,
-                x.rem_euclid(w) as u32,
-                y.clamp(0, h - 1) as u32,
-            )
-        };
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
-        let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);
-        top.lerp(bottom, fy)
+        bilinear_wrap_x(&self.image, self.point(ray))
     }
 }
