@@ -3,7 +3,7 @@
 
 use super::rotation::{Euler, MOUNT_FROM_LENS, wrap_pi, yaw_pitch};
 use glam::{DMat3, DVec3};
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 
 /// Lock flags: bit 0 roll, bit 1 pitch, bit 2 yaw. A locked axis is held in the world frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -108,6 +108,3 @@ pub fn relative_angles(ray_frd: DVec3) -> (f64, f64) {
     let (x, y, z) = (ray_frd.y, ray_frd.z, ray_frd.x);
     (x.atan2(z), (-y).atan2(x.hypot(z)))
 }
-
-/// Half a turn, for checks on yaw ranges.
-pub const HALF_TURN: f64 = PI;
