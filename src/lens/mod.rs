@@ -90,7 +90,13 @@ impl Radial {
             Model::KannalaBrandt { k } => kannala_brandt::max_theta(k),
             Model::DoubleSphere { xi, alpha } => double_sphere::max_theta(*xi, *alpha),
             Model::Ocam { pol, .. } => {
-                ocam::theta_of_r(pol, ocam::max_radius(pol, OCAM_SEARCH_RADIUS))
+                // OCam's limit is found in r; θ follows from it (the fold search runs once).
+                let r_max = ocam::max_radius(pol, OCAM_SEARCH_RADIUS);
+                let theta_max = ocam::theta_of_r(pol, r_max);
+                return Radial {
+                    model,
+                    limits: ModelLimits { theta_max, r_max },
+                };
             }
         };
         let mut radial = Radial {
@@ -100,10 +106,7 @@ impl Radial {
                 r_max: f64::INFINITY,
             },
         };
-        radial.limits.r_max = match &radial.model {
-            Model::Ocam { pol, .. } => ocam::max_radius(pol, OCAM_SEARCH_RADIUS),
-            _ => radial.r_of_theta(theta_max).unwrap_or(f64::INFINITY),
-        };
+        radial.limits.r_max = radial.r_of_theta(theta_max).unwrap_or(f64::INFINITY);
         radial
     }
 
