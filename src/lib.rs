@@ -7,10 +7,12 @@
 //! `image_ops` holds the sampling and image metrics both sides share; `cli` is the command line.
 
 pub mod cli;
+pub mod control;
 pub mod geometry;
 pub mod image_ops;
 pub mod layout;
 pub mod lens;
+pub mod protocol;
 pub mod render;
 pub mod scene;
 pub mod state;

@@ -5,13 +5,26 @@
 //! the same `key=value` form, and checked for range so a bad value is an error naming the
 //! field, not a surprise in the picture.
 
-use crate::geometry::view::{LockFlags, clamp_fov, crop};
+use crate::geometry::ground::ray_to_target;
+use crate::geometry::view::{LockFlags, aim, clamp_fov, crop, view_orientation};
 use crate::geometry::{Euler, GeoPoint, GeoPosition};
 use crate::units::{de_angle, parse_angle};
+use glam::DMat3;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 pub const MAX_CAMERAS: usize = 4;
+
+/// CAM_CONTROL_MODE values.
+pub mod control {
+    /// The view looks along the vehicle's nose (pilot view).
+    pub const PILOT: u8 = 0;
+    pub const DIRECTIONAL: u8 = 1;
+    /// The view aims at its geographic target.
+    pub const COORDINATE: u8 = 2;
+    /// Pass: as directional.
+    pub const PASS: u8 = 3;
+}
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -77,7 +90,7 @@ impl Camera {
             zoom: 0,
             crop: crop::RECTILINEAR,
             lock: 7,
-            control: 1,
+            control: control::DIRECTIONAL,
             target: None,
         }
     }
@@ -140,6 +153,12 @@ pub struct Sensor {
     pub fps: u32,
     /// Sensor crop [x, y, width, height] in pixels of the lens's calibration frame.
     pub roi: Option<[u32; 4]>,
+    /// Automatic exposure (CAM_SENSOR).
+    pub ae: bool,
+    pub target_brightness: u8,
+    /// Exposure in microseconds.
+    pub exposure_us: u32,
+    pub gain: u32,
 }
 
 impl Default for Sensor {
@@ -149,6 +168,10 @@ impl Default for Sensor {
             height: 2160,
             fps: 30,
             roi: None,
+            ae: true,
+            target_brightness: 128,
+            exposure_us: 10_000,
+            gain: 1_000,
         }
     }
 }
@@ -180,6 +203,53 @@ impl Default for Tracked {
     }
 }
 
+/// How detections are kept and shown (DETECTION, and GENERAL_SETTINGS' run_ai). Field names
+/// are the seed's; ratios are in [0, 1).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DetectionSettings {
+    pub run_ai: bool,
+    /// Unused by the seed; kept for GET.
+    pub mode: u8,
+    /// 0 by score, 1 by age, 2 by score with tiles locked to their object.
+    pub sorting_mode: u8,
+    pub crop_confidence_threshold: f64,
+    pub var_confidence_threshold: f64,
+    pub crop_box_limit: u16,
+    pub var_box_limit: u16,
+    pub crop_box_overlap: f64,
+    pub var_box_overlap: f64,
+    pub creation_score_scale: u8,
+    pub bonus_detection_scale: u8,
+    pub bonus_redetection_scale: u8,
+    pub missed_detection_penalty: u8,
+    pub missed_redetection_penalty: u8,
+}
+
+impl Default for DetectionSettings {
+    fn default() -> Self {
+        DetectionSettings {
+            run_ai: true,
+            mode: 0,
+            sorting_mode: 0,
+            crop_confidence_threshold: 0.5,
+            var_confidence_threshold: 0.3,
+            crop_box_limit: 100,
+            var_box_limit: 100,
+            crop_box_overlap: 0.5,
+            var_box_overlap: 0.5,
+            creation_score_scale: 50,
+            bonus_detection_scale: 10,
+            bonus_redetection_scale: 5,
+            missed_detection_penalty: 10,
+            missed_redetection_penalty: 5,
+        }
+    }
+}
+
+/// Ratios the seed accepts: [0, 0.99).
+pub const RATIO_RANGE: std::ops::Range<f64> = 0.0..0.99;
+
 const FRAC_PI_4: f64 = std::f64::consts::FRAC_PI_4;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -193,6 +263,8 @@ pub struct State {
     pub vehicle: Vehicle,
     pub mount: Angles,
     pub sensor: Sensor,
+    pub detection: DetectionSettings,
+    /// Tracked objects in the tracker's sorted order: the first ones get the overlay's tiles.
     #[serde(rename = "tracked")]
     pub tracked: Vec<Tracked>,
     /// Scene time in seconds (moves the synthetic world's objects).
@@ -212,6 +284,7 @@ impl Default for State {
                 roll: 0.0,
             },
             sensor: Sensor::default(),
+            detection: DetectionSettings::default(),
             tracked: vec![],
             time: 0.0,
         }
@@ -335,6 +408,23 @@ impl State {
         if s.width == 0 || s.height == 0 {
             return Err("sensor size must be positive".into());
         }
+        let d = &self.detection;
+        for (name, v) in [
+            ("crop_confidence_threshold", d.crop_confidence_threshold),
+            ("var_confidence_threshold", d.var_confidence_threshold),
+            ("crop_box_overlap", d.crop_box_overlap),
+            ("var_box_overlap", d.var_box_overlap),
+        ] {
+            if !RATIO_RANGE.contains(&v) {
+                return Err(format!("detection {name} {v} is outside [0, 0.99)"));
+            }
+        }
+        if d.sorting_mode > 2 {
+            return Err(format!(
+                "detection sorting_mode {} is outside 0..=2",
+                d.sorting_mode
+            ));
+        }
         let p = &self.vehicle.position;
         if !(-90.0..=90.0).contains(&p.lat) || !(-180.0..=180.0).contains(&p.lon) {
             return Err(format!(
@@ -343,6 +433,28 @@ impl State {
             ));
         }
         Ok(())
+    }
+
+    /// R_world_view of camera `i` by its control mode: pilot (0) looks along the vehicle's
+    /// nose; coordinate (2) aims at its target, recomputed from the current position; the
+    /// others compose the camera's angles with the vehicle's per the lock flags.
+    pub fn world_from_view(&self, i: usize) -> DMat3 {
+        let cam = &self.cameras[i];
+        let vehicle = self.vehicle.attitude.euler();
+        match (cam.control, cam.target) {
+            (control::PILOT, _) => vehicle.matrix(),
+            (control::COORDINATE, Some(target)) => {
+                match ray_to_target(&self.vehicle.position, target) {
+                    Some(ray) => view_orientation(
+                        aim(ray, cam.euler(), cam.locks(), vehicle),
+                        cam.locks(),
+                        vehicle,
+                    ),
+                    None => view_orientation(cam.euler(), cam.locks(), vehicle),
+                }
+            }
+            _ => view_orientation(cam.euler(), cam.locks(), vehicle),
+        }
     }
 
     /// Applies `--cam 0:yaw=45deg,pitch=-30deg,fov=90deg,crop=1,lock=7`.

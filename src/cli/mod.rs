@@ -1,8 +1,10 @@
-//! The command line: `digiview lens …`, `digiview synth`, `digiview render`. Parses flags into
+//! The command line: `digiview lens …`, `synth`, `render`, `serve` and `ctl`. Parses flags into
 //! the library's plain types and reports errors with anyhow; no rendering logic lives here.
 
+mod ctl_cmd;
 mod lens_cmd;
 mod render_cmd;
+mod serve_cmd;
 
 use crate::state::State;
 use anyhow::{Context, Result};
@@ -37,6 +39,10 @@ pub enum Command {
     Render(render_cmd::RenderArgs),
     /// Synthesise a fisheye frame (or, with --truth, the exact output frame) from a known world.
     Synth(render_cmd::SynthArgs),
+    /// Run the system; `--no-video` runs the control server alone on the live state.
+    Serve(serve_cmd::ServeArgs),
+    /// Talk to a running server over the control protocol: get, set, watch, quit.
+    Ctl(ctl_cmd::CtlArgs),
 }
 
 /// Everything a state file holds, as flags that override it.
@@ -139,6 +145,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Lens(cmd) => lens_cmd::run(&cli.lens_cal, cmd),
         Command::Render(args) => render_cmd::render(&cli.lens_cal, args),
         Command::Synth(args) => render_cmd::synth(&cli.lens_cal, args),
+        Command::Serve(args) => serve_cmd::serve(&cli.lens_cal, args),
+        Command::Ctl(args) => ctl_cmd::run(args),
     }
 }
 

@@ -3,7 +3,7 @@
 //! lens and the vehicle's attitude; both the CPU reference and the ground-truth renderer
 //! walk the same plan, so they differ only in where the colour comes from.
 
-use crate::geometry::view::{crop, lens_from_world, view_orientation};
+use crate::geometry::view::{crop, lens_from_world};
 use crate::geometry::{Euler, Projection, rotation::direction};
 use crate::layout::{Layout, LayoutError, Rect, Slot, layout};
 use crate::lens::Lens;
@@ -14,6 +14,8 @@ use glam::{DMat3, DVec2, DVec3};
 pub const MAX_SAMPLES: u32 = 8;
 /// Margin around a tracked object's angular size in its tile.
 pub const TILE_MARGIN: f64 = 1.6;
+/// The side of the square a camera that the layout does not show is measured in.
+pub const UNSHOWN_VIEW: u32 = 540;
 pub const TILE_FOV_RANGE: (f64, f64) = (0.02, 1.2);
 
 /// How a view's pixels find their colour.
@@ -65,7 +67,7 @@ impl FramePlan {
                         rect,
                         cam.crop,
                         cam.fov,
-                        view_orientation(cam.euler(), cam.locks(), vehicle),
+                        state.world_from_view(i),
                         lens,
                         &lens_from_world,
                     )
@@ -94,6 +96,30 @@ impl FramePlan {
             plan.views[i].samples = plan.samples_for(&plan.views[i]);
         }
         Ok(plan)
+    }
+
+    /// Camera `i`'s view as the frame draws it or, when the layout does not show that camera,
+    /// as a square of [`UNSHOWN_VIEW`] pixels (what CAM_OFFSET and CAM_TARGET measure in).
+    pub fn camera_view(&self, state: &State, i: usize) -> PlannedView {
+        match self.layout.views.get(i) {
+            Some(&(_, slot)) if slot != Slot::Debug => self.views[i],
+            _ => {
+                let rect = Rect::new(0, 0, UNSHOWN_VIEW, UNSHOWN_VIEW);
+                let cam = &state.cameras[i];
+                PlannedView {
+                    rect,
+                    map: camera_map(
+                        rect,
+                        cam.crop,
+                        cam.fov,
+                        state.world_from_view(i),
+                        &self.lens,
+                        &self.lens_from_world,
+                    ),
+                    samples: 1,
+                }
+            }
+        }
     }
 
     /// The fisheye pixel (OpenCV coordinates) seen at point `p` of a view, None where the

@@ -2,6 +2,8 @@
 //! measurement in rendered frames.
 #![allow(dead_code)]
 
+pub mod serve;
+
 use digiview::geometry::rotation::yaw_pitch;
 use digiview::image_ops::{centroid, pixel};
 use digiview::layout::Rect;

@@ -1,0 +1,204 @@
+//! Control: the live state and the request handling of the DigiView control protocol, the
+//! tokio server that carries it over TCP and UDP, and the blocking client behind
+//! `digiview ctl`. Sits beside the frame path: it changes the live state that the renderer
+//! snapshots once per frame, and never waits on a frame.
+//!
+//! [`Controller::handle`] turns one received frame into its replies with no I/O, so the
+//! server, the fuzzer and the tests all exercise the same code.
+
+pub mod camera;
+pub mod client;
+pub mod detection;
+pub mod live;
+pub mod load;
+pub mod permissions;
+pub mod server;
+pub mod system;
+
+use crate::protocol::{Body, Message, Param, Verdict};
+use crate::state::MAX_CAMERAS;
+use live::Live;
+use permissions::Permissions;
+use std::net::IpAddr;
+use std::sync::Arc;
+use tracing::debug;
+
+/// Why a request was refused; the text goes to the server's log.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Refusal {
+    Data(String),
+    Forbidden(&'static str),
+}
+
+impl Refusal {
+    pub fn data(e: impl std::fmt::Display) -> Refusal {
+        Refusal::Data(e.to_string())
+    }
+    fn verdict(&self) -> Verdict {
+        match self {
+            Refusal::Data(_) => Verdict::DataError,
+            Refusal::Forbidden(_) => Verdict::Forbidden,
+        }
+    }
+}
+
+/// What one request produced.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Outcome {
+    pub replies: Vec<Message>,
+    /// A permitted QUIT: stop the process once the replies are sent.
+    pub quit: bool,
+    /// The frame failed its checksum (a run of these means the stream is misaligned).
+    pub bad_checksum: bool,
+}
+
+impl Outcome {
+    fn one(body: Body) -> Outcome {
+        Outcome {
+            replies: vec![Message::new(body)],
+            ..Outcome::default()
+        }
+    }
+}
+
+pub struct Controller {
+    pub live: Arc<Live>,
+    pub permissions: Permissions,
+}
+
+impl Controller {
+    pub fn new(live: Arc<Live>, permissions: Permissions) -> Controller {
+        Controller { live, permissions }
+    }
+
+    /// Handles one received frame (or datagram) from `peer`.
+    pub fn handle(&self, frame: &[u8], peer: IpAddr) -> Outcome {
+        let msg = match Message::decode(frame) {
+            Ok(m) => m,
+            Err(e) => {
+                debug!(%peer, "refused a frame: {e}");
+                let (verdict, param_type) = e.reply();
+                return Outcome {
+                    bad_checksum: matches!(e, crate::protocol::DecodeError::Checksum { .. }),
+                    ..Outcome::one(Body::Verdict(verdict, param_type))
+                };
+            }
+        };
+        let param_type = msg.body.param_type();
+        let refused = |r: Refusal| {
+            let why = match &r {
+                Refusal::Data(why) => why.as_str(),
+                Refusal::Forbidden(why) => why,
+            };
+            let what = msg.body.message_type();
+            debug!(%peer, "refused {what} of param_type {param_type}: {why}");
+            Outcome::one(Body::Verdict(r.verdict(), param_type))
+        };
+        match msg.body {
+            Body::Empty(p) => Outcome::one(Body::Verdict(Verdict::Acknowledgement, p)),
+            Body::Quit(p) => {
+                if self.permissions.quit.permits(peer) {
+                    Outcome {
+                        quit: true,
+                        ..Outcome::one(Body::Verdict(Verdict::Acknowledgement, p))
+                    }
+                } else {
+                    refused(Refusal::Forbidden("QUIT is not permitted from here"))
+                }
+            }
+            Body::Get(query) => match self.get(&query) {
+                Ok(params) => Outcome {
+                    replies: params
+                        .into_iter()
+                        .map(|p| Message::new(Body::Current(p)))
+                        .collect(),
+                    ..Outcome::default()
+                },
+                Err(r) => refused(r),
+            },
+            Body::Set(param) => match self.set(&param, peer) {
+                Ok(()) => Outcome::one(Body::Verdict(Verdict::Acknowledgement, param_type)),
+                Err(r) => refused(r),
+            },
+            Body::Current(_) | Body::Verdict(..) => {
+                refused(Refusal::Data("a reply type is not a request".to_string()))
+            }
+        }
+    }
+
+    fn get(&self, query: &Param) -> Result<Vec<Param>, Refusal> {
+        let cam = checked_cam(query)?;
+        let live = &self.live;
+        let s = live.snapshot();
+        let c = &s.cameras[cam];
+        let id = cam as u8;
+        let one = |p: Param| Ok(vec![p]);
+        let geometry = |r: Result<Param, String>| r.map(|p| vec![p]).map_err(Refusal::Data);
+        match query {
+            Param::SystemStatus(_) => one(Param::SystemStatus(system::system_status(live))),
+            Param::VideoOutput(_) => one(Param::VideoOutput(system::video_output(&s)?)),
+            Param::Capture(_) => one(Param::Capture(system::capture(live))),
+            Param::Detection(_) => one(Param::Detection(detection::detection(&s))),
+            Param::DetectedRoi(q) => Ok(detection::detected_roi(&s, q.index)?
+                .into_iter()
+                .map(Param::DetectedRoi)
+                .collect()),
+            Param::Lens(_) => one(Param::Lens(system::lens(&s))),
+            Param::CamEuler(_) => one(Param::CamEuler(camera::euler(c, id))),
+            Param::CamZoom(_) => one(Param::CamZoom(camera::zoom(c, id))),
+            Param::CamLockFlags(_) => one(Param::CamLockFlags(camera::lock_flags(c, id))),
+            Param::CamControlMode(_) => one(Param::CamControlMode(camera::control_mode(c, id))),
+            Param::CamCropMode(_) => one(Param::CamCropMode(camera::crop_mode(c, id))),
+            Param::CamOffset(q) => geometry(camera::offset(live, &s, q).map(Param::CamOffset)),
+            Param::CamFov(_) => one(Param::CamFov(camera::fov(c, id))),
+            Param::CamTarget(q) => geometry(camera::target(live, &s, q).map(Param::CamTarget)),
+            Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s))),
+            Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s))),
+        }
+    }
+
+    fn set(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
+        if !self.permissions.set.permits(peer) {
+            return Err(Refusal::Forbidden("SET is not permitted from here"));
+        }
+        let kind = param.param_type();
+        if !kind.settable() {
+            return Err(Refusal::Data(format!("{kind} can only be read")));
+        }
+        let cam = checked_cam(param)?;
+        let live = &self.live;
+        if let Param::Capture(p) = param {
+            return system::set_capture(live, p);
+        }
+        live.update(|s| match param {
+            Param::VideoOutput(p) => system::set_video_output(s, p),
+            Param::Detection(p) => detection::set_detection(s, p),
+            Param::Lens(p) => system::set_lens(live, s, p),
+            Param::CamEuler(p) => camera::set_euler(&mut s.cameras[cam], p),
+            Param::CamZoom(p) => camera::set_zoom(&mut s.cameras[cam], p),
+            Param::CamLockFlags(p) => camera::set_lock_flags(&mut s.cameras[cam], p),
+            Param::CamControlMode(p) => camera::set_control_mode(&mut s.cameras[cam], p),
+            Param::CamCropMode(p) => camera::set_crop_mode(&mut s.cameras[cam], p),
+            Param::CamOffset(p) => camera::set_offset(live, s, p),
+            Param::CamFov(p) => camera::set_fov(&mut s.cameras[cam], p),
+            Param::CamTarget(p) => camera::set_target(live, s, p),
+            Param::CamSensor(p) => system::set_sensor(s, p),
+            Param::GeneralSettings(p) => system::set_general(live, s, p),
+            Param::SystemStatus(_) | Param::DetectedRoi(_) | Param::Capture(_) => {
+                unreachable!("handled above")
+            }
+        })
+        .map_err(Refusal::Data)
+    }
+}
+
+/// The camera a per-camera message names, refused outside 0..=3; 0 for the other types.
+fn checked_cam(p: &Param) -> Result<usize, Refusal> {
+    match p.cam_id() {
+        Some(id) if id as usize >= MAX_CAMERAS => {
+            Err(Refusal::Data(format!("cam_id {id} is outside 0..=3")))
+        }
+        Some(id) => Ok(id as usize),
+        None => Ok(0),
+    }
+}

@@ -1,0 +1,191 @@
+//! GET and SET of the whole-system parameter types: SYSTEM_STATUS, VIDEO_OUTPUT, CAPTURE,
+//! LENS, CAM_SENSOR and GENERAL_SETTINGS, with the seed's rules field by field.
+
+use super::Refusal;
+use super::live::Live;
+use crate::geometry::wrap_pi;
+use crate::layout::{Rect, TILE_SIZE, layout};
+use crate::protocol::BoundingBox;
+use crate::protocol::params::{
+    CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
+};
+use crate::state::State;
+
+pub const MIN_OUTPUT: (u16, u16) = (640, 480);
+pub const MAX_OUTPUT: (u16, u16) = (1920, 1080);
+pub const FPS_RANGE: (u8, u8) = (5, 30);
+pub const MAX_EXPOSURE_US: u32 = 40_000;
+pub const MAX_GAIN: u32 = 50_000;
+/// The largest fisheye frame GENERAL_SETTINGS accepts.
+pub const MAX_CAMERA_SIZE: u16 = 8192;
+
+pub fn system_status(live: &Live) -> SystemStatus {
+    SystemStatus {
+        status: live.status() as u8,
+        error: 0,
+    }
+}
+
+fn bbox(r: Rect) -> BoundingBox {
+    // Rectangles lie inside a frame of at most 1920x1080, so they fit u16.
+    BoundingBox {
+        x: r.x as u16,
+        y: r.y as u16,
+        w: r.w as u16,
+        h: r.h as u16,
+    }
+}
+
+/// The output and the rectangles the renderer draws.
+pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
+    let o = &state.output;
+    let l = layout(o.width, o.height, o.layout, o.overlay).map_err(Refusal::data)?;
+    let mut views = [BoundingBox::default(); 4];
+    for (slot, (rect, _)) in views.iter_mut().zip(&l.views) {
+        *slot = bbox(*rect);
+    }
+    Ok(VideoOutput {
+        width: o.width as u16,
+        height: o.height as u16,
+        fps: o.fps as u8,
+        layout_mode: o.layout,
+        detection_overlay_mode: o.overlay,
+        views,
+        detection_overlay_box: bbox(l.overlay_box),
+        single_detection_size: TILE_SIZE as u16,
+    })
+}
+
+/// Width and height above the maximum are clamped; below the minimum the size change is
+/// ignored (both kept, so the frame never gets an unasked-for shape). Sizes are rounded down
+/// to even numbers for 4:2:0 video. fps is clamped; an unknown layout or overlay is ignored.
+pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), String> {
+    let (w, h) = (p.width.min(MAX_OUTPUT.0), p.height.min(MAX_OUTPUT.1));
+    let o = &mut s.output;
+    if w >= MIN_OUTPUT.0 && h >= MIN_OUTPUT.1 {
+        o.width = (w & !1) as u32;
+        o.height = (h & !1) as u32;
+    }
+    o.fps = p.fps.clamp(FPS_RANGE.0, FPS_RANGE.1) as u32;
+    if p.layout_mode <= 6 {
+        o.layout = p.layout_mode;
+    }
+    if p.detection_overlay_mode <= 5 {
+        o.overlay = p.detection_overlay_mode;
+    }
+    layout(o.width, o.height, o.layout, o.overlay)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
+}
+
+pub fn capture(live: &Live) -> Capture {
+    let c = live.capture().status();
+    Capture {
+        flags: (c.recording as u8) << 1,
+        images_captured: c.images,
+        videos_captured: c.videos,
+    }
+}
+
+/// Bit 0 takes one still; bit 1 starts (1) or stops (0) recording.
+pub fn set_capture(live: &Live, p: &Capture) -> Result<(), Refusal> {
+    if p.flags & 1 != 0 {
+        live.capture().still().map_err(Refusal::Data)?;
+    }
+    live.capture()
+        .record(p.flags & 2 != 0)
+        .map_err(Refusal::Data)
+}
+
+pub fn lens(state: &State) -> Lens {
+    Lens {
+        lens_id: state.lens,
+    }
+}
+
+/// A lens_id that lens.cal does not have is refused.
+pub fn set_lens(live: &Live, s: &mut State, p: &Lens) -> Result<(), String> {
+    if !live.has_lens(p.lens_id) {
+        return Err(format!("lens_id {} is not in lens.cal", p.lens_id));
+    }
+    s.lens = p.lens_id;
+    Ok(())
+}
+
+pub fn sensor(state: &State) -> CamSensor {
+    let s = &state.sensor;
+    CamSensor {
+        ae: s.ae as u8,
+        target_brightness: s.target_brightness,
+        exposure_value: s.exposure_us,
+        gain_value: s.gain,
+    }
+}
+
+/// Any non-zero ae is on. Brightness, exposure and gain are clamped into the seed's open
+/// ranges; exposure also to the camera's frame time.
+pub fn set_sensor(s: &mut State, p: &CamSensor) -> Result<(), String> {
+    let frame_us = 1_000_000 / s.sensor.fps.max(1);
+    let sensor = &mut s.sensor;
+    sensor.ae = p.ae != 0;
+    sensor.target_brightness = p.target_brightness.clamp(1, 254);
+    sensor.exposure_us = p.exposure_value.clamp(1, MAX_EXPOSURE_US.min(frame_us));
+    sensor.gain = p.gain_value.clamp(1, MAX_GAIN);
+    Ok(())
+}
+
+pub fn general(state: &State) -> GeneralSettings {
+    let s = &state.sensor;
+    let (roi_width, roi_height) = s.roi.map_or((0, 0), |[_, _, w, h]| (w as u16, h as u16));
+    GeneralSettings {
+        camera_width: s.width as u16,
+        camera_height: s.height as u16,
+        roi_width,
+        roi_height,
+        camera_fps: s.fps as u8,
+        mount_yaw: state.mount.yaw,
+        mount_pitch: state.mount.pitch,
+        mount_roll: state.mount.roll,
+        run_ai: state.detection.run_ai as u8,
+    }
+}
+
+/// Camera size 1..=8192 and fps 1..=240, or the message is refused. A ROI of 0x0 means no
+/// sensor crop; otherwise it is centred in the lens's calibration frame and must fit in it.
+/// Mount yaw wraps, pitch and roll are taken as given; any non-zero run_ai is on.
+pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<(), String> {
+    if !(1..=MAX_CAMERA_SIZE).contains(&p.camera_width)
+        || !(1..=MAX_CAMERA_SIZE).contains(&p.camera_height)
+    {
+        return Err(format!(
+            "camera size {}x{} is outside 1x1..=8192x8192",
+            p.camera_width, p.camera_height
+        ));
+    }
+    if !(1..=240).contains(&p.camera_fps) {
+        return Err(format!("camera fps {} is outside 1..=240", p.camera_fps));
+    }
+    let roi = match (p.roi_width as u32, p.roi_height as u32) {
+        (0, 0) => None,
+        (w, h) => {
+            let (cw, ch) = live
+                .calibration_size(s)
+                .ok_or("the state's lens is not in lens.cal")?;
+            if w == 0 || h == 0 || w > cw || h > ch {
+                return Err(format!(
+                    "sensor crop {w}x{h} does not fit the lens's {cw}x{ch} calibration frame"
+                ));
+            }
+            Some([(cw - w) / 2, (ch - h) / 2, w, h])
+        }
+    };
+    s.sensor.width = p.camera_width as u32;
+    s.sensor.height = p.camera_height as u32;
+    s.sensor.fps = p.camera_fps as u32;
+    s.sensor.roi = roi;
+    s.mount.yaw = wrap_pi(p.mount_yaw);
+    s.mount.pitch = p.mount_pitch;
+    s.mount.roll = p.mount_roll;
+    s.detection.run_ai = p.run_ai != 0;
+    Ok(())
+}

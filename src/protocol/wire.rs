@@ -1,0 +1,234 @@
+//! Field encodings of the control protocol's 64-byte data area (protocol.md, "Field
+//! encodings"): little-endian integers and the fixed-point forms of angles, fovs, offsets,
+//! degrees, metres and ratios. Encoders round to the nearest integer and saturate.
+//!
+//! Each encoding is a marker type implementing [`Wire`], so a parameter struct is declared
+//! once as a list of (field, encoding) and its codec, units and field names follow from it.
+
+use serde::{Deserialize, Serialize};
+
+/// The data area of a frame.
+pub const DATA_LEN: usize = 64;
+
+/// Writes fields one after another into the data area.
+pub struct Writer<'a> {
+    data: &'a mut [u8; DATA_LEN],
+    at: usize,
+}
+
+impl<'a> Writer<'a> {
+    pub fn new(data: &'a mut [u8; DATA_LEN]) -> Self {
+        Writer { data, at: 0 }
+    }
+    fn put(&mut self, bytes: &[u8]) {
+        self.data[self.at..self.at + bytes.len()].copy_from_slice(bytes);
+        self.at += bytes.len();
+    }
+}
+
+/// Reads fields one after another from the data area.
+pub struct Reader<'a> {
+    data: &'a [u8; DATA_LEN],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    pub fn new(data: &'a [u8; DATA_LEN]) -> Self {
+        Reader { data, at: 0 }
+    }
+    fn take<const N: usize>(&mut self) -> [u8; N] {
+        let out = self.data[self.at..self.at + N].try_into().expect("N bytes");
+        self.at += N;
+        out
+    }
+}
+
+/// How a field's value reads to a person, for the command-line client.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unit {
+    Integer,
+    Radians,
+    /// Latitude or longitude.
+    Degrees,
+    Metres,
+    /// A ratio in [0, 1).
+    Ratio,
+    /// A normalized offset in [-1, 1].
+    Offset,
+    /// A bounding box or a list of them (GET only).
+    Boxes,
+}
+
+/// One field encoding: its Rust value, its bytes and its unit.
+pub trait Wire {
+    type Value: Copy + Default + PartialEq + std::fmt::Debug + Serialize;
+    const UNIT: Unit;
+    /// Bytes on the wire.
+    const SIZE: usize;
+    fn put(w: &mut Writer, v: Self::Value);
+    fn get(r: &mut Reader) -> Self::Value;
+}
+
+macro_rules! integer {
+    ($name:ident, $t:ty) => {
+        pub struct $name;
+        impl Wire for $name {
+            type Value = $t;
+            const UNIT: Unit = Unit::Integer;
+            const SIZE: usize = size_of::<$t>();
+            fn put(w: &mut Writer, v: $t) {
+                w.put(&v.to_le_bytes());
+            }
+            fn get(r: &mut Reader) -> $t {
+                <$t>::from_le_bytes(r.take())
+            }
+        }
+    };
+}
+
+integer!(U8, u8);
+integer!(I8, i8);
+integer!(U16, u16);
+integer!(U32, u32);
+
+/// A fixed-point value: an integer of type `$int` holding `value * $scale`.
+macro_rules! fixed {
+    ($(#[$doc:meta])* $name:ident, $int:ty, $scale:expr, $unit:expr) => {
+        $(#[$doc])*
+        pub struct $name;
+        impl $name {
+            pub const SCALE: f64 = $scale;
+        }
+        impl Wire for $name {
+            type Value = f64;
+            const UNIT: Unit = $unit;
+            const SIZE: usize = size_of::<$int>();
+            fn put(w: &mut Writer, v: f64) {
+                // `as` saturates at the integer's range and maps NaN to 0.
+                let n = (v * $scale).round() as $int;
+                w.put(&n.to_le_bytes());
+            }
+            fn get(r: &mut Reader) -> f64 {
+                <$int>::from_le_bytes(r.take()) as f64 / $scale
+            }
+        }
+    };
+}
+
+fixed!(
+    /// Radians as i32 milliradians.
+    Angle, i32, 1000.0, Unit::Radians
+);
+fixed!(
+    /// A fov in radians as i16 milliradians.
+    Fov, i16, 1000.0, Unit::Radians
+);
+fixed!(
+    /// A normalized offset in [-1, 1] as i16 / 32767.
+    Offset, i16, 32767.0, Unit::Offset
+);
+fixed!(
+    /// Latitude or longitude in degrees as i32 microdegrees.
+    Degrees, i32, 1e6, Unit::Degrees
+);
+fixed!(
+    /// Metres as i32 millimetres.
+    Metres, i32, 1000.0, Unit::Metres
+);
+fixed!(
+    /// A ratio in [0, 1) as u8 / 255.
+    Ratio, u8, 255.0, Unit::Ratio
+);
+
+/// The seed's `bounding_box`: x, y, w, h as u16.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BoundingBox {
+    pub x: u16,
+    pub y: u16,
+    pub w: u16,
+    pub h: u16,
+}
+
+impl Wire for BoundingBox {
+    type Value = BoundingBox;
+    const UNIT: Unit = Unit::Boxes;
+    const SIZE: usize = 8;
+    fn put(w: &mut Writer, v: BoundingBox) {
+        for n in [v.x, v.y, v.w, v.h] {
+            U16::put(w, n);
+        }
+    }
+    fn get(r: &mut Reader) -> BoundingBox {
+        BoundingBox {
+            x: U16::get(r),
+            y: U16::get(r),
+            w: U16::get(r),
+            h: U16::get(r),
+        }
+    }
+}
+
+/// VIDEO_OUTPUT's four view rectangles.
+pub struct Views;
+
+impl Wire for Views {
+    type Value = [BoundingBox; 4];
+    const UNIT: Unit = Unit::Boxes;
+    const SIZE: usize = 32;
+    fn put(w: &mut Writer, v: [BoundingBox; 4]) {
+        for b in v {
+            BoundingBox::put(w, b);
+        }
+    }
+    fn get(r: &mut Reader) -> [BoundingBox; 4] {
+        std::array::from_fn(|_| BoundingBox::get(r))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn round_trip<W: Wire>(v: W::Value) -> (W::Value, [u8; DATA_LEN]) {
+        let mut data = [0u8; DATA_LEN];
+        W::put(&mut Writer::new(&mut data), v);
+        (W::get(&mut Reader::new(&data)), data)
+    }
+
+    #[test]
+    fn fixed_point_rounds_to_nearest_and_saturates() {
+        let (v, d) = round_trip::<Angle>(0.612_398);
+        assert_eq!(i32::from_le_bytes(d[..4].try_into().unwrap()), 612);
+        assert_eq!(v, 0.612);
+        let (v, _) = round_trip::<Angle>(-0.0015);
+        assert_eq!(v, -0.002, "ties round away from zero");
+        let (v, _) = round_trip::<Fov>(100.0);
+        assert_eq!(v, i16::MAX as f64 / 1000.0, "saturates at i16::MAX");
+        let (v, _) = round_trip::<Ratio>(-0.5);
+        assert_eq!(v, 0.0, "a ratio below zero saturates at 0");
+        let (v, _) = round_trip::<Offset>(f64::NAN);
+        assert_eq!(v, 0.0, "NaN encodes as zero");
+        let (v, _) = round_trip::<Degrees>(58.123_456_7);
+        assert!((v - 58.123_457).abs() < 1e-9);
+    }
+
+    #[test]
+    fn every_decoded_value_encodes_back_to_the_same_integer() {
+        for n in [i32::MIN, -1_234_567, -1, 0, 1, 999, i32::MAX] {
+            let mut d = [0u8; DATA_LEN];
+            d[..4].copy_from_slice(&n.to_le_bytes());
+            let v = Degrees::get(&mut Reader::new(&d));
+            let (_, back) = round_trip::<Degrees>(v);
+            assert_eq!(back[..4], d[..4], "microdegrees {n}");
+            let v = Angle::get(&mut Reader::new(&d));
+            let (_, back) = round_trip::<Angle>(v);
+            assert_eq!(back[..4], d[..4], "milliradians {n}");
+        }
+        for n in i16::MIN..=i16::MAX {
+            let mut d = [0u8; DATA_LEN];
+            d[..2].copy_from_slice(&n.to_le_bytes());
+            let (_, back) = round_trip::<Offset>(Offset::get(&mut Reader::new(&d)));
+            assert_eq!(back[..2], d[..2], "offset {n}");
+        }
+    }
+}

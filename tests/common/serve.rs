@@ -1,0 +1,115 @@
+//! `digiview serve` as a child process on an ephemeral port, and raw protocol clients.
+
+use digiview::protocol::{Body, FRAME_LEN, Message, Param};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::path::Path;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+pub struct Serve {
+    child: Child,
+    pub addr: SocketAddr,
+}
+
+impl Serve {
+    /// `digiview serve --no-video` on 127.0.0.1, port chosen by the system, plus `extra` flags.
+    pub fn start(extra: &[&str]) -> Serve {
+        let cal = Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
+            .args(["serve", "--no-video", "--control", "127.0.0.1:0"])
+            .args(extra)
+            .env("DIGIVIEW_LENS_CAL", cal)
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("digiview serve starts");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let addr = line
+            .trim()
+            .strip_prefix("control listening on ")
+            .unwrap_or_else(|| panic!("serve printed {line:?}"))
+            .parse()
+            .unwrap();
+        Serve { child, addr }
+    }
+
+    pub fn tcp(&self) -> Raw {
+        Raw::connect(self.addr)
+    }
+
+    /// The exit status if the process ends within `limit`.
+    pub fn wait_exit(&mut self, limit: Duration) -> Option<ExitStatus> {
+        let t = Instant::now();
+        while t.elapsed() < limit {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                return Some(s);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        None
+    }
+}
+
+impl Drop for Serve {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A TCP client that speaks raw frames.
+pub struct Raw {
+    pub stream: TcpStream,
+}
+
+impl Raw {
+    pub fn connect(addr: SocketAddr) -> Raw {
+        let stream = TcpStream::connect(addr).unwrap();
+        stream
+            .set_read_timeout(Some(Duration::from_secs(10)))
+            .unwrap();
+        Raw { stream }
+    }
+
+    pub fn send_bytes(&mut self, bytes: &[u8]) {
+        self.stream.write_all(bytes).unwrap();
+    }
+
+    pub fn send(&mut self, body: Body) {
+        self.send_bytes(&Message::new(body).encode());
+    }
+
+    pub fn recv(&mut self) -> Message {
+        let mut f = [0u8; FRAME_LEN];
+        self.stream.read_exact(&mut f).unwrap();
+        Message::decode(&f).expect("the server's replies are valid frames")
+    }
+
+    /// One request, one reply.
+    pub fn ask(&mut self, body: Body) -> Body {
+        self.send(body);
+        self.recv().body
+    }
+
+    pub fn get(&mut self, query: Param) -> Param {
+        match self.ask(Body::Get(query)) {
+            Body::Current(p) => p,
+            other => panic!("GET {:?} answered {other:?}", query.param_type()),
+        }
+    }
+}
+
+/// One datagram to the server, one datagram back.
+pub fn udp_exchange(addr: SocketAddr, datagram: &[u8]) -> Vec<u8> {
+    let s = UdpSocket::bind("127.0.0.1:0").unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    s.send_to(datagram, addr).unwrap();
+    let mut buf = [0u8; 2048];
+    let (n, _) = s.recv_from(&mut buf).unwrap();
+    buf[..n].to_vec()
+}
