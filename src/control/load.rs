@@ -29,7 +29,7 @@ pub struct LoadReport {
 }
 
 fn request(i: usize, cam: u8) -> Body {
-    if i % 2 == 0 {
+    if i.is_multiple_of(2) {
         Body::Set(Param::CamFov(CamFov {
             cam_id: cam,
             fov: 0.5 + (i % 100) as f64 * 0.01,
@@ -44,7 +44,7 @@ fn request(i: usize, cam: u8) -> Body {
 
 fn is_answer(i: usize, cam: u8, reply: &[u8]) -> bool {
     match Message::decode(reply).map(|m| m.body) {
-        Ok(Body::Verdict(Verdict::Acknowledgement, 12)) => i % 2 == 0,
+        Ok(Body::Verdict(Verdict::Acknowledgement, 12)) => i.is_multiple_of(2),
         Ok(Body::Current(Param::CamLockFlags(p))) => i % 2 == 1 && p.cam_id == cam,
         _ => false,
     }
