@@ -1077,3 +1077,141 @@ fn fifty_pipelining_clients_all_get_correct_replies_beside_a_stalled_one() {
     let r = digiview::control::load::run(server.addr, 50, 2000, true).unwrap();
     assert_eq!((r.replies, r.wrong), (100_000, 0), "{r:?}");
 }
+
+fn ctl(addr: &str, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["ctl", "--addr", addr])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn ctl_reads_and_changes_values_for_people_and_scripts() {
+    let mut server = Serve::start(&["--track", "yaw=10deg,pitch=-40deg,size=3deg"]);
+    let addr = server.addr.to_string();
+    let o = ctl(&addr, &["get", "cam_euler", "cam=1"]);
+    let out = text(&o.stdout);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(
+        out.starts_with("CAM_EULER\n") && out.contains("yaw       1.571 rad (90.01°)"),
+        "{out}"
+    );
+
+    // Set only the layout: the client reads first, so the size is kept.
+    let o = ctl(&addr, &["set", "video_output", "layout_mode=0"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let o = ctl(&addr, &["--json", "get", "video_output"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["param"], "VIDEO_OUTPUT");
+    assert_eq!(
+        (
+            v["values"]["width"].as_u64(),
+            v["values"]["layout_mode"].as_u64()
+        ),
+        (Some(1920), Some(0))
+    );
+
+    // Degrees on the command line, radians on the wire; over UDP too.
+    assert!(
+        ctl(&addr, &["--udp", "set", "cam_fov", "cam=0", "fov=50deg"])
+            .status
+            .success()
+    );
+    let o = ctl(&addr, &["--json", "--udp", "get", "cam_fov", "cam=0"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["values"]["fov"].as_f64().unwrap() - 50.0 * DEG).abs() < MRAD);
+
+    // One JSON line per detection.
+    let o = ctl(&addr, &["--json", "get", "detected_roi", "index=255"]);
+    assert_eq!(text(&o.stdout).lines().count(), 1);
+
+    // Error replies and bad input are explained.
+    let o = ctl(&addr, &["get", "cam_fov", "cam=4"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o.stderr).contains("DATA_ERROR to GET CAM_FOV"),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = ctl(&addr, &["set", "cam_fov", "cam=0", "fvo=1"]);
+    assert!(
+        text(&o.stderr).contains("CAM_FOV has no field `fvo`; its fields: cam_id, fov"),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = ctl(&addr, &["get", "cam_angles"]);
+    assert!(
+        text(&o.stderr).contains("`cam_angles` is not a parameter type"),
+        "{}",
+        text(&o.stderr)
+    );
+
+    // watch prints the first value and each change.
+    let watcher = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "ctl",
+            "--addr",
+            &addr,
+            "--json",
+            "watch",
+            "lens",
+            "--interval",
+            "0.05",
+            "--count",
+            "2",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(ctl(&addr, &["set", "lens", "lens_id=2"]).status.success());
+    let out = watcher.wait_with_output().unwrap();
+    let lines: Vec<String> = text(&out.stdout).lines().map(String::from).collect();
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert!(
+        lines[0].contains("\"lens_id\":0") && lines[1].contains("\"lens_id\":2"),
+        "{lines:?}"
+    );
+
+    let o = ctl(&addr, &["quit"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(server.wait_exit(Duration::from_secs(5)).unwrap().success());
+}
+
+#[test]
+fn ctl_says_when_no_server_answers() {
+    // A port nothing listens on (bound, then released).
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let o = ctl(&addr, &["get", "lens"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o.stderr).contains(&format!(
+            "cannot reach the DigiView control server at {addr}"
+        )),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = ctl(&addr, &["--udp", "--timeout", "0.3", "get", "lens"]);
+    assert!(!o.status.success());
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("cannot reach") || e.contains("no reply from"),
+        "{e}"
+    );
+    let o = ctl("nowhere", &["get", "lens"]);
+    assert!(
+        text(&o.stderr).contains("`nowhere` is not a HOST:PORT address"),
+        "{}",
+        text(&o.stderr)
+    );
+}

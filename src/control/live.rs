@@ -142,3 +142,68 @@ impl Live {
         self.capture.as_ref()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::mpsc;
+
+    fn live() -> Live {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
+        let cal = LensCal::load(&path).unwrap();
+        Live::new(State::default(), &cal, Box::new(NoVideo)).unwrap()
+    }
+
+    #[test]
+    fn a_refused_or_invalid_change_leaves_the_state_as_it_was() {
+        let live = live();
+        let before = live.snapshot();
+        let refused = live.update(|s| {
+            s.output.layout = 3;
+            Err::<(), _>("refused".to_string())
+        });
+        assert_eq!(refused, Err("refused".to_string()));
+        let invalid = live.update(|s| {
+            s.output.width = 5;
+            Ok(())
+        });
+        assert!(invalid.unwrap_err().contains("output size 5x1080"));
+        assert_eq!(*live.snapshot(), *before);
+        live.update(|s| {
+            s.output.layout = 3;
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(live.snapshot().output.layout, 3);
+        assert_eq!(before.output.layout, 4, "an older snapshot is unchanged");
+    }
+
+    #[test]
+    fn a_reader_gets_the_old_state_while_a_writer_is_mid_change() {
+        let live = live();
+        let (go_tx, go_rx) = mpsc::channel();
+        let (inside_tx, inside_rx) = mpsc::channel();
+        std::thread::scope(|scope| {
+            let live = &live;
+            scope.spawn(move || {
+                live.update(|s| {
+                    s.lens = 1;
+                    inside_tx.send(()).unwrap();
+                    // Finish only after the reader has its snapshot: were snapshots to wait
+                    // for writers, this would never return.
+                    go_rx.recv().unwrap();
+                    Ok(())
+                })
+                .unwrap()
+            });
+            inside_rx.recv().unwrap();
+            assert_eq!(
+                live.snapshot().lens,
+                0,
+                "the change is not visible half-made"
+            );
+            go_tx.send(()).unwrap();
+        });
+        assert_eq!(live.snapshot().lens, 1);
+    }
+}

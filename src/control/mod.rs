@@ -7,6 +7,7 @@
 //! server, the fuzzer and the tests all exercise the same code.
 
 pub mod camera;
+pub mod checks;
 pub mod client;
 pub mod detection;
 pub mod live;

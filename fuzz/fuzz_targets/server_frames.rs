@@ -1,0 +1,19 @@
+//! The server's frame handling on any stream of frames, from a fresh live state each run
+//! (invariants in `digiview::control::checks::handle_stream`).
+#![no_main]
+
+use digiview::control::checks::{controller, handle_stream};
+use digiview::lens::LensCal;
+use libfuzzer_sys::fuzz_target;
+use std::path::Path;
+use std::sync::LazyLock;
+
+static CAL: LazyLock<LensCal> = LazyLock::new(|| {
+    LensCal::parse(
+        Path::new("lens.cal"),
+        include_str!("../../lens-cal/lens.cal"),
+    )
+    .expect("the shipped lens.cal parses")
+});
+
+fuzz_target!(|data: &[u8]| handle_stream(&controller(&CAL), data));
