@@ -1076,6 +1076,9 @@ fn fifty_pipelining_clients_all_get_correct_replies_beside_a_stalled_one() {
     let server = Serve::start(&[]);
     let r = digiview::control::load::run(server.addr, 50, 2000, true).unwrap();
     assert_eq!((r.replies, r.wrong), (100_000, 0), "{r:?}");
+    // One client pipelining far more than its reply queue holds is slowed, not dropped.
+    let r = digiview::control::load::run(server.addr, 1, 50_000, false).unwrap();
+    assert_eq!((r.replies, r.wrong), (50_000, 0), "{r:?}");
 }
 
 fn ctl(addr: &str, args: &[&str]) -> std::process::Output {

@@ -2,7 +2,8 @@
 //!
 //! Each TCP client gets a reader task and a writer task joined by a bounded queue of reply
 //! frames, so a client that stalls mid-frame only stalls its own reader, and one that never
-//! reads its replies fills its own queue and is dropped; nobody else waits. UDP datagrams
+//! reads its replies fills its own queue and, when it stays full, is dropped; nobody else
+//! waits. UDP datagrams
 //! are answered one by one from a single task. A permitted QUIT, SIGINT or SIGTERM stops
 //! everything: the listeners close, every connection sends what it has queued and closes.
 
@@ -18,8 +19,11 @@ use tokio::sync::{mpsc, watch};
 use tokio::task::JoinSet;
 use tracing::{debug, info, warn};
 
-/// Reply frames queued per TCP client before it is considered stalled and dropped.
+/// Reply frames queued per TCP client.
 pub const REPLY_QUEUE: usize = 4096;
+/// How long a client's reply queue may stay full before the client is dropped as one that
+/// does not read its replies.
+pub const STALLED: Duration = Duration::from_secs(2);
 /// Consecutive bad checksums after which a TCP stream is taken as misaligned and closed.
 pub const MAX_BAD_FRAMES: u32 = 16;
 /// How long connections get to send their queued replies when the server stops.
@@ -130,7 +134,7 @@ async fn serve_tcp(
             0
         };
         for reply in &outcome.replies {
-            if tx.try_send(reply.encode()).is_err() {
+            if !queue(&tx, reply.encode()).await {
                 warn!(%peer, "dropping control client: it does not read its replies");
                 writer.abort();
                 return;
@@ -151,6 +155,19 @@ async fn serve_tcp(
         writer.abort();
     }
     debug!(%peer, "control client gone");
+}
+
+/// Queues a reply. A full queue holds this client's reader back (a fast pipelining client
+/// just waits for its replies to drain); if it stays full for [`STALLED`], the client is not
+/// reading and `false` says to drop it.
+async fn queue(tx: &mpsc::Sender<[u8; FRAME_LEN]>, frame: [u8; FRAME_LEN]) -> bool {
+    match tx.try_send(frame) {
+        Ok(()) => true,
+        Err(mpsc::error::TrySendError::Full(frame)) => {
+            matches!(tokio::time::timeout(STALLED, tx.send(frame)).await, Ok(Ok(())))
+        }
+        Err(mpsc::error::TrySendError::Closed(_)) => false,
+    }
 }
 
 /// Sends queued replies, batching whatever is ready into one write.
