@@ -164,7 +164,10 @@ async fn queue(tx: &mpsc::Sender<[u8; FRAME_LEN]>, frame: [u8; FRAME_LEN]) -> bo
     match tx.try_send(frame) {
         Ok(()) => true,
         Err(mpsc::error::TrySendError::Full(frame)) => {
-            matches!(tokio::time::timeout(STALLED, tx.send(frame)).await, Ok(Ok(())))
+            matches!(
+                tokio::time::timeout(STALLED, tx.send(frame)).await,
+                Ok(Ok(()))
+            )
         }
         Err(mpsc::error::TrySendError::Closed(_)) => false,
     }
