@@ -636,4 +636,29 @@ mod tests {
         s.add_tracked("yaw=5deg,size=2deg").unwrap();
         assert_eq!(s.tracked.len(), 1);
     }
+
+    #[test]
+    fn pilot_views_look_along_the_nose_and_coordinate_views_at_their_target() {
+        let mut s = State::default();
+        s.vehicle.attitude = Angles {
+            yaw: 0.3,
+            pitch: 0.1,
+            roll: -0.2,
+        };
+        s.cameras[0].control = control::PILOT;
+        let nose = s.world_from_view(0) * glam::DVec3::X;
+        assert!((nose - s.vehicle.attitude.euler().matrix() * glam::DVec3::X).length() < 1e-12);
+        // A target 100 m east on the ground, 50 m below: the view points at it.
+        let target = crate::geometry::ground::from_ned(
+            s.vehicle.position.point(),
+            glam::DVec3::new(0.0, 100.0, 50.0),
+        );
+        s.cameras[1].control = control::COORDINATE;
+        s.cameras[1].target = Some(target);
+        let fwd = s.world_from_view(1) * glam::DVec3::X;
+        assert!(
+            (fwd - glam::DVec3::new(0.0, 100.0, 50.0).normalize()).length() < 1e-6,
+            "{fwd}"
+        );
+    }
 }
