@@ -14,6 +14,10 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 pub const MAX_CAMERAS: usize = 4;
+/// The output sizes and frame rates VIDEO_OUTPUT allows (the seed's ranges).
+pub const MIN_OUTPUT: (u32, u32) = (640, 480);
+pub const MAX_OUTPUT: (u32, u32) = (1920, 1080);
+pub const FPS_RANGE: (u32, u32) = (5, 30);
 
 /// CAM_CONTROL_MODE values.
 pub mod control {
@@ -363,14 +367,18 @@ impl State {
     /// Checks every field against the range the protocol allows.
     pub fn validate(&self) -> Result<(), String> {
         let o = &self.output;
-        if !(640..=1920).contains(&o.width) || !(480..=1080).contains(&o.height) {
+        let (lo, hi) = (MIN_OUTPUT, MAX_OUTPUT);
+        if !(lo.0..=hi.0).contains(&o.width) || !(lo.1..=hi.1).contains(&o.height) {
             return Err(format!(
-                "output size {}x{} is outside 640x480..=1920x1080",
-                o.width, o.height
+                "output size {}x{} is outside {}x{}..={}x{}",
+                o.width, o.height, lo.0, lo.1, hi.0, hi.1
             ));
         }
-        if !(5..=30).contains(&o.fps) {
-            return Err(format!("output fps {} is outside 5..=30", o.fps));
+        if !(FPS_RANGE.0..=FPS_RANGE.1).contains(&o.fps) {
+            return Err(format!(
+                "output fps {} is outside {}..={}",
+                o.fps, FPS_RANGE.0, FPS_RANGE.1
+            ));
         }
         if o.layout > 6 {
             return Err(format!("layout {} does not exist (0..=6)", o.layout));
@@ -596,21 +604,14 @@ mod tests {
 
     #[test]
     fn bad_state_files_name_the_line_or_the_field() {
-        let e = State::parse("[output]\nwidht = 3\n", "s.toml")
-            .unwrap_err()
-            .to_string();
+        let err = |text| State::parse(text, "s.toml").unwrap_err().to_string();
+        let e = err("[output]\nwidht = 3\n");
         assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
-        let e = State::parse("[output]\nlayout = 9\n", "s.toml")
-            .unwrap_err()
-            .to_string();
+        let e = err("[output]\nlayout = 9\n");
         assert_eq!(e, "s.toml: layout 9 does not exist (0..=6)");
-        let e = State::parse("[[camera]]\nyaw = \"north\"\n", "s.toml")
-            .unwrap_err()
-            .to_string();
+        let e = err("[[camera]]\nyaw = \"north\"\n");
         assert!(e.starts_with("s.toml:2: "), "{e}");
-        let e = State::parse("[[camera]]\nfov = \"200deg\"\n", "s.toml")
-            .unwrap_err()
-            .to_string();
+        let e = err("[[camera]]\nfov = \"200deg\"\n");
         assert!(e.contains("camera 0: fov 3.491 rad is outside"), "{e}");
     }
 

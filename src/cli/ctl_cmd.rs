@@ -278,12 +278,7 @@ fn list_params(param: Option<&str>) -> Result<()> {
 }
 
 fn load(addr: &str, clients: usize, requests: usize, stall: bool, json: bool) -> Result<()> {
-    use std::net::ToSocketAddrs;
-    let target = addr
-        .to_socket_addrs()
-        .ok()
-        .and_then(|mut a| a.next())
-        .with_context(|| format!("`{addr}` is not a HOST:PORT address"))?;
+    let target = crate::control::client::resolve(addr)?;
     let r = crate::control::load::run(target, clients, requests, stall)
         .with_context(|| format!("load against {addr}"))?;
     if json {

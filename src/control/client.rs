@@ -54,11 +54,7 @@ pub struct Client {
 
 impl Client {
     pub fn connect(addr: &str, udp: bool, timeout: Duration) -> Result<Client, ClientError> {
-        let target: SocketAddr = addr
-            .to_socket_addrs()
-            .ok()
-            .and_then(|mut a| a.next())
-            .ok_or_else(|| ClientError::Address(addr.to_string()))?;
+        let target = resolve(addr)?;
         let connect_err = |source| ClientError::Connect {
             addr: addr.to_string(),
             source,
@@ -204,6 +200,14 @@ impl Client {
             got => Err(ClientError::Unexpected { request, got }),
         }
     }
+}
+
+/// The first socket address `HOST:PORT` names.
+pub fn resolve(addr: &str) -> Result<SocketAddr, ClientError> {
+    addr.to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .ok_or_else(|| ClientError::Address(addr.to_string()))
 }
 
 /// A GET query for `kind` addressed to camera `cam` (ignored by whole-system types).

@@ -8,7 +8,7 @@
 //! everything: the listeners close, every connection sends what it has queued and closes.
 
 use super::Controller;
-use crate::protocol::{Body, FRAME_LEN, Message, Verdict};
+use crate::protocol::FRAME_LEN;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
@@ -204,15 +204,8 @@ async fn serve_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Shutdo
             },
             _ = shutdown.wait() => return,
         };
-        let outcome = if n == FRAME_LEN {
-            controller.handle(&buf[..n], peer.ip())
-        } else {
-            debug!(%peer, "{n}-byte datagram is not a frame");
-            super::Outcome {
-                replies: vec![Message::new(Body::Verdict(Verdict::DataError, 0))],
-                ..Default::default()
-            }
-        };
+        // A datagram of the wrong length decodes to DATA_ERROR with param_type 0.
+        let outcome = controller.handle(&buf[..n], peer.ip());
         for reply in &outcome.replies {
             if let Err(e) = udp.send_to(&reply.encode(), peer).await {
                 debug!(%peer, "udp send: {e}");

@@ -9,11 +9,8 @@ use crate::protocol::BoundingBox;
 use crate::protocol::params::{
     CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
 };
-use crate::state::State;
+use crate::state::{FPS_RANGE, MAX_OUTPUT, MIN_OUTPUT, State};
 
-pub const MIN_OUTPUT: (u16, u16) = (640, 480);
-pub const MAX_OUTPUT: (u16, u16) = (1920, 1080);
-pub const FPS_RANGE: (u8, u8) = (5, 30);
 pub const MAX_EXPOSURE_US: u32 = 40_000;
 pub const MAX_GAIN: u32 = 50_000;
 /// The largest fisheye frame GENERAL_SETTINGS accepts.
@@ -60,13 +57,16 @@ pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
 /// ignored (both kept, so the frame never gets an unasked-for shape). Sizes are rounded down
 /// to even numbers for 4:2:0 video. fps is clamped; an unknown layout or overlay is ignored.
 pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), String> {
-    let (w, h) = (p.width.min(MAX_OUTPUT.0), p.height.min(MAX_OUTPUT.1));
+    let (w, h) = (
+        (p.width as u32).min(MAX_OUTPUT.0),
+        (p.height as u32).min(MAX_OUTPUT.1),
+    );
     let o = &mut s.output;
     if w >= MIN_OUTPUT.0 && h >= MIN_OUTPUT.1 {
-        o.width = (w & !1) as u32;
-        o.height = (h & !1) as u32;
+        o.width = w & !1;
+        o.height = h & !1;
     }
-    o.fps = p.fps.clamp(FPS_RANGE.0, FPS_RANGE.1) as u32;
+    o.fps = (p.fps as u32).clamp(FPS_RANGE.0, FPS_RANGE.1);
     if p.layout_mode <= 6 {
         o.layout = p.layout_mode;
     }
