@@ -482,20 +482,25 @@ fn sensor_general_settings_and_capture_without_video() {
     );
 }
 
-#[test]
-fn cam_ids_outside_0_to_3_and_sets_of_get_only_types_are_data_errors() {
-    let server = Serve::start(&[]);
-    let mut c = server.tcp();
-    let before: Vec<Param> = (6..=13u8)
+/// Every camera's value of every per-camera type that a GET with only cam_id reads.
+fn camera_values(c: &mut Raw) -> Vec<Param> {
+    (6..=13u8)
+        .filter(|&t| t != 11 && t != 13)
         .flat_map(|t| (0..4).map(move |cam| (t, cam)))
-        .filter(|&(t, _)| t != 11 && t != 13)
         .map(|(t, cam)| {
             c.get(digiview::control::client::query(
                 ParamType::from_u8(t).unwrap(),
                 cam,
             ))
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn cam_ids_outside_0_to_3_and_sets_of_get_only_types_are_data_errors() {
+    let server = Serve::start(&[]);
+    let mut c = server.tcp();
+    let before = camera_values(&mut c);
     for t in 6..=13u8 {
         let kind = ParamType::from_u8(t).unwrap();
         for cam in [4.0, 255.0] {
@@ -513,16 +518,7 @@ fn cam_ids_outside_0_to_3_and_sets_of_get_only_types_are_data_errors() {
             );
         }
     }
-    let after: Vec<Param> = (6..=13u8)
-        .flat_map(|t| (0..4).map(move |cam| (t, cam)))
-        .filter(|&(t, _)| t != 11 && t != 13)
-        .map(|(t, cam)| {
-            c.get(digiview::control::client::query(
-                ParamType::from_u8(t).unwrap(),
-                cam,
-            ))
-        })
-        .collect();
+    let after = camera_values(&mut c);
     assert_eq!(before, after);
     for kind in [ParamType::SystemStatus, ParamType::DetectedRoi] {
         assert_eq!(
@@ -818,6 +814,15 @@ fn offset(c: &mut Raw, cam: u8, x: f64, y: f64, frame_rel: u8) -> CamOffset {
     }
 }
 
+/// The view's centre looks along (yaw, pitch), within two fixed-point steps (each reading
+/// is rounded once).
+fn assert_looks(centre: CamOffset, yaw: f64, pitch: f64) {
+    assert!(
+        (centre.yaw - yaw).abs() < 2.0 * MRAD && (centre.pitch - pitch).abs() < 2.0 * MRAD,
+        "{centre:?} vs yaw {yaw}, pitch {pitch}"
+    );
+}
+
 #[test]
 fn cam_offset_reports_a_pixels_direction_and_set_turns_the_view_there() {
     let server = Serve::start(&[]);
@@ -864,10 +869,7 @@ fn cam_offset_reports_a_pixels_direction_and_set_turns_the_view_there() {
         ack(ParamType::CamOffset)
     );
     let now = offset(&mut c, 0, 0.0, 0.0, 0);
-    assert!(
-        (now.yaw - target.yaw).abs() < 2.0 * MRAD && (now.pitch - target.pitch).abs() < 2.0 * MRAD,
-        "{now:?} vs {target:?}"
-    );
+    assert_looks(now, target.yaw, target.pitch);
 }
 
 #[test]
@@ -938,11 +940,7 @@ fn cam_target_finds_ground_points_and_keeps_a_view_on_its_target() {
         c.get(Param::CamControlMode(CamControlMode { cam_id: 2, mode: 0 })),
         Param::CamControlMode(CamControlMode { cam_id: 2, mode: 2 })
     );
-    let aim = offset(&mut c, 2, 0.0, 0.0, 0);
-    assert!(
-        (aim.yaw - 90.0 * DEG).abs() < 2.0 * MRAD && (aim.pitch + 0.5f64.atan()).abs() < 2.0 * MRAD,
-        "{aim:?}"
-    );
+    assert_looks(offset(&mut c, 2, 0.0, 0.0, 0), 90.0 * DEG, -0.5f64.atan());
     // Steering by angles ends coordinate control.
     let e = CamEuler {
         cam_id: 2,
@@ -979,11 +977,7 @@ fn cam_target_finds_ground_points_and_keeps_a_view_on_its_target() {
         (kept.t_latitude - seen.t_latitude).abs() < 1e-6
             && (kept.t_longitude - seen.t_longitude).abs() < 1e-6
     );
-    let aim = offset(&mut c, 1, 0.0, 0.0, 0);
-    assert!(
-        (aim.yaw - dir.yaw).abs() < 2.0 * MRAD && (aim.pitch - dir.pitch).abs() < 2.0 * MRAD,
-        "{aim:?} vs {dir:?}"
-    );
+    assert_looks(offset(&mut c, 1, 0.0, 0.0, 0), dir.yaw, dir.pitch);
 }
 
 #[test]
