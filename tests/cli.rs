@@ -196,3 +196,50 @@ fn bad_flags_and_missing_files_get_clear_errors() {
         assert!(!stderr(&o).contains("panicked"), "{args:?} panicked");
     }
 }
+
+#[test]
+fn bench_reports_every_stage_and_the_frame_rate_as_json() {
+    let o = digiview(
+        &[
+            "bench",
+            "--frames",
+            "3",
+            "--warmup",
+            "1",
+            "--input-size",
+            "640x360",
+            "--size",
+            "640x480",
+            "--json",
+        ],
+        &shipped(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for stage in ["upload_ms", "render_ms", "readback_ms", "total_ms"] {
+        let v = report["staged"][stage].as_f64().unwrap();
+        assert!(v > 0.0, "{stage} = {v}");
+    }
+    assert!(report["pipelined_fps"].as_f64().unwrap() > 0.0);
+    assert_eq!(report["output"], "640x480 i420");
+}
+
+#[test]
+fn without_any_vulkan_driver_render_says_what_to_install() {
+    let dir = tempfile::tempdir().unwrap();
+    let fish = dir.path().join("fish.png");
+    image::RgbImage::new(64, 36).save(&fish).unwrap();
+    let out = dir.path().join("out.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["render", "--input", fish.to_str().unwrap(), "--out"])
+        .arg(&out)
+        .arg("--lens-cal")
+        .arg(shipped())
+        .env("VK_ICD_FILENAMES", dir.path().join("no-such-driver.json"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(err.contains("mesa-vulkan-drivers"), "{err}");
+    assert!(!out.exists(), "no output file on failure");
+}

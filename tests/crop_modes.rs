@@ -5,10 +5,10 @@
 mod common;
 use common::*;
 use digiview::image_ops::{pixel, psnr};
-use digiview::render::{FramePlan, cpu};
+use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
-use digiview::state::{State, Tracked};
+use digiview::state::State;
 
 #[test]
 fn every_layout_and_crop_mode_matches_ground_truth() {
@@ -16,15 +16,7 @@ fn every_layout_and_crop_mode_matches_ground_truth() {
     let mut state = four_view_state(7);
     state.output.overlay = 2;
     state.vehicle.attitude.roll = 10.0 * DEG;
-    state.tracked = (0..3)
-        .map(|i| Tracked {
-            id: i,
-            yaw: (40.0 * i as f64 - 30.0) * DEG,
-            pitch: -50.0 * DEG,
-            size: 12.0 * DEG,
-            score: 90,
-        })
-        .collect();
+    state.tracked = three_tracked();
     let fish = fisheye(&world, &lens, &state);
     for layout in 0..7u8 {
         for rotate in 0..4usize {
@@ -39,11 +31,17 @@ fn every_layout_and_crop_mode_matches_ground_truth() {
                 };
             }
             let plan = FramePlan::new(&s, &lens).unwrap();
-            let (got, want) = (cpu::render(&plan, &fish), truth(&world, &plan, &s));
+            let (got, want) = (
+                cpu::render(&plan, &fish, Filter::Mip),
+                truth(&world, &plan, &s),
+            );
             for (i, v) in plan.views.iter().enumerate() {
                 let db = psnr(&got, &want, v.rect);
+                // 29 dB, not issue 2's 32: the isotropic mip filter blurs minified views more
+                // than n x n supersampling did, most of all a 200° panorama squeezed into a
+                // 173 px square (29.8 dB), whose footprint is far from square.
                 assert!(
-                    db >= 32.0,
+                    db >= 29.0,
                     "layout {layout} rotate {rotate} view/tile {i} ({:?}): {db:.1} dB",
                     v.map
                 );
@@ -76,7 +74,7 @@ fn an_unknown_crop_mode_renders_its_view_black() {
     s.cameras[1].crop = 9;
     let fish = fisheye(&GridWorld::default(), &lens, &s);
     let plan = FramePlan::new(&s, &lens).unwrap();
-    let got = cpu::render(&plan, &fish);
+    let got = cpu::render(&plan, &fish, Filter::Mip);
     let r = plan.views[1].rect;
     assert!(
         (r.y..r.bottom()).all(|y| (r.x..r.right()).all(|x| pixel(&got, x, y) == glam::DVec3::ZERO))

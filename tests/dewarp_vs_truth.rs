@@ -7,7 +7,7 @@
 mod common;
 use common::*;
 use digiview::image_ops::psnr;
-use digiview::render::{FramePlan, cpu};
+use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::synth::{equirect, fisheye, truth};
 use digiview::scene::{GridWorld, PanoramaWorld, World};
 use digiview::state::State;
@@ -24,7 +24,7 @@ fn check(world: &dyn World, lens_name: &str, label: &str) {
     let lens = small_lens(lens_name);
     let fish = fisheye(world, &lens, &state);
     let plan = FramePlan::new(&state, &lens).unwrap();
-    let got = cpu::render(&plan, &fish);
+    let got = cpu::render(&plan, &fish, Filter::Mip);
     let want = truth(world, &plan, &state);
     for (i, v) in plan.views.iter().enumerate() {
         let p = psnr(&got, &want, v.rect);

@@ -1,6 +1,7 @@
-//! The command line: `digiview lens …`, `synth`, `render`, `serve` and `ctl`. Parses flags into
+//! The command line: `digiview lens …`, `synth`, `render`, `bench`, `serve` and `ctl`. Parses flags into
 //! the library's plain types and reports errors with anyhow; no rendering logic lives here.
 
+mod bench_cmd;
 mod ctl_cmd;
 mod lens_cmd;
 mod render_cmd;
@@ -39,6 +40,8 @@ pub enum Command {
     Render(render_cmd::RenderArgs),
     /// Synthesise a fisheye frame (or, with --truth, the exact output frame) from a known world.
     Synth(render_cmd::SynthArgs),
+    /// Time the renderer: N frames of a 4K fisheye, a new attitude each, per-stage medians.
+    Bench(bench_cmd::BenchArgs),
     /// Run the system; `--no-video` runs the control server alone on the live state.
     Serve(serve_cmd::ServeArgs),
     /// Talk to a running server over the control protocol: get, set, watch, quit.
@@ -145,6 +148,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Lens(cmd) => lens_cmd::run(&cli.lens_cal, cmd),
         Command::Render(args) => render_cmd::render(&cli.lens_cal, args),
         Command::Synth(args) => render_cmd::synth(&cli.lens_cal, args),
+        Command::Bench(args) => bench_cmd::bench(&cli.lens_cal, args),
         Command::Serve(args) => serve_cmd::serve(&cli.lens_cal, args),
         Command::Ctl(args) => ctl_cmd::run(args),
     }

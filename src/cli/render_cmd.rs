@@ -3,11 +3,13 @@
 
 use super::{StateArgs, spinner};
 use crate::lens::{Lens, LensCal, Roi};
-use crate::render::{FramePlan, cpu};
+use crate::render::gpu::renderer::render_image;
+use crate::render::gpu::{Gpu, Renderer};
+use crate::render::{Filter, FramePlan, PixelFormat, cpu};
 use crate::scene::synth::{equirect, fisheye, truth};
 use crate::scene::{GridWorld, PanoramaWorld, World};
 use crate::state::State;
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use image::RgbImage;
 use std::path::{Path, PathBuf};
@@ -26,8 +28,12 @@ pub struct RenderArgs {
     /// Where to write the output frame (.png or .jpg).
     #[arg(long)]
     out: PathBuf,
-    #[arg(long, value_enum, default_value = "cpu")]
+    /// The GPU renderer (lavapipe where there is no GPU) or the f64 CPU reference.
+    #[arg(long, value_enum, default_value = "gpu")]
     backend: Backend,
+    /// Minification filter (docs/decisions.md, "Filtering").
+    #[arg(long, value_enum, default_value = "mip")]
+    filter: Filter,
     #[command(flatten)]
     state: StateArgs,
 }
@@ -54,7 +60,7 @@ pub struct SynthArgs {
 }
 
 /// The state's lens, scaled to a fisheye frame of `size` (after the sensor crop, if any).
-fn lens_for(cal: &LensCal, state: &State, size: (u32, u32)) -> Result<Lens> {
+pub(crate) fn lens_for(cal: &LensCal, state: &State, size: (u32, u32)) -> Result<Lens> {
     let entry = cal
         .by_id(state.lens)
         .with_context(|| format!("lens_id {} is not in {}", state.lens, cal.path.display()))?;
@@ -80,9 +86,6 @@ fn save(img: &RgbImage, path: &Path) -> Result<()> {
 }
 
 pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
-    if args.backend == Backend::Gpu {
-        bail!("the GPU backend is not part of this build yet; use --backend cpu");
-    }
     let cal = LensCal::load(cal_path)?;
     let state = args.state.state(&cal)?;
     let input = image::open(&args.input)
@@ -90,9 +93,19 @@ pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
         .to_rgb8();
     let lens = lens_for(&cal, &state, input.dimensions())?;
     let plan = FramePlan::new(&state, &lens)?;
-    let bar = spinner("rendering on the CPU");
-    let out = cpu::render(&plan, &input);
-    bar.finish_and_clear();
+    let out = match args.backend {
+        Backend::Cpu => {
+            let bar = spinner("rendering on the CPU");
+            let out = cpu::render(&plan, &input, args.filter);
+            bar.finish_and_clear();
+            out
+        }
+        Backend::Gpu => {
+            let gpu = Gpu::new()?;
+            let mut renderer = Renderer::new(&gpu, PixelFormat::Rgba, args.filter)?;
+            render_image(&mut renderer, &input, &plan)?.to_rgb()
+        }
+    };
     save(&out, &args.out)
 }
 

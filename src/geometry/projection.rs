@@ -23,7 +23,7 @@ pub enum Projection {
 
 impl Projection {
     /// Focal length in pixels of a rectilinear view.
-    fn focal(width: f64, fov: f64) -> f64 {
+    pub fn focal(width: f64, fov: f64) -> f64 {
         0.5 * width / (0.5 * fov).tan()
     }
 

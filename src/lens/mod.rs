@@ -20,6 +20,7 @@ pub mod import;
 pub mod kannala_brandt;
 pub mod ocam;
 pub mod orthographic;
+pub mod samples;
 pub mod solve;
 pub mod stereographic;
 
@@ -193,6 +194,11 @@ impl PixelAffine {
     }
 }
 
+/// How far past the frame's edge (pixels) a position still counts as inside: positions that
+/// land exactly on the edge (the debug view's outer rows do) must not depend on rounding, and
+/// the GPU computes them in f32.
+pub const FRAME_EDGE_SLACK: f64 = 0.001;
+
 /// A sensor crop: the part of the calibration frame the camera delivers, in calibration pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Roi {
@@ -294,12 +300,11 @@ impl Lens {
         }
     }
 
-    /// Whether a pixel position lies inside the frame (pixel centres 0..w-1 plus half a pixel).
+    /// Whether a pixel position lies inside the frame (pixel centres 0..w-1 plus half a pixel,
+    /// plus [`FRAME_EDGE_SLACK`]).
     pub fn in_frame(&self, p: DVec2) -> bool {
-        p.x >= -0.5
-            && p.y >= -0.5
-            && p.x <= self.width as f64 - 0.5
-            && p.y <= self.height as f64 - 0.5
+        let (lo, hi) = (-0.5 - FRAME_EDGE_SLACK, -0.5 + FRAME_EDGE_SLACK);
+        p.x >= lo && p.y >= lo && p.x <= self.width as f64 + hi && p.y <= self.height as f64 + hi
     }
 
     /// The same lens for a frame of another size, optionally after a sensor crop (ROI given in

@@ -1,31 +1,70 @@
 //! The CPU reference renderer: the output frame from a fisheye image, in f64, following the
 //! frame plan exactly. Slow and simple on purpose; it is the oracle the GPU renderer is
-//! tested against. Each output pixel averages an n × n grid of bilinear fisheye samples, n
-//! from the plan, so minified views (debug, wide panoramas, small tiles) are box-filtered.
+//! tested against, with the same filtering (`render::mip`): each pixel takes a trilinear
+//! sample of the fisheye's mip chain at the footprint its quad neighbours give (those the
+//! same view draws).
 
-use super::plan::FramePlan;
-use crate::image_ops::{bilinear, sample_offsets, to_rgb8};
+use super::mip::{Filter, Pyramid, lod};
+use super::plan::{FramePlan, PlannedView};
+use crate::image_ops::{sample_offsets, to_rgb8};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use rayon::prelude::*;
 
-/// Renders the output frame; pixels of no view, and samples outside the lens's image circle
-/// or the fisheye frame, are black.
-pub fn render(plan: &FramePlan, fisheye: &RgbImage) -> RgbImage {
+/// Renders the output frame; pixels of no view, and pixels whose ray falls outside the lens's
+/// image circle or the fisheye frame, are black.
+pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage {
     assert_eq!(
         (fisheye.width(), fisheye.height()),
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    render_with(plan, |view, p| {
-        plan.fisheye_pixel(view, p).map(|q| bilinear(fisheye, q))
+    let pyramid = Pyramid::new(fisheye);
+    render_pixels(plan, |view, x, y| {
+        let r = view.rect;
+        let p = DVec2::new((x - r.x) as f64 + 0.5, (y - r.y) as f64 + 0.5);
+        let q = plan.fisheye_pixel(view, p)?;
+        let level = match filter {
+            Filter::Bilinear => 0.0,
+            Filter::Mip => {
+                // The quad neighbours x ^ 1 and y ^ 1 (frame coordinates), where this same view
+                // is drawn and sees something.
+                let neighbour = |nx: u32, ny: u32| {
+                    let drawn = plan.views.iter().rev().find(|v| v.rect.contains(nx, ny));
+                    let n = DVec2::new(nx as f64 - x as f64, ny as f64 - y as f64);
+                    drawn
+                        .is_some_and(|v| std::ptr::eq(v, view))
+                        .then(|| plan.fisheye_pixel(view, p + n))
+                        .flatten()
+                };
+                lod(q, neighbour(x ^ 1, y), neighbour(x, y ^ 1))
+            }
+        };
+        Some(pyramid.sample(q, level))
     })
 }
 
-/// Renders every view of a plan with `colour(view, point)`; None is black. Rows in parallel.
+/// Renders every view of a plan with `colour(view, point)` averaged over the plan's
+/// supersampling grid; None is black. What the ground-truth renderer uses.
 pub fn render_with<F>(plan: &FramePlan, colour: F) -> RgbImage
 where
-    F: Fn(&super::PlannedView, DVec2) -> Option<DVec3> + Sync,
+    F: Fn(&PlannedView, DVec2) -> Option<DVec3> + Sync,
+{
+    render_pixels(plan, |view, x, y| {
+        let base = DVec2::new((x - view.rect.x) as f64, (y - view.rect.y) as f64);
+        let n = view.samples * view.samples;
+        let sum: DVec3 = sample_offsets(view.samples)
+            .filter_map(|o| colour(view, base + o))
+            .sum();
+        Some(sum / n as f64)
+    })
+}
+
+/// Calls `pixel(view, x, y)` for every frame pixel of every view, rows in parallel. Later views
+/// (tiles) are drawn over earlier ones, so overlay mode 1 covers its corner.
+fn render_pixels<F>(plan: &FramePlan, pixel: F) -> RgbImage
+where
+    F: Fn(&PlannedView, u32, u32) -> Option<DVec3> + Sync,
 {
     let (w, h) = (plan.layout.width, plan.layout.height);
     let mut out = vec![0u8; (w * h * 3) as usize];
@@ -33,17 +72,13 @@ where
         .enumerate()
         .for_each(|(y, row)| {
             let y = y as u32;
-            // Later views (tiles) are drawn over earlier ones, so overlay mode 1 covers its corner.
             for view in plan
                 .views
                 .iter()
                 .filter(|v| y >= v.rect.y && y < v.rect.bottom())
             {
-                let offsets: Vec<DVec2> = sample_offsets(view.samples).collect();
                 for x in view.rect.x..view.rect.right() {
-                    let base = DVec2::new((x - view.rect.x) as f64, (y - view.rect.y) as f64);
-                    let sum: DVec3 = offsets.iter().filter_map(|o| colour(view, base + *o)).sum();
-                    let rgb = to_rgb8(sum / offsets.len() as f64);
+                    let rgb = to_rgb8(pixel(view, x, y).unwrap_or(DVec3::ZERO));
                     row[(x * 3) as usize..(x * 3 + 3) as usize].copy_from_slice(&rgb);
                 }
             }

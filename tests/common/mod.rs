@@ -11,7 +11,7 @@ use digiview::lens::{Lens, LensCal};
 use digiview::render::{FramePlan, ViewMap};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::eye;
-use digiview::state::State;
+use digiview::state::{State, Tracked};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use std::path::PathBuf;
@@ -131,4 +131,17 @@ pub fn landmark_matches(
 /// Yaw and pitch of a landmark seen from the state's eye, for messages.
 pub fn landmark_direction(state: &State, position: DVec2) -> (f64, f64) {
     yaw_pitch(DVec3::new(position.x, position.y, 0.0) - eye(state))
+}
+
+/// Three tracked objects 50° down, spread over 80° of yaw, 12° across: three detection tiles.
+pub fn three_tracked() -> Vec<Tracked> {
+    (0..3)
+        .map(|i| Tracked {
+            id: i,
+            yaw: (40.0 * i as f64 - 30.0) * DEG,
+            pitch: -50.0 * DEG,
+            size: 12.0 * DEG,
+            score: 90,
+        })
+        .collect()
 }

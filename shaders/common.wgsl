@@ -1,0 +1,45 @@
+// What every pass shares: the per-frame parameters (one small uniform buffer, rewritten each
+// frame) and BT.709 limited-range colour conversion, the twin of src/render/yuv.rs.
+//
+// Prepended to each pass's source (after lens.wgsl) by src/render/gpu/shaders.rs.
+
+const FORMAT_RGBA: u32 = 0u;
+const FORMAT_I420: u32 = 1u;
+const FORMAT_NV12: u32 = 2u;
+
+// Twin of the Rust `GpuParams` (src/render/gpu/params.rs).
+struct Params {
+    // Output width, height, number of views, luma (or RGBA) row stride in bytes.
+    output: vec4u,
+    // Output chroma: U (or UV) plane offset, V plane offset, chroma row stride, all in bytes.
+    output_planes: vec4u,
+    // Input width, height, luma (or RGBA) row stride, chroma row stride (bytes).
+    input: vec4u,
+    // Input chroma plane offsets (U or UV, V) in bytes, mip levels, unused.
+    input_planes: vec4u,
+    lens: Lens,
+}
+
+const KR: f32 = 0.2126;
+const KB: f32 = 0.0722;
+const KG: f32 = 0.7152;
+
+// RGB in [0, 1] → (Y, Cb, Cr) as 8-bit code values in [0, 1] (limited range: Y 16..235,
+// chroma 16..240).
+fn rgb_to_yuv(c: vec3f) -> vec3f {
+    let y = dot(c, vec3f(KR, KG, KB));
+    let cb = 0.5 * (c.b - y) / (1.0 - KB);
+    let cr = 0.5 * (c.r - y) / (1.0 - KR);
+    return vec3f(16.0 + 219.0 * y, 128.0 + 224.0 * cb, 128.0 + 224.0 * cr) / 255.0;
+}
+
+// 8-bit code values (0..255) → RGB in [0, 1].
+fn yuv_to_rgb(y8: f32, u8: f32, v8: f32) -> vec3f {
+    let y = (y8 - 16.0) / 219.0;
+    let cb = (u8 - 128.0) / 224.0;
+    let cr = (v8 - 128.0) / 224.0;
+    let r = y + 2.0 * (1.0 - KR) * cr;
+    let b = y + 2.0 * (1.0 - KB) * cb;
+    let g = (y - KR * r - KB * b) / KG;
+    return clamp(vec3f(r, g, b), vec3f(0.0), vec3f(1.0));
+}

@@ -1,0 +1,191 @@
+// The frame pass: every view and detection tile of the output frame in one dispatch, from the
+// source texture's mip chain. One invocation draws an 8x2 block (four 2x2 quads), which is
+// what I420 and NV12 need to write whole words of every plane. Per frame only `params` and
+// `views` change; the output format and filter are overrides fixed with the pipeline.
+//
+// Filtering, as src/render/cpu.rs does it: a trilinear sample whose level of detail is
+// log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1, y ^ 1), the
+// derivatives a fragment shader would take.
+
+const KIND_BLACK: u32 = 0u;
+const KIND_RECTILINEAR: u32 = 1u;
+const KIND_PANORAMA: u32 = 2u;
+const KIND_FISHEYE: u32 = 3u;
+
+const FILTER_MIP: u32 = 0u;
+const FILTER_BILINEAR: u32 = 1u;
+
+override OUTPUT_FORMAT: u32 = 0u;
+override FILTER: u32 = 0u;
+
+// Twin of the Rust `GpuView` (src/render/gpu/params.rs).
+struct View {
+    // x, y, w, h in output pixels.
+    rect: vec4u,
+    // KIND_*, unused ×3.
+    kind: vec4u,
+    // lens_from_view, by columns (xyz).
+    m0: vec4f,
+    m1: vec4f,
+    m2: vec4f,
+    // Rectilinear: focal, w/2, h/2. Panorama: radians per pixel, pitch, w/2, h/2.
+    // Fisheye: origin x, y, fisheye pixels per view pixel.
+    p: vec4f,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<uniform> views: array<View, MAX_VIEWS>;
+@group(0) @binding(2) var source: texture_2d<f32>;
+@group(0) @binding(3) var trilinear: sampler;
+@group(0) @binding(4) var<storage, read_write> out: array<u32>;
+
+const NO_VIEW: i32 = -1;
+// MAX_VIEWS in src/render/gpu/params.rs.
+const MAX_VIEWS: u32 = 68u;
+
+fn contains(r: vec4u, x: u32, y: u32) -> bool {
+    return x >= r.x && y >= r.y && x < r.x + r.z && y < r.y + r.w;
+}
+
+// The view drawn at a pixel: the last one containing it (tiles cover views).
+fn view_at(x: u32, y: u32) -> i32 {
+    for (var i = i32(params.output.z) - 1; i >= 0; i--) {
+        if contains(views[i].rect, x, y) {
+            return i;
+        }
+    }
+    return NO_VIEW;
+}
+
+// The fisheye pixel seen at point p of view `vi` (xy) and whether anything is imaged (z):
+// FramePlan::fisheye_pixel. Written without branches on the view's kind: a software
+// rasterizer runs both sides of a branch whenever its lanes disagree, so one lens projection
+// serves the rectified kinds and selects pick the result.
+fn view_point(vi: i32, p: vec2f) -> vec3f {
+    let v = &views[vi];
+    let m = mat3x3f((*v).m0.xyz, (*v).m1.xyz, (*v).m2.xyz);
+    let k = (*v).p;
+    let kind = (*v).kind.x;
+    let a = (p.x - k.z) * k.x;
+    let e = k.y - (p.y - k.w) * k.x;
+    let panorama = vec3f(cos(e) * cos(a), cos(e) * sin(a), -sin(e));
+    let rectilinear = vec3f(k.x, p.x - k.y, p.y - k.z);
+    let rectified = lens_project(m * select(rectilinear, panorama, kind == KIND_PANORAMA));
+    let q = k.xy + p * k.z - 0.5;
+    let fisheye = vec3f(q, select(0.0, 1.0, lens_images(q)));
+    let drawn = select(rectified, fisheye, kind == KIND_FISHEYE);
+    return select(vec3f(0.0), drawn, kind != KIND_BLACK);
+}
+
+// View `vi` at output pixel (x, y); black where there is no view or the pixel is padding.
+fn view_pixel(vi: i32, x: u32, y: u32) -> vec3f {
+    let r = views[max(vi, 0)].rect;
+    let q = view_point(max(vi, 0), vec2f(f32(x) - f32(r.x), f32(y) - f32(r.y)) + 0.5);
+    return select(vec3f(0.0), q, vi >= 0 && x < params.output.x);
+}
+
+// The colour of a pixel of view `vi` that lands at `q`, given its quad neighbours in x and y
+// (their views and landing points). A neighbour drawn by another view, or black, does not
+// count (src/render/cpu.rs measures the same way).
+fn shade(vi: i32, q: vec3f, vx: i32, qx: vec3f, vy: i32, qy: vec3f) -> vec3f {
+    var lod = 0.0;
+    if FILTER == FILTER_MIP {
+        let sx = select(0.0, distance(qx.xy, q.xy), vx == vi && qx.z > 0.0);
+        let sy = select(0.0, distance(qy.xy, q.xy), vy == vi && qy.z > 0.0);
+        lod = clamp(log2(max(max(sx, sy), 1.0)), 0.0, f32(params.input_planes.z - 1u));
+    }
+    let size = params.lens.offset_frame.zw;
+    let c = textureSampleLevel(source, trilinear, (q.xy + 0.5) / size, lod).rgb;
+    return select(vec3f(0.0), c, q.z > 0.0);
+}
+
+// A 2x2 quad's colours: (x0, y0), (x0+1, y0), (x0, y0+1), (x0+1, y0+1).
+struct Quad {
+    c0: vec3f,
+    c1: vec3f,
+    c2: vec3f,
+    c3: vec3f,
+}
+
+fn draw_quad(x0: u32, y0: u32) -> Quad {
+    let x1 = x0 + 1u;
+    let y1 = y0 + 1u;
+    let v0 = view_at(x0, y0);
+    let v1 = view_at(x1, y0);
+    let v2 = view_at(x0, y1);
+    let v3 = view_at(x1, y1);
+    let q0 = view_pixel(v0, x0, y0);
+    let q1 = view_pixel(v1, x1, y0);
+    let q2 = view_pixel(v2, x0, y1);
+    let q3 = view_pixel(v3, x1, y1);
+    return Quad(
+        shade(v0, q0, v1, q1, v2, q2),
+        shade(v1, q1, v0, q0, v3, q3),
+        shade(v2, q2, v3, q3, v0, q0),
+        shade(v3, q3, v2, q2, v1, q1),
+    );
+}
+
+fn luma(c: vec3f) -> f32 {
+    return rgb_to_yuv(c).x;
+}
+
+fn chroma(q: Quad) -> vec2f {
+    return rgb_to_yuv((q.c0 + q.c1 + q.c2 + q.c3) * 0.25).yz;
+}
+
+fn store_rgba(x: u32, y: u32, c: vec3f) {
+    if x < params.output.x && y < params.output.y {
+        out[(y * params.output.w) / 4u + x] = pack4x8unorm(vec4f(c, 1.0));
+    }
+}
+
+fn store_quad_rgba(x0: u32, y0: u32, q: Quad) {
+    store_rgba(x0, y0, q.c0);
+    store_rgba(x0 + 1u, y0, q.c1);
+    store_rgba(x0, y0 + 1u, q.c2);
+    store_rgba(x0 + 1u, y0 + 1u, q.c3);
+}
+
+@compute @workgroup_size(8, 8)
+fn draw(@builtin(global_invocation_id) gid: vec3u) {
+    let bx = gid.x * 8u;
+    let by = gid.y * 2u;
+    if bx >= params.output.x || by >= params.output.y {
+        return;
+    }
+    let a = draw_quad(bx, by);
+    let b = draw_quad(bx + 2u, by);
+    let c = draw_quad(bx + 4u, by);
+    let d = draw_quad(bx + 6u, by);
+    if OUTPUT_FORMAT == FORMAT_RGBA {
+        store_quad_rgba(bx, by, a);
+        store_quad_rgba(bx + 2u, by, b);
+        store_quad_rgba(bx + 4u, by, c);
+        store_quad_rgba(bx + 6u, by, d);
+        return;
+    }
+    // Luma: two rows of two words; the padded stride keeps every word inside the plane.
+    let stride = params.output.w;
+    let top = (by * stride + bx) / 4u;
+    let bottom = ((by + 1u) * stride + bx) / 4u;
+    out[top] = pack4x8unorm(vec4f(luma(a.c0), luma(a.c1), luma(b.c0), luma(b.c1)));
+    out[top + 1u] = pack4x8unorm(vec4f(luma(c.c0), luma(c.c1), luma(d.c0), luma(d.c1)));
+    out[bottom] = pack4x8unorm(vec4f(luma(a.c2), luma(a.c3), luma(b.c2), luma(b.c3)));
+    out[bottom + 1u] = pack4x8unorm(vec4f(luma(c.c2), luma(c.c3), luma(d.c2), luma(d.c3)));
+    // Chroma: each quad's mean colour.
+    let ua = chroma(a);
+    let ub = chroma(b);
+    let uc = chroma(c);
+    let ud = chroma(d);
+    let row = params.output_planes.x + (by / 2u) * params.output_planes.z;
+    if OUTPUT_FORMAT == FORMAT_I420 {
+        let v_row = params.output_planes.y + (by / 2u) * params.output_planes.z;
+        out[(row + bx / 2u) / 4u] = pack4x8unorm(vec4f(ua.x, ub.x, uc.x, ud.x));
+        out[(v_row + bx / 2u) / 4u] = pack4x8unorm(vec4f(ua.y, ub.y, uc.y, ud.y));
+    } else {
+        let w = (row + bx) / 4u;
+        out[w] = pack4x8unorm(vec4f(ua, ub));
+        out[w + 1u] = pack4x8unorm(vec4f(uc, ud));
+    }
+}

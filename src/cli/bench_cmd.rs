@@ -1,0 +1,276 @@
+//! `digiview bench`: renders N frames of a synthetic 4K fisheye with a new vehicle attitude
+//! every frame and reports where the time goes. Two runs over the same frames: one with each
+//! stage waited for on its own (per-stage medians), one pipelined as the video head runs
+//! (frames per second, and each frame's latency from upload to readable bytes).
+
+use super::render_cmd::{Backend, lens_for};
+use super::{StateArgs, spinner};
+use crate::lens::LensCal;
+use crate::render::gpu::{Gpu, Renderer, StageTimes};
+use crate::render::{Filter, FramePlan, PixelFormat, PlaneLayout, cpu, yuv};
+use crate::scene::GridWorld;
+use crate::scene::synth::fisheye;
+use crate::state::{State, Tracked};
+use anyhow::{Result, bail};
+use clap::Args;
+use image::RgbImage;
+use serde::Serialize;
+use std::time::{Duration, Instant};
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Frames to time in each run.
+    #[arg(long, default_value_t = 120)]
+    frames: u32,
+    /// Frames rendered first and not timed (pipeline builds, caches).
+    #[arg(long, default_value_t = 5)]
+    warmup: u32,
+    /// The fisheye input's size.
+    #[arg(long, default_value = "3840x2160", value_parser = crate::units::parse_size)]
+    input_size: (u32, u32),
+    /// The fisheye input's pixel format.
+    #[arg(long, value_enum, default_value = "nv12")]
+    input_format: PixelFormat,
+    /// The output frame's pixel format.
+    #[arg(long, value_enum, default_value = "i420")]
+    output_format: PixelFormat,
+    #[arg(long, value_enum, default_value = "mip")]
+    filter: Filter,
+    #[arg(long, value_enum, default_value = "gpu")]
+    backend: Backend,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// The output (--size, default 1920x1080), layout (default 4), overlay (default 2),
+    /// cameras and lens, as for `render`.
+    #[command(flatten)]
+    state: StateArgs,
+}
+
+#[derive(Serialize)]
+struct Medians {
+    upload_ms: f64,
+    render_ms: f64,
+    readback_ms: f64,
+    total_ms: f64,
+}
+
+/// What a backend's runs measured.
+#[derive(Serialize)]
+struct Measured {
+    adapter: String,
+    backend: &'static str,
+    /// Each stage waited for on its own.
+    staged: Medians,
+    /// Frames per second with upload, render and readback overlapped (frame N renders while
+    /// N-1 is read back).
+    pipelined_fps: f64,
+    /// Median from a frame's upload starting to its bytes being readable, pipelined.
+    pipelined_latency_ms: f64,
+}
+
+#[derive(Serialize)]
+struct Report {
+    #[serde(flatten)]
+    measured: Measured,
+    frames: u32,
+    input: String,
+    output: String,
+    layout: u8,
+    overlay: u8,
+    filter: Filter,
+    /// Median time to plan a frame from the state on the CPU (included in the totals).
+    plan_ms: f64,
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() { 0.0 } else { v[v.len() / 2] }
+}
+
+/// The state of frame `i`: the vehicle yaws, pitches and rolls a little more each frame.
+fn attitude_at(base: &State, i: u32) -> State {
+    let mut s = base.clone();
+    let t = i as f64;
+    let a = &mut s.vehicle.attitude;
+    a.yaw = (1.7 * t).to_radians();
+    a.pitch = (8.0 * (0.11 * t).sin()).to_radians();
+    a.roll = (12.0 * (0.07 * t).cos()).to_radians();
+    s
+}
+
+pub fn bench(cal_path: &std::path::Path, args: BenchArgs) -> Result<()> {
+    if args.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    let cal = LensCal::load(cal_path)?;
+    let mut base = args.state.state(&cal)?;
+    if base.tracked.is_empty() {
+        // Four detections so the overlay's tiles are drawn, not left black.
+        base.tracked = (0..4)
+            .map(|i| Tracked {
+                id: i,
+                yaw: (50.0 * i as f64 - 75.0).to_radians(),
+                pitch: (-40.0f64).to_radians(),
+                size: 10f64.to_radians(),
+                score: 90,
+            })
+            .collect();
+    }
+    let lens = lens_for(&cal, &base, args.input_size)?;
+    let input_layout = PlaneLayout::tight(args.input_format, args.input_size.0, args.input_size.1)?;
+    let bar = spinner(&format!(
+        "synthesising the {}x{} fisheye input",
+        args.input_size.0, args.input_size.1
+    ));
+    let fish = fisheye(&GridWorld::default(), &lens, &base);
+    let input = yuv::encode(&fish, &input_layout);
+    bar.finish_and_clear();
+    let total = args.warmup + args.frames;
+    let plans: Vec<FramePlan> = (0..total)
+        .map(|i| FramePlan::new(&attitude_at(&base, i), &lens))
+        .collect::<Result<_, _>>()?;
+    let plan_time = {
+        let t = Instant::now();
+        for i in 0..args.frames {
+            std::hint::black_box(FramePlan::new(&attitude_at(&base, i), &lens)?);
+        }
+        t.elapsed() / args.frames
+    };
+    let measured = match args.backend {
+        Backend::Gpu => bench_gpu(&args, &input, &input_layout, &plans)?,
+        Backend::Cpu => bench_cpu(&args, &fish, &plans),
+    };
+    let report = Report {
+        measured,
+        input: format!(
+            "{}x{} {}",
+            args.input_size.0, args.input_size.1, args.input_format
+        ),
+        output: format!(
+            "{}x{} {}",
+            base.output.width, base.output.height, args.output_format
+        ),
+        layout: base.output.layout,
+        overlay: base.output.overlay,
+        filter: args.filter,
+        frames: args.frames,
+        plan_ms: ms(plan_time),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    let r = &report.measured;
+    println!("adapter      {} ({})", r.adapter, r.backend);
+    println!(
+        "frames       {} of {} → {}, layout {} overlay {}, filter {:?}",
+        report.frames, report.input, report.output, report.layout, report.overlay, report.filter
+    );
+    println!("median per stage (each waited for on its own):");
+    let m = &r.staged;
+    println!("  plan       {:8.2} ms (CPU)", report.plan_ms);
+    println!("  upload     {:8.2} ms", m.upload_ms);
+    println!("  render     {:8.2} ms", m.render_ms);
+    println!("  readback   {:8.2} ms", m.readback_ms);
+    println!(
+        "  total      {:8.2} ms  ({:.1} fps)",
+        m.total_ms,
+        1e3 / m.total_ms
+    );
+    println!(
+        "pipelined    {:8.1} fps, latency {:.2} ms median (upload start → bytes readable)",
+        r.pipelined_fps, r.pipelined_latency_ms
+    );
+    Ok(())
+}
+
+fn progress(n: u32, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(n as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} {bar:30} {pos}/{len} frames")
+            .expect("valid template"),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+fn bench_gpu(
+    args: &BenchArgs,
+    input: &[u8],
+    input_layout: &PlaneLayout,
+    plans: &[FramePlan],
+) -> Result<Measured> {
+    let gpu = Gpu::new()?;
+    let mut renderer = Renderer::new(&gpu, args.output_format, args.filter)?;
+    let (warm, timed) = plans.split_at(args.warmup as usize);
+    for plan in warm {
+        renderer.render(input, input_layout, plan)?;
+    }
+    let bar = progress(args.frames, "staged");
+    let mut stages: Vec<StageTimes> = vec![];
+    for plan in timed {
+        let (_, times) = renderer.render_staged(input, input_layout, plan)?;
+        stages.push(times);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let bar = progress(args.frames, "pipelined");
+    let mut latencies = vec![];
+    let start = Instant::now();
+    for plan in timed {
+        if let Some(frame) = renderer.push(input, input_layout, plan)? {
+            latencies.push(ms(frame.latency));
+        }
+        bar.inc(1);
+    }
+    while let Some(frame) = renderer.flush()? {
+        latencies.push(ms(frame.latency));
+    }
+    let elapsed = start.elapsed();
+    bar.finish_and_clear();
+    let pick = |f: fn(&StageTimes) -> Duration| median(stages.iter().map(|s| ms(f(s))).collect());
+    Ok(Measured {
+        adapter: gpu.describe(),
+        backend: "gpu",
+        staged: Medians {
+            upload_ms: pick(|s| s.upload),
+            render_ms: pick(|s| s.render),
+            readback_ms: pick(|s| s.readback),
+            total_ms: pick(|s| s.upload + s.render + s.readback),
+        },
+        pipelined_fps: args.frames as f64 / elapsed.as_secs_f64(),
+        pipelined_latency_ms: median(latencies),
+    })
+}
+
+/// The CPU reference at the same job, for scale (no upload or readback: it renders the RGB
+/// image in memory).
+fn bench_cpu(args: &BenchArgs, fish: &RgbImage, plans: &[FramePlan]) -> Measured {
+    let bar = progress(args.frames, "cpu");
+    let mut times = vec![];
+    for plan in &plans[args.warmup as usize..] {
+        let t = Instant::now();
+        std::hint::black_box(cpu::render(plan, fish, args.filter));
+        times.push(ms(t.elapsed()));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let m = median(times);
+    Measured {
+        adapter: format!("CPU reference ({} threads)", rayon::current_num_threads()),
+        backend: "cpu",
+        staged: Medians {
+            upload_ms: 0.0,
+            render_ms: m,
+            readback_ms: 0.0,
+            total_ms: m,
+        },
+        pipelined_fps: 1e3 / m,
+        pipelined_latency_ms: m,
+    }
+}

@@ -1,0 +1,41 @@
+//! The GPU renderer (wgpu, WGSL in shaders/): fisheye bytes in, output frame bytes out, one
+//! compute pass per frame for all views. `device` picks the adapter, `shaders` composes the
+//! WGSL, `params` lays out the per-frame buffers shared with it, `renderer` owns the GPU
+//! resources and the upload → render → readback ring. Touches no sockets and no GStreamer.
+
+pub mod device;
+pub mod params;
+pub mod renderer;
+pub mod shaders;
+
+pub use device::Gpu;
+pub use renderer::{RenderedFrame, Renderer, StageTimes};
+
+use super::frame::FrameError;
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found. Install a Vulkan driver: on Debian or Ubuntu, as root, \
+         `apt-get install libvulkan1 mesa-vulkan-drivers` (Mesa's lavapipe software driver \
+         works everywhere), or your GPU vendor's driver{0}"
+    )]
+    NoAdapter(String),
+    #[error("no GPU adapter's name contains {wanted:?} (found: {found})")]
+    AdapterNotFound { wanted: String, found: String },
+    #[error("opening the GPU device {adapter}: {source}")]
+    Device {
+        adapter: String,
+        source: wgpu::RequestDeviceError,
+    },
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error("the frame has {0} views and tiles; the GPU renderer draws at most {1}")]
+    TooManyViews(usize, usize),
+    #[error("lens {lens}: {what}")]
+    Lens { lens: String, what: String },
+    #[error("the plan's lens is for a {0}x{1} frame but the input is {2}x{3}")]
+    LensSize(u32, u32, u32, u32),
+    #[error("the GPU failed: {0}")]
+    Failed(String),
+}

@@ -1,0 +1,207 @@
+//! The per-frame data the shaders read, laid out once: `GpuParams` (uniform, WGSL `Params`
+//! in shaders/common.wgsl, holding `GpuLens` = WGSL `Lens` in shaders/lens.wgsl) and one
+//! `GpuView` (WGSL `View` in shaders/render.wgsl) per view and tile. Only vec4-shaped
+//! fields, so the Rust and WGSL layouts agree without padding rules; sizes asserted below.
+
+use super::GpuError;
+use crate::geometry::Projection;
+use crate::lens::{Lens, Model};
+use crate::render::frame::PlaneLayout;
+use crate::render::plan::{FramePlan, PlannedView, ViewMap};
+use bytemuck::{Pod, Zeroable};
+use glam::DMat3;
+
+pub const OCAM_POL: usize = 8;
+pub const OCAM_INVPOL: usize = 24;
+/// Views and tiles one frame may hold (4 views + a row of 120-px tiles across 7680 px).
+pub const MAX_VIEWS: usize = 68;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuLens {
+    pub affine: [f32; 4],
+    pub inverse: [f32; 4],
+    pub offset_frame: [f32; 4],
+    pub limits: [f32; 4],
+    pub k: [f32; 4],
+    pub counts: [u32; 4],
+    pub pol: [[f32; 4]; OCAM_POL / 4],
+    pub invpol: [[f32; 4]; OCAM_INVPOL / 4],
+}
+const _: () = assert!(size_of::<GpuLens>() == 224);
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuParams {
+    pub output: [u32; 4],
+    pub output_planes: [u32; 4],
+    pub input: [u32; 4],
+    pub input_planes: [u32; 4],
+    pub lens: GpuLens,
+}
+const _: () = assert!(size_of::<GpuParams>() == 64 + 224);
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuView {
+    pub rect: [u32; 4],
+    pub kind: [u32; 4],
+    pub m0: [f32; 4],
+    pub m1: [f32; 4],
+    pub m2: [f32; 4],
+    pub p: [f32; 4],
+}
+const _: () = assert!(size_of::<GpuView>() == 96);
+
+/// `KIND_*` in shaders/render.wgsl.
+const KIND_BLACK: u32 = 0;
+const KIND_RECTILINEAR: u32 = 1;
+const KIND_PANORAMA: u32 = 2;
+const KIND_FISHEYE: u32 = 3;
+
+/// The model's code (`MODEL_*` in shaders/lens.wgsl), the LENS_MODEL override.
+pub fn model_code(model: &Model) -> u32 {
+    match model {
+        Model::Equidistant => 0,
+        Model::Equisolid => 1,
+        Model::Stereographic => 2,
+        Model::Orthographic => 3,
+        Model::KannalaBrandt { .. } => 4,
+        Model::DoubleSphere { .. } => 5,
+        Model::Ocam { .. } => 6,
+    }
+}
+
+fn packed<const N: usize>(coefficients: &[f64]) -> [[f32; 4]; N] {
+    let mut out = [[0.0; 4]; N];
+    for (i, c) in coefficients.iter().enumerate() {
+        out[i / 4][i % 4] = *c as f32;
+    }
+    out
+}
+
+pub fn gpu_lens(lens: &Lens) -> Result<GpuLens, GpuError> {
+    let m = lens.affine.matrix;
+    let inv = m.inverse();
+    let mut k = [0.0f32; 4];
+    let (mut pol, mut invpol): (&[f64], &[f64]) = (&[], &[]);
+    match &lens.radial.model {
+        Model::KannalaBrandt { k: c } => k = c.map(|v| v as f32),
+        Model::DoubleSphere { xi, alpha } => k = [*xi as f32, *alpha as f32, 0.0, 0.0],
+        Model::Ocam { pol: p, invpol: ip } => {
+            if p.len() > OCAM_POL || ip.len() > OCAM_INVPOL {
+                return Err(GpuError::Lens {
+                    lens: lens.name.clone(),
+                    what: format!(
+                        "OCam polynomials of {} and {} coefficients; the GPU takes at most \
+                         {OCAM_POL} and {OCAM_INVPOL}",
+                        p.len(),
+                        ip.len()
+                    ),
+                });
+            }
+            (pol, invpol) = (p, ip);
+        }
+        _ => {}
+    }
+    let r_limit = lens.radial.r_of_theta(lens.half_fov).unwrap_or(0.0);
+    Ok(GpuLens {
+        affine: [m.x_axis.x, m.x_axis.y, m.y_axis.x, m.y_axis.y].map(|v| v as f32),
+        inverse: [inv.x_axis.x, inv.x_axis.y, inv.y_axis.x, inv.y_axis.y].map(|v| v as f32),
+        offset_frame: [
+            lens.affine.offset.x as f32,
+            lens.affine.offset.y as f32,
+            lens.width as f32,
+            lens.height as f32,
+        ],
+        limits: [
+            lens.half_fov as f32,
+            r_limit as f32,
+            lens.radial.limits.theta_max as f32,
+            lens.radial.limits.r_max.min(f32::MAX as f64) as f32,
+        ],
+        k,
+        counts: [pol.len() as u32, invpol.len() as u32, 0, 0],
+        pol: packed(pol),
+        invpol: packed(invpol),
+    })
+}
+
+fn columns(m: DMat3) -> [[f32; 4]; 3] {
+    [m.x_axis, m.y_axis, m.z_axis].map(|c| [c.x as f32, c.y as f32, c.z as f32, 0.0])
+}
+
+pub fn gpu_view(plan: &FramePlan, view: &PlannedView) -> GpuView {
+    let r = view.rect;
+    let (kind, m, p) = match view.map {
+        ViewMap::Rays {
+            projection,
+            world_from_view,
+        } => {
+            let m = plan.lens_from_world * world_from_view;
+            match projection {
+                Projection::Rectilinear { width, height, fov } => (
+                    KIND_RECTILINEAR,
+                    m,
+                    [
+                        Projection::focal(width, fov),
+                        width / 2.0,
+                        height / 2.0,
+                        0.0,
+                    ],
+                ),
+                Projection::Panorama {
+                    width,
+                    height,
+                    fov,
+                    pitch,
+                } => (
+                    KIND_PANORAMA,
+                    m * DMat3::from_rotation_y(-pitch),
+                    [fov / width, pitch, width / 2.0, height / 2.0],
+                ),
+            }
+        }
+        ViewMap::Fisheye { origin, scale } => (
+            KIND_FISHEYE,
+            DMat3::IDENTITY,
+            [origin.x, origin.y, scale, 0.0],
+        ),
+        ViewMap::Black => (KIND_BLACK, DMat3::IDENTITY, [0.0; 4]),
+    };
+    let [m0, m1, m2] = columns(m);
+    GpuView {
+        rect: [r.x, r.y, r.w, r.h],
+        kind: [kind, 0, 0, 0],
+        m0,
+        m1,
+        m2,
+        p: p.map(|v| v as f32),
+    }
+}
+
+/// The frame's parameters and views.
+pub fn frame_params(
+    plan: &FramePlan,
+    input: &PlaneLayout,
+    output: &PlaneLayout,
+    levels: u32,
+) -> Result<(GpuParams, Vec<GpuView>), GpuError> {
+    let views: Vec<GpuView> = plan.views.iter().map(|v| gpu_view(plan, v)).collect();
+    if views.len() > MAX_VIEWS {
+        return Err(GpuError::TooManyViews(views.len(), MAX_VIEWS));
+    }
+    let params = GpuParams {
+        output: [
+            output.width,
+            output.height,
+            views.len() as u32,
+            output.stride,
+        ],
+        output_planes: [output.chroma[0], output.chroma[1], output.chroma_stride, 0],
+        input: [input.width, input.height, input.stride, input.chroma_stride],
+        input_planes: [input.chroma[0], input.chroma[1], levels, 0],
+        lens: gpu_lens(&plan.lens)?,
+    };
+    Ok((params, views))
+}

@@ -1,0 +1,329 @@
+//! The GPU renderer on lavapipe (or whatever adapter the machine has; none is a failure)
+//! against the CPU reference of the same math and against ground truth from the synthetic
+//! world: every layout, crop mode and lens model; camera-native NV12 and I420 input;
+//! encoder-ready I420 and NV12 output; filtering of minified views; the frame ring.
+//!
+//! Tolerances: GPU vs CPU reference PSNR ≥ 45 dB per frame; GPU vs truth within 0.5 dB of
+//! what the CPU reference scores; 4:2:0 input vs RGBA input ≥ 40 dB.
+
+mod common;
+use common::*;
+use digiview::image_ops::{pixel, psnr};
+use digiview::layout::Rect;
+use digiview::lens::Lens;
+use digiview::lens::samples::sample_lenses;
+use digiview::render::gpu::renderer::render_image;
+use digiview::render::gpu::{Gpu, Renderer};
+use digiview::render::{Filter, FramePlan, PixelFormat, PlaneLayout, cpu, yuv};
+use digiview::scene::GridWorld;
+use digiview::scene::synth::{fisheye, truth};
+use digiview::state::State;
+use image::RgbImage;
+use std::sync::OnceLock;
+
+/// One device for the whole file: opening lavapipe is not free.
+fn gpu() -> Gpu {
+    static GPU: OnceLock<Gpu> = OnceLock::new();
+    GPU.get_or_init(|| Gpu::new().expect("a GPU adapter (lavapipe in CI)"))
+        .clone()
+}
+
+fn renderer(format: PixelFormat, filter: Filter) -> Renderer {
+    Renderer::new(&gpu(), format, filter).unwrap()
+}
+
+fn whole(img: &RgbImage) -> Rect {
+    Rect::new(0, 0, img.width(), img.height())
+}
+
+/// Four views and three detection tiles at 480x272, the vehicle rolled.
+fn base_state() -> State {
+    let mut s = four_view_state(7);
+    (s.output.width, s.output.height) = (480, 272);
+    s.output.overlay = 2;
+    s.vehicle.attitude.roll = 10.0 * DEG;
+    s.tracked = three_tracked();
+    s
+}
+
+struct Scores {
+    vs_cpu: f64,
+    gpu_vs_truth: f64,
+    cpu_vs_truth: f64,
+}
+
+/// Renders `state` through `lens` on both renderers and scores them.
+fn scores(renderer: &mut Renderer, lens: &Lens, state: &State, fish: &RgbImage) -> Scores {
+    let world = GridWorld::default();
+    let plan = FramePlan::new(state, lens).unwrap();
+    let want = cpu::render(&plan, fish, Filter::Mip);
+    let got = render_image(renderer, fish, &plan).unwrap().to_rgb();
+    let exact = truth(&world, &plan, state);
+    Scores {
+        vs_cpu: psnr(&got, &want, whole(&got)),
+        gpu_vs_truth: psnr(&got, &exact, whole(&got)),
+        cpu_vs_truth: psnr(&want, &exact, whole(&got)),
+    }
+}
+
+fn assert_parity(label: &str, s: &Scores) {
+    eprintln!(
+        "{label}: GPU vs CPU {:.1} dB; vs truth GPU {:.2} dB, CPU {:.2} dB",
+        s.vs_cpu, s.gpu_vs_truth, s.cpu_vs_truth
+    );
+    assert!(s.vs_cpu >= 45.0, "{label}: GPU vs CPU {:.2} dB", s.vs_cpu);
+    assert!(
+        s.gpu_vs_truth >= s.cpu_vs_truth - 0.5,
+        "{label}: GPU {:.2} dB vs truth, CPU {:.2} dB",
+        s.gpu_vs_truth,
+        s.cpu_vs_truth
+    );
+}
+
+#[test]
+fn every_layout_and_crop_mode_matches_the_cpu_reference_and_ground_truth() {
+    let (world, lens) = (GridWorld::default(), small_lens("CIL018"));
+    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let state = base_state();
+    let fish = fisheye(&world, &lens, &state);
+    for layout in 0..7u8 {
+        // Each camera takes each crop mode once over the four rotations (0, 1, 2, 3, 4 and an
+        // unknown one, which is black); layout 6 shows no camera, so once is enough.
+        for rotate in 0..if layout == 6 { 1 } else { 4 } {
+            let mut s = state.clone();
+            s.output.layout = layout;
+            for (i, cam) in s.cameras.iter_mut().enumerate() {
+                cam.crop = [0, 1, 2, 4, 3, 9][(i + rotate) % 6];
+                cam.fov = if cam.crop == 2 { 200.0 } else { 80.0 } * DEG;
+            }
+            let label = format!("layout {layout} rotation {rotate}");
+            assert_parity(&label, &scores(&mut r, &lens, &s, &fish));
+        }
+    }
+}
+
+#[test]
+fn every_lens_model_matches_the_cpu_reference_and_ground_truth() {
+    let world = GridWorld::default();
+    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    for lens in sample_lenses() {
+        let lens = lens.for_frame(960, 720, None);
+        let mut state = base_state();
+        for (i, cam) in state.cameras.iter_mut().enumerate() {
+            cam.crop = [1, 2, 0, 1][i];
+            cam.fov = if cam.crop == 2 { 180.0 } else { 80.0 } * DEG;
+        }
+        let fish = fisheye(&world, &lens, &state);
+        assert_parity(&lens.name, &scores(&mut r, &lens, &state, &fish));
+    }
+}
+
+/// The fisheye frame as bytes of `format` (chroma from each 2x2 block's mean).
+fn as_format(img: &RgbImage, format: PixelFormat) -> (Vec<u8>, PlaneLayout) {
+    let layout = PlaneLayout::tight(format, img.width(), img.height()).unwrap();
+    (yuv::encode(img, &layout), layout)
+}
+
+#[test]
+fn nv12_and_i420_input_give_the_picture_of_rgba_input() {
+    let lens = small_lens("CIL216");
+    let state = base_state();
+    let fish = fisheye(&GridWorld::default(), &lens, &state);
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let (rgba, layout) = as_format(&fish, PixelFormat::Rgba);
+    let want = r.render(&rgba, &layout, &plan).unwrap().to_rgb();
+    for format in [PixelFormat::Nv12, PixelFormat::I420] {
+        let (data, layout) = as_format(&fish, format);
+        let got = r.render(&data, &layout, &plan).unwrap().to_rgb();
+        let db = psnr(&got, &want, whole(&got));
+        eprintln!("{format} input vs RGBA input: {db:.1} dB");
+        assert!(db >= 40.0, "{format} input: {db:.2} dB");
+    }
+}
+
+#[test]
+fn i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range() {
+    let lens = small_lens("CIL216");
+    let mut state = base_state();
+    // 472 is not a multiple of 8: the GPU pads its rows; the decoded picture must not care.
+    state.output.width = 472;
+    let fish = fisheye(&GridWorld::default(), &lens, &state);
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    let rgba = render_image(&mut renderer(PixelFormat::Rgba, Filter::Mip), &fish, &plan)
+        .unwrap()
+        .to_rgb();
+    for format in [PixelFormat::I420, PixelFormat::Nv12] {
+        let frame = render_image(&mut renderer(format, Filter::Mip), &fish, &plan).unwrap();
+        assert_eq!((frame.layout.width, frame.layout.height), (472, 272));
+        // The same picture encoded on the CPU: every code value within 1.
+        let want = yuv::encode(&rgba, &frame.layout);
+        let worst = frame
+            .data
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| a.abs_diff(*b))
+            .max()
+            .unwrap();
+        assert!(worst <= 1, "{format}: a code value differs by {worst}");
+        // And black is Y 16, chroma 128 (the frame's left edge is outside every view).
+        assert_eq!(frame.data[0], 16, "{format}: black luma");
+        assert_eq!(frame.data[frame.layout.chroma[0] as usize], 128);
+    }
+}
+
+/// Mean squared deviation from the mean (AC energy) over a rectangle, per channel.
+fn ac_energy(img: &RgbImage, r: Rect) -> f64 {
+    let n = r.area() as f64;
+    let mut mean = glam::DVec3::ZERO;
+    for y in r.y..r.bottom() {
+        for x in r.x..r.right() {
+            mean += pixel(img, x, y);
+        }
+    }
+    mean /= n;
+    let mut e = 0.0;
+    for y in r.y..r.bottom() {
+        for x in r.x..r.right() {
+            e += (pixel(img, x, y) - mean).length_squared() / 3.0;
+        }
+    }
+    e / n
+}
+
+#[test]
+fn a_minified_debug_view_of_a_fine_checkerboard_does_not_alias() {
+    // A 1280x720 fisheye of 3-pixel checks (period 6 px) drawn 5.3x smaller in layout 6: the
+    // checks' period is 1.1 output pixels, all of their energy above the output's Nyquist
+    // limit, so whatever AC energy the view has is aliasing. The box-filtered reference
+    // averages each output pixel's exact footprint.
+    let (fw, fh) = (1280u32, 720u32);
+    let checks = RgbImage::from_fn(fw, fh, |x, y| {
+        image::Rgb([if (x / 3 + y / 3) % 2 == 0 { 255 } else { 0 }; 3])
+    });
+    let lens = small_lens("CIL216");
+    let mut state = State::default();
+    (state.output.width, state.output.height) = (240, 136);
+    (state.output.layout, state.output.overlay) = (6, 0);
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    let view = plan.views[0].rect;
+    let digiview::render::ViewMap::Fisheye { origin, scale } = plan.views[0].map else {
+        panic!("layout 6 is a fisheye view");
+    };
+    // Box reference: the mean of the checks over each output pixel's square footprint, inside
+    // the image circle only (as the renderer masks it).
+    let reference = RgbImage::from_fn(state.output.width, state.output.height, |x, y| {
+        if !view.contains(x, y) {
+            return image::Rgb([0; 3]);
+        }
+        let p = glam::DVec2::new((x - view.x) as f64 + 0.5, (y - view.y) as f64 + 0.5);
+        if plan.fisheye_pixel(&plan.views[0], p).is_none() {
+            return image::Rgb([0; 3]);
+        }
+        let (x0, y0) = (
+            origin.x + (p.x - 0.5) * scale,
+            origin.y + (p.y - 0.5) * scale,
+        );
+        let (mut sum, mut n) = (0.0f64, 0.0f64);
+        let steps = 32;
+        for j in 0..steps {
+            for i in 0..steps {
+                let fx = x0 + (i as f64 + 0.5) / steps as f64 * scale;
+                let fy = y0 + (j as f64 + 0.5) / steps as f64 * scale;
+                let (cx, cy) = (fx.floor() as i64, fy.floor() as i64);
+                if cx >= 0 && cy >= 0 && (cx as u32) < fw && (cy as u32) < fh {
+                    sum += pixel(&checks, cx as u32, cy as u32).x;
+                    n += 1.0;
+                }
+            }
+        }
+        image::Rgb([(sum / n.max(1.0)).round() as u8; 3])
+    });
+    // Measured on a square well inside the image circle.
+    let c = (view.x + view.w / 2, view.y + view.h / 2);
+    let window = Rect::new(c.0 - 40, c.1 - 40, 80, 80);
+    let input_energy = 127.5f64 * 127.5;
+    let aliasing = |img: &RgbImage| ac_energy(img, window) / input_energy;
+    let reference_aliasing = aliasing(&reference);
+    let mip = render_image(
+        &mut renderer(PixelFormat::Rgba, Filter::Mip),
+        &checks,
+        &plan,
+    )
+    .unwrap()
+    .to_rgb();
+    let bilinear = render_image(
+        &mut renderer(PixelFormat::Rgba, Filter::Bilinear),
+        &checks,
+        &plan,
+    )
+    .unwrap()
+    .to_rgb();
+    let (got, unfiltered) = (aliasing(&mip), aliasing(&bilinear));
+    eprintln!(
+        "aliased energy / checkerboard energy: box reference {reference_aliasing:.4}, \
+         mip {got:.4}, single bilinear {unfiltered:.4}"
+    );
+    assert!(
+        got <= reference_aliasing + 0.10,
+        "the filtered view aliases: {got:.4} vs box reference {reference_aliasing:.4}"
+    );
+    assert!(
+        unfiltered > reference_aliasing + 0.10,
+        "the measure must catch an unfiltered view ({unfiltered:.4})"
+    );
+}
+
+#[test]
+fn pushed_frames_come_back_in_order_each_as_rendered_alone() {
+    let lens = small_lens("LN007");
+    let world = GridWorld::default();
+    let mut r = renderer(PixelFormat::I420, Filter::Mip);
+    let mut alone = renderer(PixelFormat::I420, Filter::Mip);
+    let mut returned = vec![];
+    let mut expected = vec![];
+    for i in 0..5 {
+        let mut state = base_state();
+        state.vehicle.attitude.yaw = (20.0 * i as f64) * DEG;
+        // The output size changes mid-stream; the renderer follows it.
+        if i >= 3 {
+            (state.output.width, state.output.height) = (400, 240);
+        }
+        let fish = fisheye(&world, &lens, &state);
+        let (data, layout) = as_format(&fish, PixelFormat::Nv12);
+        let plan = FramePlan::new(&state, &lens).unwrap();
+        expected.push(alone.render(&data, &layout, &plan).unwrap());
+        returned.extend(r.push(&data, &layout, &plan).unwrap());
+    }
+    returned.extend(r.flush().unwrap());
+    assert!(r.flush().unwrap().is_none());
+    assert_eq!(returned.len(), 5);
+    for (i, (got, want)) in returned.iter().zip(&expected).enumerate() {
+        assert_eq!(got.id, i as u64);
+        assert_eq!(got.layout, want.layout, "frame {i}");
+        assert!(
+            got.data == want.data,
+            "frame {i} differs from rendering it alone"
+        );
+    }
+    assert_eq!(returned[4].layout.width, 400);
+}
+
+#[test]
+fn a_frame_of_the_wrong_size_is_refused_and_the_renderer_goes_on() {
+    let lens = small_lens("CIL216");
+    let state = base_state();
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let layout = PlaneLayout::tight(PixelFormat::Nv12, 1280, 720).unwrap();
+    let err = r.render(&[0; 100], &layout, &plan).unwrap_err();
+    assert!(err.to_string().contains("bytes"), "{err}");
+    let other = PlaneLayout::tight(PixelFormat::Nv12, 640, 360).unwrap();
+    let err = r
+        .render(&vec![0; other.size as usize], &other, &plan)
+        .unwrap_err();
+    assert!(err.to_string().contains("1280x720"), "{err}");
+    let fish = fisheye(&GridWorld::default(), &lens, &state);
+    let ok = render_image(&mut r, &fish, &plan).unwrap();
+    assert_eq!(ok.layout.width, 480);
+}
