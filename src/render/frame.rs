@@ -122,6 +122,19 @@ impl PlaneLayout {
         })
     }
 
+    /// Byte offsets of the U and V samples of 2x2 block (bx, by) of a 4:2:0 layout.
+    pub fn chroma_at(&self, bx: u32, by: u32) -> (usize, usize) {
+        let row = by * self.chroma_stride;
+        let (u, v) = match self.format {
+            PixelFormat::I420 => (self.chroma[0] + row + bx, self.chroma[1] + row + bx),
+            _ => (
+                self.chroma[0] + row + 2 * bx,
+                self.chroma[0] + row + 2 * bx + 1,
+            ),
+        };
+        (u as usize, v as usize)
+    }
+
     /// Checks that a buffer holds exactly one frame of this layout.
     pub fn check(&self, data: &[u8]) -> Result<(), FrameError> {
         if data.len() == self.size as usize {

@@ -4,6 +4,7 @@
 //! mean colour; decoding repeats it over the block, as the GPU's upload does.
 
 use super::frame::{FrameError, PixelFormat, PlaneLayout};
+use crate::image_ops::pixel as rgb;
 use glam::DVec3;
 use image::RgbImage;
 
@@ -37,10 +38,6 @@ fn byte(v: f64) -> u8 {
     v.round().clamp(0.0, 255.0) as u8
 }
 
-fn rgb(img: &RgbImage, x: u32, y: u32) -> DVec3 {
-    crate::image_ops::pixel(img, x, y)
-}
-
 /// An RGB image as one frame of `layout` (which must match its size); padding bytes are 0.
 pub fn encode(img: &RgbImage, layout: &PlaneLayout) -> Vec<u8> {
     assert_eq!((img.width(), img.height()), (layout.width, layout.height));
@@ -64,16 +61,9 @@ pub fn encode(img: &RgbImage, layout: &PlaneLayout) -> Vec<u8> {
             let mean =
                 (rgb(img, x, y) + rgb(img, x + 1, y) + rgb(img, x, y + 1)) + rgb(img, x + 1, y + 1);
             let c = rgb_to_yuv(mean / 4.0);
-            let row = by * layout.chroma_stride;
-            let (u, v) = match layout.format {
-                PixelFormat::I420 => (layout.chroma[0] + row + bx, layout.chroma[1] + row + bx),
-                _ => (
-                    layout.chroma[0] + row + 2 * bx,
-                    layout.chroma[0] + row + 2 * bx + 1,
-                ),
-            };
-            out[u as usize] = byte(c.y);
-            out[v as usize] = byte(c.z);
+            let (u, v) = layout.chroma_at(bx, by);
+            out[u] = byte(c.y);
+            out[v] = byte(c.z);
         }
     }
     out
@@ -82,24 +72,18 @@ pub fn encode(img: &RgbImage, layout: &PlaneLayout) -> Vec<u8> {
 /// One frame of `layout` as an RGB image.
 pub fn decode(data: &[u8], layout: &PlaneLayout) -> Result<RgbImage, FrameError> {
     layout.check(data)?;
-    let at = |i: u32| data[i as usize] as f64;
+    let at = |i: usize| data[i] as f64;
     Ok(RgbImage::from_fn(layout.width, layout.height, |x, y| {
         if layout.format == PixelFormat::Rgba {
             let i = (y * layout.stride + 4 * x) as usize;
             return image::Rgb([data[i], data[i + 1], data[i + 2]]);
         }
-        let row = y / 2 * layout.chroma_stride;
-        let (u, v) = match layout.format {
-            PixelFormat::I420 => (
-                layout.chroma[0] + row + x / 2,
-                layout.chroma[1] + row + x / 2,
-            ),
-            _ => (
-                layout.chroma[0] + row + x / 2 * 2,
-                layout.chroma[0] + row + x / 2 * 2 + 1,
-            ),
-        };
-        let c = yuv_to_rgb(DVec3::new(at(y * layout.stride + x), at(u), at(v)));
+        let (u, v) = layout.chroma_at(x / 2, y / 2);
+        let c = yuv_to_rgb(DVec3::new(
+            at((y * layout.stride + x) as usize),
+            at(u),
+            at(v),
+        ));
         image::Rgb([byte(c.x), byte(c.y), byte(c.z)])
     }))
 }
