@@ -1,70 +1,177 @@
-//! `digiview serve`: the running system. With `--no-video` only the control server runs, on
-//! the live state, so the protocol can be exercised on any machine.
+//! `digiview serve`: the running system. By default the video head (source → GPU → H.264 →
+//! RTSP) runs beside the control server, configured by `--config digiview.toml` and the flags
+//! here; with no arguments it streams the built-in demo. `--no-video` runs the control
+//! server alone on the live state, so the protocol can be exercised on any machine.
 
 use super::StateArgs;
 use crate::control::Controller;
-use crate::control::live::{Live, NoVideo};
+use crate::control::live::{Capturer, Live, NoVideo};
 use crate::control::permissions::{Allow, Permissions};
 use crate::control::server::{self, Shutdown};
+use crate::head::Head;
+use crate::head::capture::Capture;
+use crate::head::config::Config;
 use crate::lens::LensCal;
-use anyhow::{Context, Result, bail};
+use crate::stream::Rtsp;
+use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use std::io::Write;
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
+    /// A TOML configuration file (docs/serve.md lists every key and default); flags override it.
+    #[arg(long)]
+    config: Option<PathBuf>,
     /// Run only the control server on the live state: no camera, renderer or encoder.
     #[arg(long)]
     no_video: bool,
+    /// The source: demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, image:PATH, sequence:PATTERN.
+    #[arg(long)]
+    source: Option<String>,
     /// Where the control protocol listens, TCP and UDP (port 0 picks a free port).
-    #[arg(long, default_value = "0.0.0.0:5010")]
-    control: SocketAddr,
+    #[arg(long)]
+    control: Option<SocketAddr>,
     /// Who may SET: `any`, `none`, `loopback`, or addresses and CIDR ranges, comma-separated.
-    #[arg(long, default_value = "any")]
-    allow_set: Allow,
+    #[arg(long)]
+    allow_set: Option<Allow>,
     /// Who may QUIT (same forms as --allow-set).
-    #[arg(long, default_value = "loopback")]
-    allow_quit: Allow,
+    #[arg(long)]
+    allow_quit: Option<Allow>,
+    /// The RTSP port (0 picks a free port).
+    #[arg(long)]
+    rtsp_port: Option<u16>,
+    /// Where stills and recordings go.
+    #[arg(long)]
+    capture_dir: Option<PathBuf>,
+    /// The demo vehicle hovers at the state's attitude and position instead of flying.
+    #[arg(long)]
+    demo_hover: bool,
+    /// The demo camera's frame size, WxH.
+    #[arg(long, value_parser = crate::units::parse_size)]
+    demo_size: Option<(u32, u32)>,
     #[command(flatten)]
     state: StateArgs,
 }
 
-pub fn serve(lens_cal: &Path, args: ServeArgs) -> Result<()> {
-    if !args.no_video {
-        bail!(
-            "the video pipeline (camera → GPU → H.264 → RTSP) is not part of this build yet; \
-             `digiview serve --no-video` runs the control server alone"
-        );
+/// The configuration file with the flags applied.
+fn config(args: &ServeArgs) -> Result<Config> {
+    let mut cfg = match &args.config {
+        Some(p) => Config::load(p).map_err(|e| anyhow!(e))?,
+        None => Config::default(),
+    };
+    if let Some(s) = &args.source {
+        cfg.source = s.clone();
     }
+    if let Some(c) = args.control {
+        cfg.control.listen = c.to_string();
+    }
+    if let Some(p) = args.rtsp_port {
+        cfg.rtsp.port = p;
+    }
+    if let Some(d) = &args.capture_dir {
+        cfg.capture.dir = d.clone();
+    }
+    if args.demo_hover {
+        cfg.demo.motion = false;
+    }
+    if let Some((w, h)) = args.demo_size {
+        (cfg.demo.width, cfg.demo.height) = (w, h);
+    }
+    cfg.check().map_err(|e| anyhow!(e))?;
+    Ok(cfg)
+}
+
+pub fn serve(lens_cal: &Path, args: ServeArgs) -> Result<()> {
+    let cfg = config(&args)?;
     let cal = LensCal::load(lens_cal)?;
-    let state = args.state.state(&cal)?;
-    let live = Live::new(state, &cal, Box::new(NoVideo)).map_err(anyhow::Error::msg)?;
-    let controller = Arc::new(Controller::new(
-        Arc::new(live),
-        Permissions {
-            set: args.allow_set,
-            quit: args.allow_quit,
+    let mut state_args = args.state.clone();
+    state_args.state = state_args.state.or(cfg.state.clone());
+    state_args.lens = state_args.lens.or(cfg.lens.clone());
+    let state = state_args.state(&cal)?;
+    let permissions = Permissions {
+        set: match &args.allow_set {
+            Some(a) => a.clone(),
+            None => cfg
+                .control
+                .allow_set
+                .parse()
+                .map_err(|e| anyhow!("control.allow_set: {e}"))?,
         },
-    ));
+        quit: match &args.allow_quit {
+            Some(a) => a.clone(),
+            None => cfg
+                .control
+                .allow_quit
+                .parse()
+                .map_err(|e| anyhow!("control.allow_quit: {e}"))?,
+        },
+    };
+    let control: SocketAddr = cfg
+        .control
+        .listen
+        .parse()
+        .map_err(|e| anyhow!("control.listen {:?}: {e}", cfg.control.listen))?;
+
+    let capture = Arc::new(Capture::new(cfg.capture.clone()));
+    let hook: Box<dyn Capturer> = if args.no_video {
+        Box::new(NoVideo)
+    } else {
+        Box::new(capture.clone())
+    };
+    let live = Arc::new(Live::new(state, &cal, hook).map_err(anyhow::Error::msg)?);
+    let controller = Arc::new(Controller::new(live.clone(), permissions));
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("control")
         .enable_all()
         .build()
         .context("starting the control server's runtime")?;
+    let shutdown = Shutdown::default();
+    let (tcp, udp) = runtime
+        .block_on(server::bind(control))
+        .with_context(|| format!("cannot listen on {control} (tcp and udp)"))?;
+    // Lines on stdout that scripts (and the tests) read to find the ports.
+    println!("control listening on {}", tcp.local_addr()?);
+    let head = if args.no_video {
+        None
+    } else {
+        let key_wanted = Arc::new(AtomicBool::new(false));
+        let wanted = key_wanted.clone();
+        let rtsp = Rtsp::start(&cfg.rtsp, move || wanted.store(true, Ordering::Relaxed))
+            .map_err(|e| anyhow!(e))?;
+        let host = match cfg.rtsp.address.as_str() {
+            "0.0.0.0" | "::" => "127.0.0.1",
+            a => a,
+        };
+        println!("rtsp serving rtsp://{host}:{}{}", rtsp.port(), rtsp.path());
+        let head = Head::new(cfg, live.clone(), capture, Arc::new(rtsp), key_wanted);
+        let running = head.clone();
+        let stop_all = shutdown.clone();
+        let thread = std::thread::Builder::new()
+            .name("frames".into())
+            .spawn(move || {
+                let r = running.run();
+                // The head ending on its own (an error) ends the process too.
+                stop_all.trigger();
+                r
+            })?;
+        Some((head, thread))
+    };
+    std::io::stdout().flush()?;
     runtime.block_on(async {
-        let (tcp, udp) = server::bind(args.control)
-            .await
-            .with_context(|| format!("cannot listen on {} (tcp and udp)", args.control))?;
-        // One line on stdout that scripts (and the tests) read to find the port.
-        println!("control listening on {}", tcp.local_addr()?);
-        std::io::stdout().flush()?;
-        let shutdown = Shutdown::default();
         tokio::spawn(server::stop_on_signals(shutdown.clone()));
-        server::run(tcp, udp, controller, shutdown).await?;
-        anyhow::Ok(())
-    })
+        server::run(tcp, udp, controller, shutdown).await
+    })?;
+    if let Some((head, thread)) = head {
+        head.stop.store(true, Ordering::Relaxed);
+        thread
+            .join()
+            .map_err(|_| anyhow!("the frame loop panicked"))?
+            .map_err(|e| anyhow!(e))?;
+    }
+    Ok(())
 }

@@ -39,6 +39,18 @@ pub trait Capturer: Send + Sync {
     fn status(&self) -> CaptureStatus;
 }
 
+impl<T: Capturer> Capturer for Arc<T> {
+    fn still(&self) -> Result<(), String> {
+        T::still(self)
+    }
+    fn record(&self, on: bool) -> Result<(), String> {
+        T::record(self, on)
+    }
+    fn status(&self) -> CaptureStatus {
+        T::status(self)
+    }
+}
+
 /// The capture hook of a control server without video.
 pub struct NoVideo;
 
@@ -117,6 +129,14 @@ impl Live {
             height: h as f64,
         });
         Some(lens.for_frame(state.sensor.width, state.sensor.height, roi))
+    }
+
+    /// The state's lens scaled to a `width` × `height` frame (a source's actual size), after
+    /// the sensor crop.
+    pub fn lens_for_frame(&self, state: &State, width: u32, height: u32) -> Option<Lens> {
+        let mut sized = state.clone();
+        (sized.sensor.width, sized.sensor.height) = (width, height);
+        self.lens(&sized)
     }
 
     /// The calibration frame size of the state's lens.

@@ -121,21 +121,22 @@ impl GridWorld {
         let minor = line(p.x, 10.0, 0.25).max(line(p.y, 10.0, 0.25));
         let major = line(p.x, 50.0, 0.6).max(line(p.y, 50.0, 0.6));
         c = c.lerp(GRID, minor.max(major) * fade);
+        // Discs: only those near `p` can colour it (most of the cost is skipped this way).
+        let disc = |c: DVec3, centre: DVec2, radius: f64, colour: DVec3| {
+            let d2 = (p - centre).length_squared();
+            if d2 >= (radius + EDGE) * (radius + EDGE) {
+                return c;
+            }
+            c.lerp(colour, smoothstep(radius + EDGE, radius - EDGE, d2.sqrt()))
+        };
         for l in &self.landmarks {
-            c = c.lerp(
-                l.colour,
-                smoothstep(l.radius + EDGE, l.radius - EDGE, (p - l.position).length()),
-            );
+            c = disc(c, l.position, l.radius, l.colour);
         }
         for m in &self.movers {
-            c = c.lerp(
-                m.colour,
-                smoothstep(
-                    m.radius + EDGE,
-                    m.radius - EDGE,
-                    (p - m.position(t)).length(),
-                ),
-            );
+            let reach = m.orbit + m.radius + EDGE;
+            if (p - m.centre).length_squared() < reach * reach {
+                c = disc(c, m.position(t), m.radius, m.colour);
+            }
         }
         c
     }

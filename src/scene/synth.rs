@@ -30,7 +30,11 @@ pub fn world_origin(position: &GeoPosition) -> GeoPoint {
 
 /// The eye (vehicle) position in the world's NED frame.
 pub fn eye(state: &State) -> DVec3 {
-    let p = &state.vehicle.position;
+    eye_at(&state.vehicle.position)
+}
+
+/// The eye at vehicle position `p` in the world's NED frame.
+pub fn eye_at(p: &GeoPosition) -> DVec3 {
     to_ned(world_origin(p), p.point())
 }
 

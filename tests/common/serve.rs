@@ -10,14 +10,26 @@ use std::time::{Duration, Instant};
 pub struct Serve {
     child: Child,
     pub addr: SocketAddr,
+    /// The stream's URL (video mode only).
+    pub rtsp: Option<String>,
 }
 
 impl Serve {
     /// `digiview serve --no-video` on 127.0.0.1, port chosen by the system, plus `extra` flags.
     pub fn start(extra: &[&str]) -> Serve {
+        Serve::spawn(&["--no-video"], extra)
+    }
+
+    /// `digiview serve` with video (RTSP on a free port), plus `extra` flags.
+    pub fn start_video(extra: &[&str]) -> Serve {
+        Serve::spawn(&["--rtsp-port", "0"], extra)
+    }
+
+    fn spawn(mode: &[&str], extra: &[&str]) -> Serve {
         let cal = Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
-            .args(["serve", "--no-video", "--control", "127.0.0.1:0"])
+            .args(["serve", "--control", "127.0.0.1:0"])
+            .args(mode)
             .args(extra)
             .env("DIGIVIEW_LENS_CAL", cal)
             .env("RUST_LOG", "warn")
@@ -25,17 +37,31 @@ impl Serve {
             .stderr(Stdio::null())
             .spawn()
             .expect("digiview serve starts");
+        let mut out = BufReader::new(child.stdout.take().unwrap());
         let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
+        out.read_line(&mut line).unwrap();
         let addr = line
             .trim()
             .strip_prefix("control listening on ")
             .unwrap_or_else(|| panic!("serve printed {line:?}"))
             .parse()
             .unwrap();
-        Serve { child, addr }
+        let rtsp = (!mode.contains(&"--no-video")).then(|| {
+            line.clear();
+            out.read_line(&mut line).unwrap();
+            line.trim()
+                .strip_prefix("rtsp serving ")
+                .unwrap_or_else(|| panic!("serve printed {line:?}"))
+                .to_string()
+        });
+        Serve { child, addr, rtsp }
+    }
+
+    /// Sends SIGTERM.
+    pub fn terminate(&self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
     }
 
     pub fn tcp(&self) -> Raw {

@@ -1,0 +1,188 @@
+//! CAPTURE: stills of the output frame (and, configurable, the raw fisheye frame) as JPEG or
+//! PNG, and recordings of the encoded stream to fragmented MP4. Files are named by local time
+//! and a running index; free disk space is checked before anything starts, so a full disk is
+//! an error reply rather than a truncated file.
+
+use super::config::{CaptureConfig, StillFormat};
+use crate::control::live::{CaptureStatus, Capturer};
+use crate::render::PlaneLayout;
+use crate::stream::Recorder;
+use crate::stream::encoder::AccessUnit;
+use gstreamer::glib;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+use tracing::{error, info, warn};
+
+pub struct Capture {
+    cfg: CaptureConfig,
+    still_wanted: AtomicBool,
+    /// Set when the encoder should send a key frame (a recording starts).
+    key_wanted: AtomicBool,
+    recorder: Mutex<Option<Recorder>>,
+    images: AtomicU16,
+    videos: AtomicU16,
+    index: AtomicU32,
+}
+
+/// One still to write: the output frame and, when asked for, the fisheye frame.
+pub struct Still {
+    pub output: (Vec<u8>, PlaneLayout),
+    pub raw: Option<(Vec<u8>, PlaneLayout)>,
+}
+
+impl Capture {
+    pub fn new(cfg: CaptureConfig) -> Capture {
+        Capture {
+            cfg,
+            still_wanted: AtomicBool::new(false),
+            key_wanted: AtomicBool::new(false),
+            recorder: Mutex::new(None),
+            images: AtomicU16::new(0),
+            videos: AtomicU16::new(0),
+            index: AtomicU32::new(0),
+        }
+    }
+
+    pub fn wants_raw(&self) -> bool {
+        self.cfg.raw
+    }
+
+    /// The directory exists (made if missing) and has room; the error says why not.
+    fn ready(&self) -> Result<(), String> {
+        let dir = &self.cfg.dir;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("capture directory {}: {e}", dir.display()))?;
+        let stat = rustix::fs::statvfs(dir)
+            .map_err(|e| format!("capture directory {}: {e}", dir.display()))?;
+        let free_mb = stat.f_bavail.saturating_mul(stat.f_frsize) / (1024 * 1024);
+        if free_mb < self.cfg.min_free_mb {
+            return Err(format!(
+                "capture directory {} has {free_mb} MB free, under the {} MB kept free \
+                 (capture.min_free_mb)",
+                dir.display(),
+                self.cfg.min_free_mb
+            ));
+        }
+        Ok(())
+    }
+
+    /// `captures/digiview-20261121-142501-0003.ext`
+    fn name(&self, suffix: &str) -> PathBuf {
+        let when = glib::DateTime::now_local()
+            .and_then(|t| t.format("%Y%m%d-%H%M%S"))
+            .map(|s| s.to_string())
+            .unwrap_or_else(|_| "now".into());
+        let i = self.index.fetch_add(1, Ordering::Relaxed);
+        self.cfg.dir.join(format!("digiview-{when}-{i:04}{suffix}"))
+    }
+
+    /// Whether the frame loop should hand over the next frame as a still (clears the ask).
+    pub fn take_still_request(&self) -> bool {
+        self.still_wanted.swap(false, Ordering::Relaxed)
+    }
+
+    /// Whether the encoder should send a key frame now (clears the ask).
+    pub fn take_key_request(&self) -> bool {
+        self.key_wanted.swap(false, Ordering::Relaxed)
+    }
+
+    /// Writes a still on a thread of its own, so the frame loop never waits on the disk.
+    pub fn save_still(self: &Arc<Self>, still: Still) {
+        let base = self.name("");
+        let this = self.clone();
+        std::thread::spawn(move || {
+            let this = &*this;
+            let ext = this.cfg.still_format.extension();
+            let mut files = vec![(base.with_extension(ext), still.output)];
+            if let Some(raw) = still.raw {
+                let name = format!("{}-fisheye.{ext}", base.display());
+                files.push((PathBuf::from(name), raw));
+            }
+            for (path, (data, layout)) in files {
+                let written = crate::render::yuv::decode(&data, &layout)
+                    .map_err(|e| e.to_string())
+                    .and_then(|img| {
+                        let format = match this.cfg.still_format {
+                            StillFormat::Jpeg => image::ImageFormat::Jpeg,
+                            StillFormat::Png => image::ImageFormat::Png,
+                        };
+                        img.save_with_format(&path, format)
+                            .map_err(|e| e.to_string())
+                    });
+                match written {
+                    Ok(()) => info!("still: {}", path.display()),
+                    Err(e) => {
+                        error!("still {}: {e}", path.display());
+                        return;
+                    }
+                }
+            }
+            this.images.fetch_add(1, Ordering::Relaxed);
+        });
+    }
+
+    /// Feeds the recording, if one runs (called for every access unit).
+    pub fn on_access_unit(&self, au: &AccessUnit) {
+        let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(r) = recorder.as_mut()
+            && let Err(e) = r.push(&au.buffer, au.key)
+        {
+            error!("{e}: recording stopped");
+            *recorder = None;
+        }
+    }
+
+    /// Ends a running recording cleanly (shutdown).
+    pub fn finish(&self) {
+        let _ = self.record(false);
+    }
+}
+
+impl Capturer for Capture {
+    fn still(&self) -> Result<(), String> {
+        self.ready()?;
+        self.still_wanted.store(true, Ordering::Relaxed);
+        Ok(())
+    }
+
+    fn record(&self, on: bool) -> Result<(), String> {
+        if on {
+            let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
+            if recorder.is_some() {
+                return Ok(());
+            }
+            self.ready()?;
+            let r = Recorder::start(&self.name(".mp4"))?;
+            info!("recording to {}", r.path().display());
+            *recorder = Some(r);
+            self.videos.fetch_add(1, Ordering::Relaxed);
+            self.key_wanted.store(true, Ordering::Relaxed);
+            return Ok(());
+        }
+        let taken = self
+            .recorder
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take();
+        if let Some(r) = taken {
+            match r.finish() {
+                Ok(path) => info!("recording ended: {}", path.display()),
+                Err(e) => warn!("{e}"),
+            }
+        }
+        Ok(())
+    }
+
+    fn status(&self) -> CaptureStatus {
+        CaptureStatus {
+            recording: self
+                .recorder
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .is_some(),
+            images: self.images.load(Ordering::Relaxed),
+            videos: self.videos.load(Ordering::Relaxed),
+        }
+    }
+}

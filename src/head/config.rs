@@ -1,0 +1,240 @@
+//! `digiview serve`'s configuration file (TOML). Every key has a default, so an empty file
+//! (or none) runs the demo source with the stream at rtsp://HOST:8554/digiview; docs/serve.md
+//! lists them all. Unknown keys are errors that name the key.
+
+use crate::render::PixelFormat;
+use crate::stream::{EncoderConfig, RtspConfig};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, image:PATH or sequence:PATTERN.
+    pub source: String,
+    /// Frame rate of image and sequence sources.
+    pub source_fps: u32,
+    /// Replay files and sequences from the start when they end.
+    pub source_loop: bool,
+    /// Lens by name or lens_id in lens.cal (default: the state's, lens_id 0).
+    pub lens: Option<String>,
+    /// The initial state (a state file as `digiview render --state` takes).
+    pub state: Option<PathBuf>,
+    pub demo: DemoConfig,
+    pub control: ControlConfig,
+    pub rtsp: RtspConfig,
+    pub encoder: EncoderConfig,
+    pub capture: CaptureConfig,
+    pub mavlink: MavlinkConfig,
+    /// Seconds between the one-line health summaries in the log (0: none).
+    pub health_interval_s: f64,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            source: "demo".into(),
+            source_fps: 30,
+            source_loop: true,
+            lens: None,
+            state: None,
+            demo: DemoConfig::default(),
+            control: ControlConfig::default(),
+            rtsp: RtspConfig::default(),
+            encoder: EncoderConfig::default(),
+            capture: CaptureConfig::default(),
+            mavlink: MavlinkConfig::default(),
+            health_interval_s: 10.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DemoConfig {
+    /// The demo camera's frame size (the lens is scaled to it) and rate.
+    pub width: u32,
+    pub height: u32,
+    pub fps: u32,
+    /// Fly a circle (true) or hover at the state's attitude and position (false).
+    pub motion: bool,
+    /// The layout frames arrive in, as a camera's would.
+    pub format: PixelFormat,
+}
+
+impl Default for DemoConfig {
+    fn default() -> Self {
+        DemoConfig {
+            width: 1280,
+            height: 720,
+            fps: 30,
+            motion: true,
+            format: PixelFormat::Nv12,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ControlConfig {
+    /// Where the control protocol listens, TCP and UDP.
+    pub listen: String,
+    /// Who may SET: any, none, loopback, or addresses and CIDR ranges, comma-separated.
+    pub allow_set: String,
+    /// Who may QUIT.
+    pub allow_quit: String,
+}
+
+impl Default for ControlConfig {
+    fn default() -> Self {
+        ControlConfig {
+            listen: "0.0.0.0:5010".into(),
+            allow_set: "any".into(),
+            allow_quit: "loopback".into(),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StillFormat {
+    Jpeg,
+    Png,
+}
+
+impl StillFormat {
+    pub fn extension(self) -> &'static str {
+        match self {
+            StillFormat::Jpeg => "jpg",
+            StillFormat::Png => "png",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CaptureConfig {
+    /// Where stills and recordings go (made if missing).
+    pub dir: PathBuf,
+    pub still_format: StillFormat,
+    /// Also save the raw fisheye frame beside each still.
+    pub raw: bool,
+    /// A capture is refused while the disk has less free space than this.
+    pub min_free_mb: u64,
+}
+
+impl Default for CaptureConfig {
+    fn default() -> Self {
+        CaptureConfig {
+            dir: "captures".into(),
+            still_format: StillFormat::Jpeg,
+            raw: false,
+            min_free_mb: 200,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MavlinkConfig {
+    /// The autopilot link (read by the MAVLink bridge, a later release; kept so configs
+    /// written now stay valid).
+    pub endpoint: String,
+}
+
+impl Default for MavlinkConfig {
+    fn default() -> Self {
+        MavlinkConfig {
+            endpoint: "udpin:0.0.0.0:14550".into(),
+        }
+    }
+}
+
+impl Config {
+    pub fn load(path: &Path) -> Result<Config, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        Config::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    pub fn parse(text: &str) -> Result<Config, String> {
+        let cfg: Config = toml::from_str(text).map_err(|e| e.to_string())?;
+        cfg.check()?;
+        Ok(cfg)
+    }
+
+    /// Ranges and forms the types alone do not hold.
+    pub fn check(&self) -> Result<(), String> {
+        self.source
+            .parse::<crate::source::SourceSpec>()
+            .map_err(|e| format!("source: {e}"))?;
+        if !(1..=240).contains(&self.source_fps) {
+            return Err(format!("source_fps {} is outside 1..=240", self.source_fps));
+        }
+        let d = &self.demo;
+        if d.width < 64 || d.height < 64 || d.width > 7680 || d.height > 4320 {
+            return Err(format!(
+                "demo size {}x{} is outside 64x64..7680x4320",
+                d.width, d.height
+            ));
+        }
+        if d.format.is_yuv() && (d.width % 2 == 1 || d.height % 2 == 1) {
+            return Err(format!(
+                "demo size {}x{} must be even for {}",
+                d.width, d.height, d.format
+            ));
+        }
+        if !(1..=120).contains(&d.fps) {
+            return Err(format!("demo fps {} is outside 1..=120", d.fps));
+        }
+        self.rtsp.check()?;
+        if !(self.encoder.bitrate_kbps >= 100 && self.encoder.bitrate_kbps <= 100_000) {
+            return Err(format!(
+                "encoder bitrate_kbps {} is outside 100..=100000",
+                self.encoder.bitrate_kbps
+            ));
+        }
+        if !(0.1..=60.0).contains(&self.encoder.key_interval_s) {
+            return Err(format!(
+                "encoder key_interval_s {} is outside 0.1..=60",
+                self.encoder.key_interval_s
+            ));
+        }
+        if !(0.0..=3600.0).contains(&self.health_interval_s) {
+            return Err(format!(
+                "health_interval_s {} is outside 0..=3600",
+                self.health_interval_s
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_empty_file_is_the_documented_defaults() {
+        let cfg = Config::parse("").unwrap();
+        assert_eq!(cfg, Config::default());
+        assert_eq!(cfg.source, "demo");
+        assert_eq!((cfg.rtsp.port, cfg.rtsp.path.as_str()), (8554, "/digiview"));
+    }
+
+    #[test]
+    fn bad_values_are_errors_that_name_the_key() {
+        for (text, says) in [
+            ("sorce = \"demo\"", "sorce"),
+            ("source = \"cam\"", "source"),
+            ("[rtsp]\npath = \"x\"", "rtsp path"),
+            ("[rtsp]\nuser = \"a\"", "password"),
+            ("[demo]\nwidth = 641\nheight = 480", "even"),
+            ("[encoder]\nbitrate_kbps = 5", "bitrate_kbps"),
+            ("[capture]\nstill_format = \"gif\"", "still_format"),
+        ] {
+            let e = Config::parse(text).unwrap_err();
+            assert!(e.contains(says), "{text:?}: {e}");
+        }
+    }
+}

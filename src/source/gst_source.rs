@@ -1,0 +1,233 @@
+//! The GStreamer sources: a camera (V4L2 or any source description), a file, a still image
+//! or an image sequence, decoded and converted (only where the camera's own layout is not
+//! one the GPU ingests) to NV12, I420 or RGBA, delivered by an appsink to a [`FrameSlot`].
+
+use super::{Frame, FrameSlot, SourceSpec, clock_us};
+use crate::render::{PixelFormat, PlaneLayout};
+use gstreamer as gst;
+use gstreamer::prelude::*;
+use gstreamer_app as gst_app;
+use gstreamer_video as gst_video;
+use gstreamer_video::prelude::*;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The tail every source pipeline ends in: formats the GPU ingests, newest buffer only.
+const SINK: &str = "videoconvert ! video/x-raw,format={NV12,I420,RGBA} \
+                    ! appsink name=digiview_sink max-buffers=1 drop=true";
+
+/// How a source stopped on its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ended {
+    /// Its end (a file or sequence played once).
+    Eos,
+    /// Asked to stop.
+    Stopped,
+}
+
+pub struct GstSource {
+    pipeline: gst::Pipeline,
+    looped: bool,
+}
+
+fn launch(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, bool), String> {
+    // (description, whether to pace at the media's own timestamps)
+    Ok(match spec {
+        SourceSpec::Demo => return Err("the demo source is not a GStreamer pipeline".into()),
+        SourceSpec::V4l2(_) => (format!("v4l2src name=digiview_src ! {SINK}"), false),
+        SourceSpec::Pipeline(d) => (format!("{d} ! {SINK}"), false),
+        SourceSpec::File(_) => (
+            format!("filesrc name=digiview_src ! decodebin ! {SINK}"),
+            true,
+        ),
+        SourceSpec::Image(_) => (
+            format!(
+                "filesrc name=digiview_src ! decodebin ! imagefreeze is-live=true \
+                 ! video/x-raw,framerate={fps}/1 ! {SINK}"
+            ),
+            true,
+        ),
+        SourceSpec::Sequence(p) => {
+            let mime = if p.to_ascii_lowercase().ends_with(".png") {
+                "image/png"
+            } else {
+                "image/jpeg"
+            };
+            (
+                format!(
+                    "multifilesrc name=digiview_src index=0 loop={looped} \
+                     caps={mime},framerate={fps}/1 ! decodebin ! {SINK}"
+                ),
+                true,
+            )
+        }
+    })
+}
+
+/// Builds and starts the pipeline for `spec` (any kind but the demo); frames go to `slot`.
+/// `fps` paces images and sequences; `looped` replays files and sequences at their end.
+pub fn open(
+    spec: &SourceSpec,
+    fps: u32,
+    looped: bool,
+    slot: Arc<FrameSlot>,
+) -> Result<GstSource, String> {
+    gst::init().map_err(|e| format!("GStreamer: {e}"))?;
+    for path in match spec {
+        SourceSpec::File(p) | SourceSpec::Image(p) => vec![p.clone()],
+        _ => vec![],
+    } {
+        if !path.is_file() {
+            return Err(format!("{}: no such file", path.display()));
+        }
+    }
+    let (description, sync) = launch(spec, fps, looped)?;
+    let pipeline = gst::parse::launch(&description)
+        .map_err(|e| format!("source {spec}: {e}"))?
+        .downcast::<gst::Pipeline>()
+        .map_err(|_| format!("source {spec}: not a pipeline"))?;
+    if let Some(src) = pipeline.by_name("digiview_src") {
+        match spec {
+            SourceSpec::V4l2(dev) => src.set_property("device", dev.to_string_lossy().as_ref()),
+            SourceSpec::File(p) | SourceSpec::Image(p) => {
+                src.set_property("location", p.to_string_lossy().as_ref())
+            }
+            SourceSpec::Sequence(p) => src.set_property("location", p.as_str()),
+            _ => {}
+        }
+    }
+    let sink = pipeline
+        .by_name("digiview_sink")
+        .and_then(|e| e.downcast::<gst_app::AppSink>().ok())
+        .ok_or("source pipeline has no appsink")?;
+    sink.set_sync(sync);
+    let base = pipeline.clone();
+    sink.set_callbacks(
+        gst_app::AppSinkCallbacks::builder()
+            .new_sample(move |sink| {
+                let sample = sink.pull_sample().map_err(|_| gst::FlowError::Eos)?;
+                match to_frame(&sample, &base) {
+                    Ok(frame) => slot.put(frame),
+                    Err(e) => tracing::warn!("source: dropped a frame: {e}"),
+                }
+                Ok(gst::FlowSuccess::Ok)
+            })
+            .build(),
+    );
+    pipeline.set_state(gst::State::Playing).map_err(|_| {
+        first_error(&pipeline).unwrap_or_else(|| format!("source {spec} did not start"))
+    })?;
+    Ok(GstSource { pipeline, looped })
+}
+
+/// The error message the bus holds, if any.
+fn first_error(pipeline: &gst::Pipeline) -> Option<String> {
+    let bus = pipeline.bus()?;
+    while let Some(msg) = bus.pop() {
+        if let gst::MessageView::Error(e) = msg.view() {
+            return Some(error_text(e));
+        }
+    }
+    None
+}
+
+fn error_text(e: &gst::message::Error) -> String {
+    let src = e
+        .src()
+        .map(|s| s.path_string().to_string())
+        .unwrap_or_default();
+    format!("{src}: {}", e.error())
+}
+
+/// Copies a decoded sample into a tightly packed frame with its capture time.
+fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, String> {
+    let caps = sample.caps().ok_or("sample without caps")?;
+    let info = gst_video::VideoInfo::from_caps(caps).map_err(|e| e.to_string())?;
+    let format = match info.format() {
+        gst_video::VideoFormat::Nv12 => PixelFormat::Nv12,
+        gst_video::VideoFormat::I420 => PixelFormat::I420,
+        gst_video::VideoFormat::Rgba => PixelFormat::Rgba,
+        f => return Err(format!("unexpected format {f:?}")),
+    };
+    let buffer = sample.buffer().ok_or("sample without buffer")?;
+    let layout =
+        PlaneLayout::tight(format, info.width(), info.height()).map_err(|e| e.to_string())?;
+    let video = gst_video::VideoFrameRef::from_buffer_ref_readable(buffer, &info)
+        .map_err(|e| e.to_string())?;
+    let mut data = vec![0u8; layout.size as usize];
+    let planes: Vec<(usize, usize, usize)> = match format {
+        // (offset, row bytes, rows)
+        PixelFormat::Rgba => vec![(0, layout.stride as usize, info.height() as usize)],
+        PixelFormat::Nv12 => vec![
+            (0, layout.stride as usize, info.height() as usize),
+            (
+                layout.chroma[0] as usize,
+                layout.chroma_stride as usize,
+                info.height() as usize / 2,
+            ),
+        ],
+        PixelFormat::I420 => vec![
+            (0, layout.stride as usize, info.height() as usize),
+            (
+                layout.chroma[0] as usize,
+                layout.chroma_stride as usize,
+                info.height() as usize / 2,
+            ),
+            (
+                layout.chroma[1] as usize,
+                layout.chroma_stride as usize,
+                info.height() as usize / 2,
+            ),
+        ],
+    };
+    for (k, (offset, row, rows)) in planes.into_iter().enumerate() {
+        let src = video.plane_data(k as u32).map_err(|e| e.to_string())?;
+        let stride = video.plane_stride()[k] as usize;
+        for y in 0..rows {
+            data[offset + y * row..offset + (y + 1) * row]
+                .copy_from_slice(&src[y * stride..y * stride + row]);
+        }
+    }
+    // Capture time: the buffer's running time on the pipeline's clock, as a clock reading.
+    let captured_us = match (buffer.pts(), pipeline.base_time()) {
+        (Some(pts), Some(base)) if pipeline.clock().is_some() => (pts + base).useconds(),
+        _ => clock_us(),
+    };
+    Ok(Frame {
+        data,
+        layout,
+        captured_us,
+    })
+}
+
+impl GstSource {
+    /// Runs until the source ends, fails (the error says what failed) or `stop` is set.
+    pub fn run(&self, stop: &AtomicBool) -> Result<Ended, String> {
+        let bus = self.pipeline.bus().ok_or("source pipeline has no bus")?;
+        while !stop.load(Ordering::Relaxed) {
+            let Some(msg) = bus.timed_pop(gst::ClockTime::from_mseconds(100)) else {
+                continue;
+            };
+            match msg.view() {
+                gst::MessageView::Error(e) => return Err(error_text(e)),
+                gst::MessageView::Eos(_) if self.looped => {
+                    self.pipeline
+                        .seek_simple(
+                            gst::SeekFlags::FLUSH | gst::SeekFlags::KEY_UNIT,
+                            gst::ClockTime::ZERO,
+                        )
+                        .map_err(|e| format!("cannot loop the source: {e}"))?;
+                }
+                gst::MessageView::Eos(_) => return Ok(Ended::Eos),
+                _ => {}
+            }
+        }
+        Ok(Ended::Stopped)
+    }
+}
+
+impl Drop for GstSource {
+    fn drop(&mut self) {
+        let _ = self.pipeline.set_state(gst::State::Null);
+    }
+}

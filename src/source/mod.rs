@@ -1,0 +1,225 @@
+//! Sources: where fisheye frames come from. A V4L2 camera or any GStreamer source
+//! description, a video file (looped or once), a still image, an image sequence, or the
+//! built-in demo (the synthetic world through a lens of lens.cal). Every source runs on its
+//! own thread and hands frames, in their native layout and with their capture time, to a
+//! [`FrameSlot`] where the newest frame wins; a source that fails is retried with back-off.
+
+pub mod demo;
+mod gst_source;
+
+pub use gst_source::{Ended, GstSource, open};
+
+use crate::render::PlaneLayout;
+use std::path::PathBuf;
+use std::sync::{Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+/// Microseconds on the monotonic clock GStreamer stamps buffers with (CLOCK_MONOTONIC):
+/// the one time base of capture times and telemetry.
+pub fn clock_us() -> u64 {
+    gstreamer::get_timestamp().useconds()
+}
+
+/// One camera frame.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub data: Vec<u8>,
+    pub layout: PlaneLayout,
+    /// When the sensor captured it ([`clock_us`]).
+    pub captured_us: u64,
+}
+
+/// What to read frames from, written as one string (`--source`, or `source` in the config).
+#[derive(Clone, Debug, PartialEq)]
+pub enum SourceSpec {
+    /// `demo`: the synthetic world.
+    Demo,
+    /// `v4l2:/dev/video0`
+    V4l2(PathBuf),
+    /// `gst:<source description>`, e.g. `gst:nvarguscamerasrc ! nvvidconv`.
+    Pipeline(String),
+    /// `file:clip.mp4` (any container and codec GStreamer decodes).
+    File(PathBuf),
+    /// `image:frame.png` (PNG or JPEG), repeated at the source frame rate.
+    Image(PathBuf),
+    /// `sequence:frames/%05d.png`, numbered from 0, at the source frame rate.
+    Sequence(String),
+}
+
+impl std::str::FromStr for SourceSpec {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let s = s.trim();
+        if s == "demo" {
+            return Ok(SourceSpec::Demo);
+        }
+        let (kind, rest) = s.split_once(':').ok_or_else(|| {
+            format!(
+                "source {s:?}: expected demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, \
+                 image:PATH or sequence:PATTERN"
+            )
+        })?;
+        if rest.trim().is_empty() {
+            return Err(format!("source {s:?}: nothing after {kind}:"));
+        }
+        let rest = rest.trim().to_string();
+        Ok(match kind {
+            "v4l2" => SourceSpec::V4l2(rest.into()),
+            "gst" => SourceSpec::Pipeline(rest),
+            "file" => SourceSpec::File(rest.into()),
+            "image" => SourceSpec::Image(rest.into()),
+            "sequence" if rest.contains('%') => SourceSpec::Sequence(rest),
+            "sequence" => {
+                return Err(format!(
+                    "source {s:?}: a sequence pattern numbers its files, e.g. frames/%05d.png"
+                ));
+            }
+            _ => return Err(format!("source {s:?}: unknown kind {kind:?}")),
+        })
+    }
+}
+
+impl std::fmt::Display for SourceSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SourceSpec::Demo => write!(f, "demo"),
+            SourceSpec::V4l2(p) => write!(f, "v4l2:{}", p.display()),
+            SourceSpec::Pipeline(d) => write!(f, "gst:{d}"),
+            SourceSpec::File(p) => write!(f, "file:{}", p.display()),
+            SourceSpec::Image(p) => write!(f, "image:{}", p.display()),
+            SourceSpec::Sequence(p) => write!(f, "sequence:{p}"),
+        }
+    }
+}
+
+/// Counters a slot keeps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SlotStats {
+    /// Frames put in.
+    pub received: u64,
+    /// Frames replaced by a newer one before the frame loop took them.
+    pub dropped: u64,
+}
+
+#[derive(Default)]
+struct SlotInner {
+    frame: Option<Frame>,
+    stats: SlotStats,
+    last_put: Option<Instant>,
+}
+
+/// A one-frame mailbox between a source and the frame loop: a new frame replaces one not yet
+/// taken (counted as dropped), so a slow renderer always gets the newest frame and nothing
+/// queues up.
+#[derive(Default)]
+pub struct FrameSlot {
+    inner: Mutex<SlotInner>,
+    ready: Condvar,
+}
+
+impl FrameSlot {
+    pub fn put(&self, frame: Frame) {
+        let mut inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        inner.stats.received += 1;
+        if inner.frame.replace(frame).is_some() {
+            inner.stats.dropped += 1;
+        }
+        inner.last_put = Some(Instant::now());
+        self.ready.notify_all();
+    }
+
+    /// The newest frame not yet taken and when it arrived, waiting for one until `deadline`.
+    pub fn take_until(&self, deadline: Instant) -> Option<(Frame, Instant)> {
+        let mut inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            if let Some(f) = inner.frame.take() {
+                let arrived = inner.last_put.unwrap_or_else(Instant::now);
+                return Some((f, arrived));
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return None;
+            }
+            inner = self
+                .ready
+                .wait_timeout(inner, deadline - now)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+    }
+
+    /// Whether a frame waits to be taken.
+    pub fn pending(&self) -> bool {
+        self.inner
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .frame
+            .is_some()
+    }
+
+    pub fn stats(&self) -> SlotStats {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).stats
+    }
+
+    /// How long since the source last delivered (None: never).
+    pub fn silence(&self) -> Option<Duration> {
+        let inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        inner.last_put.map(|t| t.elapsed())
+    }
+}
+
+/// Back-off between attempts to (re)open a failed source: 0.5 s, doubling to 8 s.
+pub fn backoff(attempt: u32) -> Duration {
+    Duration::from_millis(500 << attempt.min(4))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::PixelFormat;
+
+    #[test]
+    fn source_strings_parse_and_print_back() {
+        for s in [
+            "demo",
+            "v4l2:/dev/video0",
+            "gst:videotestsrc is-live=true",
+            "file:clip.mp4",
+            "image:a.png",
+            "sequence:f/%05d.png",
+        ] {
+            let spec: SourceSpec = s.parse().unwrap();
+            assert_eq!(spec.to_string(), s);
+        }
+        for bad in ["", "cam", "file:", "sequence:f/a.png", "rtsp:x"] {
+            assert!(bad.parse::<SourceSpec>().is_err(), "{bad:?} accepted");
+        }
+    }
+
+    #[test]
+    fn a_slot_hands_over_the_newest_frame_and_counts_the_ones_it_replaced() {
+        let slot = FrameSlot::default();
+        let layout = PlaneLayout::tight(PixelFormat::Rgba, 1, 1).unwrap();
+        for i in 0..3u8 {
+            slot.put(Frame {
+                data: vec![i; 4],
+                layout,
+                captured_us: i as u64,
+            });
+        }
+        let (f, _) = slot.take_until(Instant::now()).unwrap();
+        assert_eq!(f.captured_us, 2);
+        assert_eq!(
+            slot.stats(),
+            SlotStats {
+                received: 3,
+                dropped: 2
+            }
+        );
+        assert!(
+            slot.take_until(Instant::now() + Duration::from_millis(20))
+                .is_none()
+        );
+    }
+}

@@ -1,0 +1,283 @@
+//! H.264 encoding: an appsrc taking the renderer's I420 frames (strides as the renderer pads
+//! them, told by a video meta), the encoder, h264parse repeating SPS/PPS before every key
+//! frame, and an appsink handing each access unit to the caller. A new output size or frame
+//! rate is a caps change on the appsrc: the encoder reconfigures in place, the stream goes on.
+
+use super::{H264_CAPS, bus_error};
+use crate::render::{PixelFormat, PlaneLayout};
+use gstreamer as gst;
+use gstreamer::prelude::*;
+use gstreamer_app as gst_app;
+use gstreamer_video as gst_video;
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Hardware encoders tried before x264 when `kind` is "auto", best first.
+const HARDWARE: [&str; 3] = ["nvv4l2h264enc", "vaapih264enc", "v4l2h264enc"];
+/// Frames the encoder may hold before new ones are dropped (it has fallen behind).
+const BACKLOG: usize = 3;
+
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EncoderConfig {
+    /// "auto" (a hardware encoder if one is installed, else x264), "x264", or an element
+    /// name such as "vaapih264enc".
+    pub kind: String,
+    pub bitrate_kbps: u32,
+    /// Seconds between key frames (clients joining also get one at once).
+    pub key_interval_s: f64,
+}
+
+impl Default for EncoderConfig {
+    fn default() -> Self {
+        EncoderConfig {
+            kind: "auto".into(),
+            bitrate_kbps: 4000,
+            key_interval_s: 2.0,
+        }
+    }
+}
+
+/// One encoded access unit.
+pub struct AccessUnit {
+    pub buffer: gst::Buffer,
+    pub key: bool,
+    /// From push to this unit leaving the encoder.
+    pub encode_time: Option<Duration>,
+}
+
+type Sink = Box<dyn Fn(AccessUnit) + Send + Sync>;
+
+pub struct Encoder {
+    pipeline: gst::Pipeline,
+    src: gst_app::AppSrc,
+    element: gst::Element,
+    name: String,
+    caps: Option<(u32, u32, u32)>,
+    pending: Arc<Mutex<VecDeque<Instant>>>,
+    /// Frames refused because the encoder was behind.
+    pub dropped: u64,
+}
+
+fn element_description(name: &str, cfg: &EncoderConfig, fps: u32) -> String {
+    let key = ((cfg.key_interval_s * fps as f64).round() as u32).max(1);
+    match name {
+        "x264enc" => format!(
+            "x264enc name=enc tune=zerolatency speed-preset=ultrafast bitrate={} key-int-max={key}",
+            cfg.bitrate_kbps
+        ),
+        "vaapih264enc" => format!(
+            "vaapih264enc name=enc rate-control=cbr bitrate={} keyframe-period={key}",
+            cfg.bitrate_kbps
+        ),
+        "nvv4l2h264enc" => format!(
+            "nvv4l2h264enc name=enc bitrate={} iframeinterval={key} insert-sps-pps=true",
+            cfg.bitrate_kbps * 1000
+        ),
+        other => format!("{other} name=enc"),
+    }
+}
+
+fn candidates(kind: &str) -> Vec<String> {
+    match kind {
+        "auto" => HARDWARE
+            .iter()
+            .filter(|n| gst::ElementFactory::find(n).is_some())
+            .map(|n| n.to_string())
+            .chain(["x264enc".to_string()])
+            .collect(),
+        "x264" => vec!["x264enc".into()],
+        other => vec![other.to_string()],
+    }
+}
+
+impl Encoder {
+    /// Starts the encoder; `sink` gets every access unit, on GStreamer's streaming thread.
+    pub fn new(
+        cfg: &EncoderConfig,
+        fps: u32,
+        sink: impl Fn(AccessUnit) + Send + Sync + 'static,
+    ) -> Result<Encoder, String> {
+        super::init()?;
+        let sink: Arc<Sink> = Arc::new(Box::new(sink));
+        let mut errors = vec![];
+        for name in candidates(&cfg.kind) {
+            match Self::start(&name, cfg, fps, sink.clone()) {
+                Ok(e) => return Ok(e),
+                Err(e) => errors.push(format!("{name}: {e}")),
+            }
+        }
+        Err(format!(
+            "no H.264 encoder would start ({})",
+            errors.join("; ")
+        ))
+    }
+
+    fn start(
+        name: &str,
+        cfg: &EncoderConfig,
+        fps: u32,
+        sink: Arc<Sink>,
+    ) -> Result<Encoder, String> {
+        if gst::ElementFactory::find(name).is_none() {
+            return Err("not installed".into());
+        }
+        let description = format!(
+            "appsrc name=src is-live=true format=time ! {} ! h264parse config-interval=-1 \
+             ! {H264_CAPS} ! appsink name=sink sync=false",
+            element_description(name, cfg, fps)
+        );
+        let pipeline = gst::parse::launch(&description)
+            .map_err(|e| e.to_string())?
+            .downcast::<gst::Pipeline>()
+            .map_err(|_| "not a pipeline")?;
+        let src = pipeline
+            .by_name("src")
+            .and_then(|e| e.downcast::<gst_app::AppSrc>().ok())
+            .ok_or("no appsrc")?;
+        let element = pipeline.by_name("enc").ok_or("no encoder element")?;
+        let appsink = pipeline
+            .by_name("sink")
+            .and_then(|e| e.downcast::<gst_app::AppSink>().ok())
+            .ok_or("no appsink")?;
+        let pending: Arc<Mutex<VecDeque<Instant>>> = Arc::default();
+        let waiting = pending.clone();
+        appsink.set_callbacks(
+            gst_app::AppSinkCallbacks::builder()
+                .new_sample(move |appsink| {
+                    let sample = appsink.pull_sample().map_err(|_| gst::FlowError::Eos)?;
+                    let Some(buffer) = sample.buffer_owned() else {
+                        return Ok(gst::FlowSuccess::Ok);
+                    };
+                    // One unit per frame, in order (no B-frames; the encoder shifts
+                    // timestamps, so they cannot be matched).
+                    let encode_time = waiting
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .pop_front()
+                        .map(|at| at.elapsed());
+                    let key = !buffer.flags().contains(gst::BufferFlags::DELTA_UNIT);
+                    sink(AccessUnit {
+                        buffer,
+                        key,
+                        encode_time,
+                    });
+                    Ok(gst::FlowSuccess::Ok)
+                })
+                .build(),
+        );
+        pipeline
+            .set_state(gst::State::Playing)
+            .map_err(|_| bus_error(&pipeline).unwrap_or_else(|| "would not start".into()))?;
+        tracing::info!("encoder: {name}");
+        Ok(Encoder {
+            pipeline,
+            src,
+            element,
+            name: name.to_string(),
+            caps: None,
+            pending,
+            dropped: 0,
+        })
+    }
+
+    /// The encoder element in use.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Queues one I420 frame shown at `pts`. A frame is dropped (counted) while the encoder
+    /// is `BACKLOG` frames behind; a new size or `fps` renegotiates the encoder first.
+    pub fn push(
+        &mut self,
+        data: Vec<u8>,
+        layout: &PlaneLayout,
+        pts: Duration,
+        fps: u32,
+    ) -> Result<(), String> {
+        if let Some(e) = bus_error(&self.pipeline) {
+            return Err(format!("encoder {}: {e}", self.name));
+        }
+        if layout.format != PixelFormat::I420 {
+            return Err(format!("the encoder takes I420, not {}", layout.format));
+        }
+        let pts = gst::ClockTime::from_nseconds(pts.as_nanos() as u64);
+        {
+            let mut q = self.pending.lock().unwrap_or_else(|e| e.into_inner());
+            if q.len() >= BACKLOG {
+                self.dropped += 1;
+                return Ok(());
+            }
+            q.push_back(Instant::now());
+        }
+        let dims = (layout.width, layout.height, fps);
+        if self.caps != Some(dims) {
+            let caps = gst_video::VideoInfo::builder(
+                gst_video::VideoFormat::I420,
+                layout.width,
+                layout.height,
+            )
+            .fps(gst::Fraction::new(fps as i32, 1))
+            .build()
+            .map_err(|e| e.to_string())?
+            .to_caps()
+            .map_err(|e| e.to_string())?;
+            self.src.set_caps(Some(&caps));
+            if self.caps.is_some() {
+                tracing::info!(
+                    "encoder: output now {}x{} at {fps} fps",
+                    layout.width,
+                    layout.height
+                );
+            }
+            self.caps = Some(dims);
+        }
+        let mut buffer = gst::Buffer::from_mut_slice(data);
+        {
+            let b = buffer.get_mut().expect("a new buffer is writable");
+            b.set_pts(pts);
+            b.set_duration(gst::ClockTime::SECOND / fps as u64);
+            gst_video::VideoMeta::add_full(
+                b,
+                gst_video::VideoFrameFlags::empty(),
+                gst_video::VideoFormat::I420,
+                layout.width,
+                layout.height,
+                &[0, layout.chroma[0] as usize, layout.chroma[1] as usize],
+                &[
+                    layout.stride as i32,
+                    layout.chroma_stride as i32,
+                    layout.chroma_stride as i32,
+                ],
+            )
+            .map_err(|e| e.to_string())?;
+        }
+        self.src
+            .push_buffer(buffer)
+            .map_err(|e| format!("encoder {}: {e:?}", self.name))?;
+        Ok(())
+    }
+
+    /// Asks for a key frame (with SPS/PPS) as soon as possible: a client joined, or a
+    /// recording starts.
+    pub fn force_key_unit(&self) {
+        force_key_unit(&self.element);
+    }
+}
+
+fn force_key_unit(element: &gst::Element) {
+    let event = gst_video::UpstreamForceKeyUnitEvent::builder()
+        .all_headers(true)
+        .build();
+    if let Some(pad) = element.static_pad("src") {
+        pad.send_event(event);
+    }
+}
+
+impl Drop for Encoder {
+    fn drop(&mut self) {
+        let _ = self.src.end_of_stream();
+        let _ = self.pipeline.set_state(gst::State::Null);
+    }
+}

@@ -1,0 +1,105 @@
+//! Recording the encoded stream to fragmented MP4: h264parse → mp4mux with one-second
+//! fragments written as they complete (`streamable`, nothing rewritten at the end), so a
+//! power cut loses at most the last second and the file plays up to there. A recording
+//! starts at a key frame; its timestamps start at zero.
+
+use super::{H264_CAPS, bus_error};
+use gstreamer as gst;
+use gstreamer::prelude::*;
+use gstreamer_app as gst_app;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+pub struct Recorder {
+    pipeline: gst::Pipeline,
+    src: gst_app::AppSrc,
+    path: PathBuf,
+    first_pts: Option<gst::ClockTime>,
+}
+
+impl Recorder {
+    pub fn start(path: &Path) -> Result<Recorder, String> {
+        super::init()?;
+        let pipeline = gst::parse::launch(&format!(
+            "appsrc name=src format=time caps={H264_CAPS} ! h264parse \
+             ! mp4mux fragment-duration=1000 streamable=true ! filesink name=file"
+        ))
+        .map_err(|e| e.to_string())?
+        .downcast::<gst::Pipeline>()
+        .map_err(|_| "not a pipeline")?;
+        let src = pipeline
+            .by_name("src")
+            .and_then(|e| e.downcast::<gst_app::AppSrc>().ok())
+            .ok_or("no appsrc")?;
+        pipeline
+            .by_name("file")
+            .ok_or("no filesink")?
+            .set_property("location", path.to_string_lossy().as_ref());
+        pipeline.set_state(gst::State::Playing).map_err(|_| {
+            bus_error(&pipeline).unwrap_or_else(|| format!("cannot record to {}", path.display()))
+        })?;
+        Ok(Recorder {
+            pipeline,
+            src,
+            path: path.to_path_buf(),
+            first_pts: None,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Whether it has begun (its first key frame arrived).
+    pub fn started(&self) -> bool {
+        self.first_pts.is_some()
+    }
+
+    /// Adds one access unit; units before the first key frame are skipped.
+    pub fn push(&mut self, buffer: &gst::Buffer, key: bool) -> Result<(), String> {
+        if let Some(e) = bus_error(&self.pipeline) {
+            return Err(format!("recording {}: {e}", self.path.display()));
+        }
+        let Some(pts) = buffer.pts() else {
+            return Ok(());
+        };
+        let first = match self.first_pts {
+            Some(f) => f,
+            None if key => *self.first_pts.insert(pts),
+            None => return Ok(()),
+        };
+        let mut b = buffer.copy();
+        {
+            let b = b.make_mut();
+            let t = pts.saturating_sub(first);
+            b.set_pts(t);
+            b.set_dts(t);
+        }
+        self.src
+            .push_buffer(b)
+            .map(|_| ())
+            .map_err(|e| format!("recording {}: {e:?}", self.path.display()))
+    }
+
+    /// Ends the file cleanly (its last fragment written) and returns its path.
+    pub fn finish(self) -> Result<PathBuf, String> {
+        let _ = self.src.end_of_stream();
+        let bus = self.pipeline.bus().ok_or("no bus")?;
+        let msg = bus.timed_pop_filtered(
+            gst::ClockTime::from_seconds(5),
+            &[gst::MessageType::Eos, gst::MessageType::Error],
+        );
+        let _ = self.pipeline.set_state(gst::State::Null);
+        match msg.as_ref().map(|m| m.view()) {
+            Some(gst::MessageView::Eos(_)) => Ok(self.path.clone()),
+            Some(gst::MessageView::Error(e)) => {
+                Err(format!("recording {}: {}", self.path.display(), e.error()))
+            }
+            _ => Err(format!(
+                "recording {}: not finished within {:?}",
+                self.path.display(),
+                Duration::from_secs(5)
+            )),
+        }
+    }
+}

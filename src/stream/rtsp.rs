@@ -1,0 +1,227 @@
+//! The RTSP server (gst-rtsp-server): one shared media at `rtsp://HOST:PORT/PATH` fed with the
+//! encoder's access units through an appsrc, so any number of clients watch one encode. A
+//! joining client gets a key frame at once (the caller is told to ask the encoder for one); a
+//! client that vanishes is the server's business and costs the frame path nothing. Optional
+//! basic authentication.
+
+use super::H264_CAPS;
+use gstreamer as gst;
+use gstreamer::glib;
+use gstreamer::prelude::*;
+use gstreamer_app as gst_app;
+use gstreamer_rtsp_server as rtsp;
+use gstreamer_rtsp_server::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RtspConfig {
+    /// Address to listen on.
+    pub address: String,
+    /// TCP port (0 picks a free one, printed at start-up).
+    pub port: u16,
+    /// Mount path of the stream.
+    pub path: String,
+    /// Basic authentication: both set, or neither (open).
+    pub user: Option<String>,
+    pub password: Option<String>,
+}
+
+impl Default for RtspConfig {
+    fn default() -> Self {
+        RtspConfig {
+            address: "0.0.0.0".into(),
+            port: 8554,
+            path: "/digiview".into(),
+            user: None,
+            password: None,
+        }
+    }
+}
+
+impl RtspConfig {
+    pub fn check(&self) -> Result<(), String> {
+        if !self.path.starts_with('/')
+            || self.path.len() < 2
+            || self.path.contains(char::is_whitespace)
+        {
+            return Err(format!(
+                "rtsp path {:?} must start with / and name a mount point, without spaces",
+                self.path
+            ));
+        }
+        match (&self.user, &self.password) {
+            (Some(u), Some(_)) if u.is_empty() || u.contains(':') => {
+                Err(format!("rtsp user {u:?} must be non-empty and without ':'"))
+            }
+            (Some(_), None) | (None, Some(_)) => {
+                Err("rtsp user and password go together: set both or neither".into())
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// The media's appsrc while at least one client watches, and the offset from encoder
+/// timestamps to the media's running time (set by the first unit it gets).
+type MediaSrc = Arc<Mutex<Option<(gst_app::AppSrc, Option<i128>)>>>;
+
+pub struct Rtsp {
+    main_loop: glib::MainLoop,
+    thread: Option<JoinHandle<()>>,
+    media: MediaSrc,
+    clients: Arc<AtomicUsize>,
+    port: u16,
+    path: String,
+}
+
+impl Rtsp {
+    /// Starts serving; `on_join` runs when a client starts to play (ask for a key frame).
+    pub fn start(
+        cfg: &RtspConfig,
+        on_join: impl Fn() + Send + Sync + 'static,
+    ) -> Result<Rtsp, String> {
+        cfg.check()?;
+        super::init()?;
+        let on_join = Arc::new(on_join);
+        let server = rtsp::RTSPServer::new();
+        server.set_address(&cfg.address);
+        server.set_service(&cfg.port.to_string());
+        let factory = rtsp::RTSPMediaFactory::new();
+        factory.set_launch(&format!(
+            "( appsrc name=digiview_h264 is-live=true format=time min-latency=0 caps={H264_CAPS} \
+             ! h264parse ! rtph264pay name=pay0 pt=96 config-interval=-1 )"
+        ));
+        factory.set_shared(true);
+        factory.set_latency(0);
+        let media: MediaSrc = Arc::default();
+        {
+            let media = media.clone();
+            let on_join = on_join.clone();
+            factory.connect_media_configure(move |_, m| {
+                let src = m
+                    .element()
+                    .downcast::<gst::Bin>()
+                    .ok()
+                    .and_then(|bin| bin.by_name_recurse_up("digiview_h264"))
+                    .and_then(|e| e.downcast::<gst_app::AppSrc>().ok());
+                *media.lock().unwrap_or_else(|e| e.into_inner()) = src.map(|s| (s, None));
+                let gone = media.clone();
+                m.connect_unprepared(move |_| {
+                    *gone.lock().unwrap_or_else(|e| e.into_inner()) = None;
+                });
+                on_join();
+            });
+        }
+        if let (Some(user), Some(password)) = (&cfg.user, &cfg.password) {
+            let auth = rtsp::RTSPAuth::new();
+            let token = rtsp::RTSPToken::builder()
+                .field(rtsp::RTSP_TOKEN_MEDIA_FACTORY_ROLE, "viewer")
+                .build();
+            auth.add_basic(rtsp::RTSPAuth::make_basic(user, password).as_str(), &token);
+            server.set_auth(Some(&auth));
+            factory.add_role_from_structure(
+                &gst::Structure::builder("viewer")
+                    .field(rtsp::RTSP_PERM_MEDIA_FACTORY_ACCESS, true)
+                    .field(rtsp::RTSP_PERM_MEDIA_FACTORY_CONSTRUCT, true)
+                    .build(),
+            );
+        }
+        let clients = Arc::new(AtomicUsize::new(0));
+        {
+            let clients = clients.clone();
+            server.connect_client_connected(move |_, client| {
+                clients.fetch_add(1, Ordering::Relaxed);
+                let left = clients.clone();
+                client.connect_closed(move |_| {
+                    left.fetch_sub(1, Ordering::Relaxed);
+                });
+                let on_join = on_join.clone();
+                client.connect_play_request(move |_, _| on_join());
+            });
+        }
+        server
+            .mount_points()
+            .ok_or("the RTSP server has no mount points")?
+            .add_factory(&cfg.path, factory);
+        let context = glib::MainContext::new();
+        let main_loop = glib::MainLoop::new(Some(&context), false);
+        let attached = context
+            .with_thread_default(|| server.attach(Some(&context)))
+            .map_err(|e| e.to_string())?;
+        attached.map_err(|_| {
+            format!(
+                "cannot serve RTSP on {}:{} (port in use, or not allowed)",
+                cfg.address, cfg.port
+            )
+        })?;
+        let port = server.bound_port() as u16;
+        let thread = {
+            let main_loop = main_loop.clone();
+            std::thread::Builder::new()
+                .name("rtsp".into())
+                .spawn(move || {
+                    let _server = server;
+                    let _ = context.with_thread_default(|| main_loop.run());
+                })
+                .map_err(|e| e.to_string())?
+        };
+        Ok(Rtsp {
+            main_loop,
+            thread: Some(thread),
+            media,
+            clients,
+            port,
+            path: cfg.path.clone(),
+        })
+    }
+
+    /// The port it listens on (the real one when 0 was asked for).
+    pub fn port(&self) -> u16 {
+        self.port
+    }
+
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// Clients connected now.
+    pub fn clients(&self) -> usize {
+        self.clients.load(Ordering::Relaxed)
+    }
+
+    /// Hands one access unit to the watching clients (nothing happens when none watch).
+    pub fn push(&self, au: &gst::Buffer) {
+        let (src, pts) = {
+            let mut media = self.media.lock().unwrap_or_else(|e| e.into_inner());
+            let Some((src, offset)) = media.as_mut() else {
+                return;
+            };
+            let (Some(pts), Some(now)) = (au.pts(), src.current_running_time()) else {
+                return;
+            };
+            // The encoder's spacing kept, shifted onto the media's clock.
+            let offset = *offset.get_or_insert(now.nseconds() as i128 - pts.nseconds() as i128);
+            let t = (pts.nseconds() as i128 + offset).max(0) as u64;
+            (src.clone(), gst::ClockTime::from_nseconds(t))
+        };
+        let mut buffer = au.copy();
+        {
+            let b = buffer.make_mut();
+            b.set_pts(pts);
+            b.set_dts(pts);
+        }
+        let _ = src.push_buffer(buffer);
+    }
+}
+
+impl Drop for Rtsp {
+    fn drop(&mut self) {
+        self.main_loop.quit();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
