@@ -10,8 +10,8 @@ use common::{four_view_state, landmark_matches, lens_cal};
 use digiview::control::client::Client;
 use digiview::image_ops;
 use digiview::layout::Rect;
-use digiview::protocol::Param;
-use digiview::protocol::params::{CamFov, VideoOutput};
+use digiview::protocol::params::{CamFov, Capture, VideoOutput};
+use digiview::protocol::{Param, ParamType};
 use digiview::render::FramePlan;
 use digiview::scene::GridWorld;
 use digiview::scene::synth::truth;
@@ -22,6 +22,7 @@ use gstreamer_app as gst_app;
 use gstreamer_video as gst_video;
 use gstreamer_video::prelude::*;
 use image::RgbImage;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 const DEMO: (u32, u32) = (1280, 720);
@@ -226,4 +227,213 @@ fn the_demo_streams_over_rtsp_and_follows_the_control_protocol() {
     (bigger.output.width, bigger.output.height) = (800, 600);
     let (_, want_bigger) = truth_of(&bigger);
     assert!(psnr(&want_bigger, &resized) > 24.0);
+}
+
+fn mean_luma(img: &RgbImage) -> f64 {
+    img.pixels()
+        .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+        .sum::<f64>()
+        / (img.width() * img.height()) as f64
+}
+
+/// Decoded frames until `test` holds for one, within `limit`.
+fn until(viewer: &Viewer, limit: Duration, what: &str, test: impl Fn(&RgbImage) -> bool) {
+    let t = Instant::now();
+    while t.elapsed() < limit {
+        if test(&viewer.frame().0) {
+            return;
+        }
+    }
+    panic!("no frame showed {what} within {limit:?}");
+}
+
+fn status(ctl: &mut Client) -> (u8, u8) {
+    match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
+        Param::SystemStatus(s) => (s.status, s.error),
+        other => panic!("{other:?}"),
+    }
+}
+
+fn capture(ctl: &mut Client) -> Capture {
+    match ctl.get_one(ParamType::Capture.zeroed()).unwrap() {
+        Param::Capture(c) => c,
+        other => panic!("{other:?}"),
+    }
+}
+
+fn set_capture(ctl: &mut Client, flags: u8) {
+    ctl.set(Param::Capture(Capture {
+        flags,
+        ..Default::default()
+    }))
+    .unwrap();
+}
+
+/// ffprobe's count of decodable video frames in `path`, and their size.
+fn probe_frames(path: &Path) -> (u64, String) {
+    let out = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args([
+            "-show_entries",
+            "stream=nb_read_frames,width,height",
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(path)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    let mut parts = text.split(',');
+    let (w, h, n) = (parts.next(), parts.next(), parts.next());
+    match (w, h, n.and_then(|n| n.parse().ok())) {
+        (Some(w), Some(h), Some(n)) => (n, format!("{w}x{h}")),
+        _ => panic!(
+            "ffprobe cannot read {}: {text} {}",
+            path.display(),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+    }
+}
+
+fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    v.retain(|p| p.extension().is_some_and(|e| e == ext));
+    v.sort();
+    v
+}
+
+/// A looping image sequence of plain light-grey fisheye frames, a config serving it at
+/// 640x480 and 15 fps, and the server.
+fn serve_sequence(dir: &Path) -> (Serve, PathBuf) {
+    let frames = dir.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for i in 0..5 {
+        RgbImage::from_pixel(640, 360, image::Rgb([170, 170, 170]))
+            .save(frames.join(format!("f{i:03}.png")))
+            .unwrap();
+    }
+    let captures = dir.join("captures");
+    let config = dir.join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "source = \"sequence:{}/f%03d.png\"\nsource_fps = 15\nhealth_interval_s = 0\n\
+             [capture]\ndir = \"{}\"\nmin_free_mb = 1\n",
+            frames.display(),
+            captures.display()
+        ),
+    )
+    .unwrap();
+    let serve = Serve::start_video(&[
+        "--config",
+        config.to_str().unwrap(),
+        "--size",
+        "640x480",
+        "--fps",
+        "15",
+    ]);
+    (serve, captures)
+}
+
+#[test]
+fn a_lost_source_shows_no_signal_and_comes_back_while_captures_go_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let (serve, captures) = serve_sequence(dir.path());
+    let viewer = Viewer::open(serve.rtsp.as_deref().unwrap());
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let picture = |img: &RgbImage| mean_luma(img) > 90.0;
+    let no_signal = |img: &RgbImage| mean_luma(img) < 70.0;
+    until(&viewer, Duration::from_secs(20), "the picture", picture);
+    assert_eq!(status(&mut ctl), (1, 0), "running, no error");
+
+    // A still and a recording.
+    set_capture(&mut ctl, 1 | 2);
+    assert_eq!(capture(&mut ctl).flags & 2, 2, "recording");
+
+    // The camera goes away: "no signal" on the stream, error 1 (source) in SYSTEM_STATUS.
+    let frames = dir.path().join("frames");
+    let away = dir.path().join("away");
+    std::thread::sleep(Duration::from_secs(2));
+    std::fs::rename(&frames, &away).unwrap();
+    until(&viewer, Duration::from_secs(10), "no signal", no_signal);
+    assert_eq!(status(&mut ctl), (3, 1), "error: the source");
+
+    // It comes back: the picture resumes without a restart.
+    std::fs::rename(&away, &frames).unwrap();
+    until(
+        &viewer,
+        Duration::from_secs(15),
+        "the picture again",
+        picture,
+    );
+    let t = Instant::now();
+    while status(&mut ctl) != (1, 0) {
+        assert!(
+            t.elapsed() < Duration::from_secs(5),
+            "status stays {:?}",
+            status(&mut ctl)
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    // Recording stops; the counters say one still and one video; both files are good.
+    set_capture(&mut ctl, 0);
+    let c = capture(&mut ctl);
+    assert_eq!(
+        (c.flags & 2, c.images_captured, c.videos_captured),
+        (0, 1, 1)
+    );
+    let stills = files(&captures, "jpg");
+    assert_eq!(stills.len(), 1, "{stills:?}");
+    let still = image::open(&stills[0]).unwrap();
+    assert_eq!((still.width(), still.height()), (640, 480));
+    let videos = files(&captures, "mp4");
+    assert_eq!(videos.len(), 1);
+    let (n, size) = probe_frames(&videos[0]);
+    assert_eq!(size, "640x480");
+    assert!(n >= 45, "{n} frames in a recording of over 4 s at 15 fps");
+}
+
+#[test]
+fn a_recording_survives_kill_9_up_to_its_last_fragment_and_sigterm_finishes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut serve, captures) = serve_sequence(dir.path());
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let t = Instant::now();
+    while status(&mut ctl).0 != 1 {
+        assert!(t.elapsed() < Duration::from_secs(20), "never running");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    set_capture(&mut ctl, 2);
+    std::thread::sleep(Duration::from_millis(3500));
+    serve.kill();
+    let videos = files(&captures, "mp4");
+    assert_eq!(videos.len(), 1);
+    let (n, _) = probe_frames(&videos[0]);
+    assert!(
+        n >= 15,
+        "only {n} frames survived 3.5 s of recording and a kill -9"
+    );
+
+    // SIGTERM: the recording is finished and the process exits cleanly.
+    let dir = tempfile::tempdir().unwrap();
+    let (mut serve, captures) = serve_sequence(dir.path());
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let t = Instant::now();
+    while status(&mut ctl).0 != 1 {
+        assert!(t.elapsed() < Duration::from_secs(20), "never running");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    set_capture(&mut ctl, 2);
+    std::thread::sleep(Duration::from_millis(2500));
+    serve.terminate();
+    let exit = serve
+        .wait_exit(Duration::from_secs(10))
+        .expect("exits after SIGTERM");
+    assert!(exit.success(), "{exit:?}");
+    let videos = files(&captures, "mp4");
+    let (n, _) = probe_frames(&videos[0]);
+    assert!(n >= 30, "{n} frames in 2.5 s at 15 fps");
 }

@@ -23,6 +23,19 @@ pub enum RunStatus {
     Error = 3,
 }
 
+/// SYSTEM_STATUS's error byte: what failed while the status is error (docs/protocol.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Failure {
+    None = 0,
+    /// The camera is gone or the source ended or failed; it is being retried.
+    Source = 1,
+    /// The H.264 encoder failed; it is being rebuilt.
+    Encoder = 2,
+    /// The GPU device was lost or a render failed; it is being rebuilt.
+    Gpu = 3,
+}
+
 /// What CAPTURE's GET reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CaptureStatus {
@@ -76,6 +89,7 @@ pub struct Live {
     /// Every lens of lens.cal, by lens_id, at its calibration frame.
     lenses: Vec<(u8, Lens)>,
     status: AtomicU8,
+    failure: AtomicU8,
     capture: Box<dyn Capturer>,
 }
 
@@ -92,6 +106,7 @@ impl Live {
             writer: Mutex::new(()),
             lenses,
             status: AtomicU8::new(RunStatus::Idle as u8),
+            failure: AtomicU8::new(Failure::None as u8),
             capture,
         })
     }
@@ -154,8 +169,23 @@ impl Live {
         }
     }
 
+    /// Sets the status; any status but error clears the failure.
     pub fn set_status(&self, status: RunStatus) {
+        if status != RunStatus::Error {
+            self.failure.store(Failure::None as u8, Ordering::Relaxed);
+        }
         self.status.store(status as u8, Ordering::Relaxed);
+    }
+
+    /// Status error, saying what failed.
+    pub fn set_failure(&self, failure: Failure) {
+        self.failure.store(failure as u8, Ordering::Relaxed);
+        self.status.store(RunStatus::Error as u8, Ordering::Relaxed);
+    }
+
+    /// SYSTEM_STATUS's error byte.
+    pub fn failure(&self) -> u8 {
+        self.failure.load(Ordering::Relaxed)
     }
 
     pub fn capture(&self) -> &dyn Capturer {

@@ -19,7 +19,7 @@ pub const MAX_CAMERA_SIZE: u16 = 8192;
 pub fn system_status(live: &Live) -> SystemStatus {
     SystemStatus {
         status: live.status() as u8,
-        error: 0,
+        error: live.failure(),
     }
 }
 

@@ -10,7 +10,7 @@ pub mod config;
 mod no_signal;
 pub mod telemetry;
 
-use crate::control::live::{Live, RunStatus};
+use crate::control::live::{Failure, Live, RunStatus};
 use crate::render::gpu::{Gpu, Renderer};
 use crate::render::{Filter, FramePlan, PixelFormat, PlaneLayout};
 use crate::source::demo::{DemoCamera, Flight};
@@ -282,7 +282,8 @@ impl Head {
         let mut last_frame: Option<Frame> = None;
         let mut next_due = Instant::now();
         let mut last_pts = Duration::ZERO;
-        let mut healthy = false;
+        // The status last reported: None idle, Some(running or not).
+        let mut healthy: Option<bool> = None;
         while !self.stop.load(Ordering::Relaxed) {
             let state = self.live.snapshot();
             let period = Duration::from_secs_f64(1.0 / state.output.fps as f64);
@@ -334,8 +335,8 @@ impl Head {
                 Err(e) => {
                     // The GPU failed: say so, start a new device and renderer, go on.
                     error!("GPU: {e}; rebuilding the renderer");
-                    self.live.set_status(RunStatus::Error);
-                    healthy = false;
+                    self.live.set_failure(Failure::Gpu);
+                    healthy = Some(false);
                     std::thread::sleep(Duration::from_secs(1));
                     match Gpu::new().and_then(|g| Renderer::new(&g, PixelFormat::I420, Filter::Mip))
                     {
@@ -365,8 +366,8 @@ impl Head {
             let dropped_before = encoder.dropped;
             if let Err(e) = encoder.push(data, &layout, pts, state.output.fps) {
                 error!("{e}; rebuilding the encoder");
-                self.live.set_status(RunStatus::Error);
-                healthy = false;
+                self.live.set_failure(Failure::Encoder);
+                healthy = Some(false);
                 drop(encoder);
                 std::thread::sleep(Duration::from_millis(500));
                 encoder = self.encoder(state.output.fps)?;
@@ -375,19 +376,25 @@ impl Head {
             self.stats
                 .encoder_dropped
                 .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
-            let ok = signal
-                && self
-                    .source_error
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .is_none();
-            if ok != healthy {
-                self.live.set_status(if ok {
-                    RunStatus::Running
-                } else {
-                    RunStatus::Error
-                });
-                healthy = ok;
+            // Running with frames; error once the source failed or went silent; idle while
+            // the first frame is awaited.
+            let failed = self
+                .source_error
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .is_some();
+            let now_ok = match (signal && !failed, failed || last_frame.is_some()) {
+                (true, _) => Some(true),
+                (false, true) => Some(false),
+                (false, false) => None,
+            };
+            if now_ok != healthy {
+                match now_ok {
+                    Some(true) => self.live.set_status(RunStatus::Running),
+                    Some(false) => self.live.set_failure(Failure::Source),
+                    None => {}
+                }
+                healthy = now_ok;
             }
         }
         drop(encoder);

@@ -1,7 +1,8 @@
 //! Recording the encoded stream to fragmented MP4: h264parse → mp4mux with one-second
 //! fragments written as they complete (`streamable`, nothing rewritten at the end), so a
 //! power cut loses at most the last second and the file plays up to there. A recording
-//! starts at a key frame; its timestamps start at zero.
+//! starts at a key frame; its timestamps start at zero. The file is written unbuffered and
+//! opened O_SYNC, so what mp4mux has written is on the disk, not in a cache.
 
 use super::{H264_CAPS, bus_error};
 use gstreamer as gst;
@@ -22,7 +23,8 @@ impl Recorder {
         super::init()?;
         let pipeline = gst::parse::launch(&format!(
             "appsrc name=src format=time caps={H264_CAPS} ! h264parse \
-             ! mp4mux fragment-duration=1000 streamable=true ! filesink name=file"
+             ! mp4mux fragment-duration=1000 streamable=true \
+             ! filesink name=file buffer-mode=unbuffered o-sync=true"
         ))
         .map_err(|e| e.to_string())?
         .downcast::<gst::Pipeline>()
