@@ -50,6 +50,9 @@ pub struct ServeArgs {
     /// The demo vehicle hovers at the state's attitude and position instead of flying.
     #[arg(long)]
     demo_hover: bool,
+    /// The demo draws each frame's capture time as a barcode (glass-to-glass latency).
+    #[arg(long)]
+    demo_stamp: bool,
     /// The demo camera's frame size, WxH.
     #[arg(long, value_parser = crate::units::parse_size)]
     demo_size: Option<(u32, u32)>,
@@ -77,6 +80,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if args.demo_hover {
         cfg.demo.motion = false;
+    }
+    if args.demo_stamp {
+        cfg.demo.stamp = true;
     }
     if let Some((w, h)) = args.demo_size {
         (cfg.demo.width, cfg.demo.height) = (w, h);

@@ -60,6 +60,9 @@ pub struct DemoConfig {
     pub motion: bool,
     /// The layout frames arrive in, as a camera's would.
     pub format: PixelFormat,
+    /// Draw each frame's capture time (ms) as a barcode at the image centre, for
+    /// glass-to-glass latency (scripts/latency.sh; 4:2:0 formats only).
+    pub stamp: bool,
 }
 
 impl Default for DemoConfig {
@@ -70,6 +73,7 @@ impl Default for DemoConfig {
             fps: 30,
             motion: true,
             format: PixelFormat::Nv12,
+            stamp: false,
         }
     }
 }
@@ -183,6 +187,9 @@ impl Config {
                 "demo size {}x{} must be even for {}",
                 d.width, d.height, d.format
             ));
+        }
+        if d.stamp && !d.format.is_yuv() {
+            return Err("demo stamp needs a 4:2:0 format (nv12 or i420)".into());
         }
         if !(1..=120).contains(&d.fps) {
             return Err(format!("demo fps {} is outside 1..=120", d.fps));

@@ -203,7 +203,8 @@ impl Head {
             let (attitude, position) = flight.pose(t);
             self.telemetry.attitude(captured_us, attitude);
             self.telemetry.position(position);
-            let data = camera.frame(attitude, &position, t);
+            let stamp = d.stamp.then_some((captured_us / 1000) as u32);
+            let data = camera.frame(attitude, &position, t, stamp);
             self.slot.put(Frame {
                 data,
                 layout,
@@ -282,6 +283,8 @@ impl Head {
         let mut last_frame: Option<Frame> = None;
         let mut next_due = Instant::now();
         let mut last_pts = Duration::ZERO;
+        // The state of the last frame rendered.
+        let mut shown: Option<Arc<crate::state::State>> = None;
         // The status last reported: None idle, Some(running or not).
         let mut healthy: Option<bool> = None;
         while !self.stop.load(Ordering::Relaxed) {
@@ -310,6 +313,7 @@ impl Head {
                 info!("source: frames again");
             }
             let now = Instant::now();
+            let is_fresh = fresh.is_some();
             next_due = match fresh {
                 Some((f, arrived)) => {
                     last_frame = Some(f);
@@ -323,6 +327,15 @@ impl Head {
             }
             // Never more than a period behind: a slow frame does not cause a burst.
             .max(now - period.min(now - start));
+            // Showing the last frame again is worth its render only when the views moved (or
+            // once a second, to keep decoders fed): otherwise it would only delay the next
+            // fresh frame.
+            let repeat = !is_fresh && signal;
+            let moved = !shown.as_ref().is_some_and(|s| Arc::ptr_eq(s, &state));
+            if repeat && !moved && last_pts + Duration::from_secs(1) > start.elapsed() {
+                continue;
+            }
+            shown = Some(state.clone());
             let pts = start.elapsed().max(last_pts + Duration::from_millis(1));
             last_pts = pts;
             let t0 = Instant::now();

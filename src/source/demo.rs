@@ -65,6 +65,8 @@ pub struct DemoCamera {
     /// The unit ray (lens frame) through each block centre; None outside the image circle.
     rays: Vec<Option<Vec3>>,
     mount: Euler,
+    /// The lens's image centre, pixels.
+    centre: DVec2,
 }
 
 impl DemoCamera {
@@ -88,6 +90,7 @@ impl DemoCamera {
             blocks,
             rays,
             mount,
+            centre: lens.centre(),
         }
     }
 
@@ -99,8 +102,15 @@ impl DemoCamera {
         &self.world
     }
 
-    /// The frame seen at `attitude` from `position` at scene time `t`.
-    pub fn frame(&self, attitude: Euler, position: &GeoPosition, t: f64) -> Vec<u8> {
+    /// The frame seen at `attitude` from `position` at scene time `t`, with `stamp` (when
+    /// given, and the layout 4:2:0) drawn as the [`stamp`] barcode at the image centre.
+    pub fn frame(
+        &self,
+        attitude: Euler,
+        position: &GeoPosition,
+        t: f64,
+        stamp: Option<u32>,
+    ) -> Vec<u8> {
         let world_from_lens: DMat3 = lens_from_world(attitude, self.mount).transpose();
         let eye = eye_at(position);
         let (bw, bh) = self.blocks;
@@ -161,10 +171,72 @@ impl DemoCamera {
             out[u] = byte(yuv.y);
             out[v] = byte(yuv.z);
         }
+        if let Some(value) = stamp {
+            stamp::draw(&mut out, &l, self.centre, value);
+        }
         out
     }
 }
 
 fn byte(v: f64) -> u8 {
     v.round().clamp(0.0, 255.0) as u8
+}
+
+/// The timestamp barcode the demo can draw at the image centre (straight along the lens axis)
+/// for glass-to-glass latency: 32 bits of a millisecond clock, 8 cells across and 4 down,
+/// most significant bit first, white for 1 and black for 0, inside a one-cell grey border.
+pub mod stamp {
+    use crate::render::PlaneLayout;
+    use glam::DVec2;
+
+    pub const COLS: i64 = 8;
+    pub const ROWS: i64 = 4;
+    /// Cell side in pixels of a 1280-wide frame; scaled with the frame width.
+    pub const CELL_1280: f64 = 14.0;
+
+    fn cell(width: u32) -> f64 {
+        CELL_1280 * width as f64 / 1280.0
+    }
+
+    /// Which bit (0 = most significant) pixel `p` of a `width`-wide frame shows, Some(None)
+    /// on the border, None away from the code.
+    pub fn bit_at(p: DVec2, centre: DVec2, width: u32) -> Option<Option<u32>> {
+        let c = (p - centre) / cell(width);
+        let (col, row) = (
+            (c.x + COLS as f64 / 2.0).floor() as i64,
+            (c.y + ROWS as f64 / 2.0).floor() as i64,
+        );
+        if !(-1..=COLS).contains(&col) || !(-1..=ROWS).contains(&row) {
+            return None;
+        }
+        if col == -1 || col == COLS || row == -1 || row == ROWS {
+            return Some(None);
+        }
+        Some(Some((row * COLS + col) as u32))
+    }
+
+    /// Draws `value` into the luma plane of a 4:2:0 frame (chroma left as the world's).
+    pub fn draw(out: &mut [u8], layout: &PlaneLayout, centre: DVec2, value: u32) {
+        let reach = cell(layout.width) * (COLS as f64 / 2.0 + 1.0);
+        let (x0, x1) = (
+            (centre.x - reach).max(0.0),
+            (centre.x + reach).min(layout.width as f64 - 1.0),
+        );
+        let (y0, y1) = (
+            (centre.y - reach).max(0.0),
+            (centre.y + reach).min(layout.height as f64 - 1.0),
+        );
+        for y in y0 as u32..=y1 as u32 {
+            for x in x0 as u32..=x1 as u32 {
+                let Some(bit) = bit_at(DVec2::new(x as f64, y as f64), centre, layout.width) else {
+                    continue;
+                };
+                out[(y * layout.stride + x) as usize] = match bit {
+                    None => 126,
+                    Some(b) if value >> (31 - b) & 1 == 1 => 235,
+                    Some(_) => 16,
+                };
+            }
+        }
+    }
 }

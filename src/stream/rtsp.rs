@@ -64,9 +64,15 @@ impl RtspConfig {
     }
 }
 
-/// The media's appsrc while at least one client watches, and the offset from encoder
-/// timestamps to the media's running time (set by the first unit it gets).
-type MediaSrc = Arc<Mutex<Option<(gst_app::AppSrc, Option<i128>)>>>;
+/// The media's appsrc while at least one client watches.
+struct Media {
+    src: gst_app::AppSrc,
+    /// Encoder timestamps + offset = the media's running time (ns).
+    offset: Option<i128>,
+    last: u64,
+}
+
+type MediaSrc = Arc<Mutex<Option<Media>>>;
 
 pub struct Rtsp {
     main_loop: glib::MainLoop,
@@ -107,7 +113,11 @@ impl Rtsp {
                     .ok()
                     .and_then(|bin| bin.by_name_recurse_up("digiview_h264"))
                     .and_then(|e| e.downcast::<gst_app::AppSrc>().ok());
-                *media.lock().unwrap_or_else(|e| e.into_inner()) = src.map(|s| (s, None));
+                *media.lock().unwrap_or_else(|e| e.into_inner()) = src.map(|src| Media {
+                    src,
+                    offset: None,
+                    last: 0,
+                });
                 let gone = media.clone();
                 m.connect_unprepared(move |_| {
                     *gone.lock().unwrap_or_else(|e| e.into_inner()) = None;
@@ -196,16 +206,23 @@ impl Rtsp {
     pub fn push(&self, au: &gst::Buffer) {
         let (src, pts) = {
             let mut media = self.media.lock().unwrap_or_else(|e| e.into_inner());
-            let Some((src, offset)) = media.as_mut() else {
+            let Some(m) = media.as_mut() else {
                 return;
             };
-            let (Some(pts), Some(now)) = (au.pts(), src.current_running_time()) else {
+            let (Some(pts), Some(now)) = (au.pts(), m.src.current_running_time()) else {
                 return;
             };
-            // The encoder's spacing kept, shifted onto the media's clock.
-            let offset = *offset.get_or_insert(now.nseconds() as i128 - pts.nseconds() as i128);
-            let t = (pts.nseconds() as i128 + offset).max(0) as u64;
-            (src.clone(), gst::ClockTime::from_nseconds(t))
+            // The encoder's spacing, shifted onto the media's clock, but never ahead of now:
+            // the server's sinks would hold an early unit back, which is latency. A unit that
+            // comes out of the encoder sooner than those before moves the offset down.
+            let (pts, now) = (pts.nseconds() as i128, now.nseconds() as i128);
+            let offset = m.offset.get_or_insert(now - pts);
+            if pts + *offset > now {
+                *offset = now - pts;
+            }
+            let t = ((pts + *offset).max(0) as u64).max(m.last + 1_000);
+            m.last = t;
+            (m.src.clone(), gst::ClockTime::from_nseconds(t))
         };
         let mut buffer = au.copy();
         {

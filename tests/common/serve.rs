@@ -32,9 +32,17 @@ impl Serve {
             .args(mode)
             .args(extra)
             .env("DIGIVIEW_LENS_CAL", cal)
-            .env("RUST_LOG", "warn")
+            // DIGIVIEW_TEST_LOG=info shows the server's log while debugging a test.
+            .env(
+                "RUST_LOG",
+                std::env::var("DIGIVIEW_TEST_LOG").unwrap_or_else(|_| "warn".into()),
+            )
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(if std::env::var_os("DIGIVIEW_TEST_LOG").is_some() {
+                Stdio::inherit()
+            } else {
+                Stdio::null()
+            })
             .spawn()
             .expect("digiview serve starts");
         let mut out = BufReader::new(child.stdout.take().unwrap());
