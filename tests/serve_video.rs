@@ -6,7 +6,7 @@
 mod common;
 
 use common::serve::Serve;
-use common::{four_view_state, landmark_matches, lens_cal};
+use common::{four_view_state, landmark_matches, lens_cal, probe_frames};
 use digiview::control::client::Client;
 use digiview::image_ops;
 use digiview::layout::Rect;
@@ -277,32 +277,6 @@ fn set_capture(ctl: &mut Client, flags: u8) {
         ..Default::default()
     }))
     .unwrap();
-}
-
-/// ffprobe's count of decodable video frames in `path`, and their size.
-fn probe_frames(path: &Path) -> (u64, String) {
-    let out = std::process::Command::new("ffprobe")
-        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
-        .args([
-            "-show_entries",
-            "stream=nb_read_frames,width,height",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(path)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout).trim().to_string();
-    let mut parts = text.split(',');
-    let (w, h, n) = (parts.next(), parts.next(), parts.next());
-    match (w, h, n.and_then(|n| n.parse().ok())) {
-        (Some(w), Some(h), Some(n)) => (n, format!("{w}x{h}")),
-        _ => panic!(
-            "ffprobe cannot read {}: {text} {}",
-            path.display(),
-            String::from_utf8_lossy(&out.stderr)
-        ),
-    }
 }
 
 fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {

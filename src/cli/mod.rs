@@ -5,6 +5,7 @@ mod bench_cmd;
 mod ctl_cmd;
 mod lens_cmd;
 mod render_cmd;
+mod render_video;
 mod serve_cmd;
 
 use crate::state::State;

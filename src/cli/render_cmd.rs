@@ -22,12 +22,20 @@ pub enum Backend {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// The fisheye image (PNG or JPEG).
+    /// The fisheye input: an image (PNG or JPEG), a video file (anything GStreamer decodes,
+    /// e.g. .mp4), or an image sequence named with a number pattern (frames/%05d.png).
     #[arg(long)]
     input: PathBuf,
-    /// Where to write the output frame (.png or .jpg).
+    /// Where to write: an image (.png or .jpg) for an image input; for a video or sequence
+    /// input, an MP4 (H.264) or an image sequence pattern (out/%05d.png).
     #[arg(long)]
     out: PathBuf,
+    /// Frame rate of an image sequence input.
+    #[arg(long, default_value_t = 30)]
+    input_fps: u32,
+    /// H.264 bitrate of an MP4 output.
+    #[arg(long, default_value_t = 8000)]
+    bitrate_kbps: u32,
     /// The GPU renderer (lavapipe where there is no GPU) or the f64 CPU reference.
     #[arg(long, value_enum, default_value = "gpu")]
     backend: Backend,
@@ -85,9 +93,31 @@ fn save(img: &RgbImage, path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Image extensions `render` reads and writes as single frames.
+fn is_image(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["png", "jpg", "jpeg"].contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// A sequence pattern: a printf-style number (`%05d`, `%d`) in the name.
+fn is_pattern(path: &Path) -> bool {
+    path.to_string_lossy().contains('%')
+}
+
 pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
     let cal = LensCal::load(cal_path)?;
     let state = args.state.state(&cal)?;
+    if is_pattern(&args.input) || !is_image(&args.input) {
+        return super::render_video::render_video(&cal, &state, &args.video());
+    }
+    if is_pattern(&args.out) || !is_image(&args.out) {
+        anyhow::bail!(
+            "{}: an image input renders to an image (.png or .jpg); a video or an image \
+             sequence renders to .mp4 or a pattern",
+            args.out.display()
+        );
+    }
     let input = image::open(&args.input)
         .with_context(|| format!("reading {}", args.input.display()))?
         .to_rgb8();
@@ -107,6 +137,19 @@ pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
         }
     };
     save(&out, &args.out)
+}
+
+impl RenderArgs {
+    fn video(&self) -> super::render_video::VideoJob {
+        super::render_video::VideoJob {
+            input: self.input.clone(),
+            out: self.out.clone(),
+            input_fps: self.input_fps,
+            bitrate_kbps: self.bitrate_kbps,
+            backend: self.backend,
+            filter: self.filter,
+        }
+    }
 }
 
 pub fn synth(cal_path: &Path, args: SynthArgs) -> Result<()> {

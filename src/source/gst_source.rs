@@ -12,7 +12,8 @@ use gstreamer_video::prelude::*;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// The tail every source pipeline ends in: formats the GPU ingests, newest buffer only.
+/// The tail every source pipeline ends in: formats the GPU ingests, newest buffer only (the
+/// offline reader turns dropping off).
 const SINK: &str = "videoconvert ! video/x-raw,format={NV12,I420,RGBA} \
                     ! appsink name=digiview_sink max-buffers=1 drop=true";
 
@@ -64,22 +65,18 @@ fn launch(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, bool), S
     })
 }
 
-/// Builds and starts the pipeline for `spec` (any kind but the demo); frames go to `slot`.
-/// `fps` paces images and sequences; `looped` replays files and sequences at their end.
-pub fn open(
+/// The pipeline for `spec` (any kind but the demo), its appsink, and whether the sink should
+/// pace frames at their timestamps.
+fn build(
     spec: &SourceSpec,
     fps: u32,
     looped: bool,
-    slot: Arc<FrameSlot>,
-) -> Result<GstSource, String> {
+) -> Result<(gst::Pipeline, gst_app::AppSink, bool), String> {
     gst::init().map_err(|e| format!("GStreamer: {e}"))?;
-    for path in match spec {
-        SourceSpec::File(p) | SourceSpec::Image(p) => vec![p.clone()],
-        _ => vec![],
-    } {
-        if !path.is_file() {
-            return Err(format!("{}: no such file", path.display()));
-        }
+    if let SourceSpec::File(p) | SourceSpec::Image(p) = spec
+        && !p.is_file()
+    {
+        return Err(format!("{}: no such file", p.display()));
     }
     let (description, sync) = launch(spec, fps, looped)?;
     let pipeline = gst::parse::launch(&description)
@@ -100,6 +97,18 @@ pub fn open(
         .by_name("digiview_sink")
         .and_then(|e| e.downcast::<gst_app::AppSink>().ok())
         .ok_or("source pipeline has no appsink")?;
+    Ok((pipeline, sink, sync))
+}
+
+/// Builds and starts the pipeline for `spec` (any kind but the demo); frames go to `slot`.
+/// `fps` paces images and sequences; `looped` replays files and sequences at their end.
+pub fn open(
+    spec: &SourceSpec,
+    fps: u32,
+    looped: bool,
+    slot: Arc<FrameSlot>,
+) -> Result<GstSource, String> {
+    let (pipeline, sink, sync) = build(spec, fps, looped)?;
     sink.set_sync(sync);
     let base = pipeline.clone();
     sink.set_callbacks(
@@ -118,6 +127,94 @@ pub fn open(
         first_error(&pipeline).unwrap_or_else(|| format!("source {spec} did not start"))
     })?;
     Ok(GstSource { pipeline, looped })
+}
+
+/// Every frame of a video file or an image sequence, in order, as fast as they decode (for
+/// offline rendering: nothing is dropped, the decoder waits for the caller).
+pub struct FileFrames {
+    pipeline: gst::Pipeline,
+    sink: gst_app::AppSink,
+}
+
+impl FileFrames {
+    /// `spec` is a file or a sequence (read at `fps`).
+    pub fn open(spec: &SourceSpec, fps: u32) -> Result<FileFrames, String> {
+        if !matches!(spec, SourceSpec::File(_) | SourceSpec::Sequence(_)) {
+            return Err(format!("{spec} is not a file or an image sequence"));
+        }
+        let (pipeline, sink, _) = build(spec, fps, false)?;
+        sink.set_sync(false);
+        sink.set_drop(false);
+        sink.set_max_buffers(2);
+        pipeline
+            .set_state(gst::State::Paused)
+            .map_err(|_| first_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
+        // Wait for the first frame (or the error that there is none).
+        let bus = pipeline.bus().ok_or("no bus")?;
+        let settled = bus.timed_pop_filtered(
+            gst::ClockTime::from_seconds(30),
+            &[gst::MessageType::AsyncDone, gst::MessageType::Error],
+        );
+        if let Some(gst::MessageView::Error(e)) = settled.as_ref().map(|m| m.view()) {
+            let _ = pipeline.set_state(gst::State::Null);
+            return Err(format!("cannot read {spec}: {}", error_text(e)));
+        }
+        pipeline
+            .set_state(gst::State::Playing)
+            .map_err(|_| first_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
+        Ok(FileFrames { pipeline, sink })
+    }
+
+    /// The media's length, when the container says.
+    pub fn duration(&self) -> Option<std::time::Duration> {
+        self.pipeline
+            .query_duration::<gst::ClockTime>()
+            .map(|d| std::time::Duration::from_nanos(d.nseconds()))
+    }
+
+    /// The next frame, its timestamp from the start, and the stream's frame rate (None if
+    /// variable); None at the end.
+    #[allow(clippy::type_complexity)]
+    pub fn next_frame(
+        &mut self,
+    ) -> Result<Option<(Frame, std::time::Duration, Option<f64>)>, String> {
+        if let Some(e) = first_error(&self.pipeline) {
+            return Err(e);
+        }
+        let Ok(sample) = self.sink.pull_sample() else {
+            return match first_error(&self.pipeline) {
+                Some(e) => Err(e),
+                None => Ok(None),
+            };
+        };
+        let frame = to_frame(&sample, &self.pipeline)?;
+        let segment = sample
+            .segment()
+            .and_then(|s| s.downcast_ref::<gst::ClockTime>().cloned());
+        let buffer = sample.buffer().ok_or("sample without buffer")?;
+        let pts = match (buffer.pts(), segment) {
+            (Some(p), Some(seg)) => seg.to_stream_time(p).unwrap_or(p),
+            (Some(p), None) => p,
+            _ => gst::ClockTime::ZERO,
+        };
+        let fps = sample
+            .caps()
+            .and_then(|c| gst_video::VideoInfo::from_caps(c).ok())
+            .map(|i| i.fps())
+            .filter(|f| f.numer() > 0 && f.denom() > 0)
+            .map(|f| f.numer() as f64 / f.denom() as f64);
+        Ok(Some((
+            frame,
+            std::time::Duration::from_nanos(pts.nseconds()),
+            fps,
+        )))
+    }
+}
+
+impl Drop for FileFrames {
+    fn drop(&mut self) {
+        let _ = self.pipeline.set_state(gst::State::Null);
+    }
 }
 
 /// The error message the bus holds, if any.

@@ -7,7 +7,7 @@
 pub mod demo;
 mod gst_source;
 
-pub use gst_source::{Ended, GstSource, open};
+pub use gst_source::{Ended, FileFrames, GstSource, open};
 
 use crate::render::PlaneLayout;
 use std::path::PathBuf;

@@ -58,6 +58,8 @@ pub struct Encoder {
     pending: Arc<Mutex<VecDeque<Instant>>>,
     /// Frames refused because the encoder was behind.
     pub dropped: u64,
+    /// Wait for the encoder instead of dropping (offline rendering).
+    blocking: bool,
 }
 
 fn element_description(name: &str, cfg: &EncoderConfig, fps: u32) -> String {
@@ -179,7 +181,36 @@ impl Encoder {
             caps: None,
             pending,
             dropped: 0,
+            blocking: false,
         })
+    }
+
+    /// An encoder that never drops: `push` waits while it is behind (offline rendering).
+    pub fn offline(
+        cfg: &EncoderConfig,
+        fps: u32,
+        sink: impl Fn(AccessUnit) + Send + Sync + 'static,
+    ) -> Result<Encoder, String> {
+        let mut e = Encoder::new(cfg, fps, sink)?;
+        e.blocking = true;
+        Ok(e)
+    }
+
+    /// Encodes what was pushed and hands out every access unit before returning.
+    pub fn finish(self) -> Result<(), String> {
+        let _ = self.src.end_of_stream();
+        let bus = self.pipeline.bus().ok_or("no bus")?;
+        let msg = bus.timed_pop_filtered(
+            gst::ClockTime::from_seconds(60),
+            &[gst::MessageType::Eos, gst::MessageType::Error],
+        );
+        match msg.as_ref().map(|m| m.view()) {
+            Some(gst::MessageView::Eos(_)) => Ok(()),
+            Some(gst::MessageView::Error(e)) => {
+                Err(format!("encoder {}: {}", self.name, e.error()))
+            }
+            _ => Err(format!("encoder {}: did not finish within 60 s", self.name)),
+        }
     }
 
     /// The encoder element in use.
@@ -203,13 +234,21 @@ impl Encoder {
             return Err(format!("the encoder takes I420, not {}", layout.format));
         }
         let pts = gst::ClockTime::from_nseconds(pts.as_nanos() as u64);
-        {
+        loop {
             let mut q = self.pending.lock().unwrap_or_else(|e| e.into_inner());
-            if q.len() >= BACKLOG {
+            if q.len() < BACKLOG {
+                q.push_back(Instant::now());
+                break;
+            }
+            if !self.blocking {
                 self.dropped += 1;
                 return Ok(());
             }
-            q.push_back(Instant::now());
+            drop(q);
+            if let Some(e) = bus_error(&self.pipeline) {
+                return Err(format!("encoder {}: {e}", self.name));
+            }
+            std::thread::sleep(Duration::from_millis(1));
         }
         let dims = (layout.width, layout.height, fps);
         if self.caps != Some(dims) {

@@ -145,3 +145,29 @@ pub fn three_tracked() -> Vec<Tracked> {
         })
         .collect()
 }
+
+/// ffprobe's count of decodable video frames in `path`, and their size.
+pub fn probe_frames(path: &std::path::Path) -> (u64, String) {
+    let out = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args([
+            "-show_entries",
+            "stream=nb_read_frames,width,height",
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(path)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    let mut parts = text.split(',');
+    let (w, h, n) = (parts.next(), parts.next(), parts.next());
+    match (w, h, n.and_then(|n| n.parse().ok())) {
+        (Some(w), Some(h), Some(n)) => (n, format!("{w}x{h}")),
+        _ => panic!(
+            "ffprobe cannot read {}: {text} {}",
+            path.display(),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+    }
+}

@@ -1,0 +1,186 @@
+//! `digiview render` on videos and image sequences: a synthetic fisheye clip (the grid world
+//! with its moving objects, encoded to H.264 MP4 by GStreamer) is dewarped to an MP4 and to a
+//! PNG sequence; frame counts, sizes and the picture against ground truth are checked, and
+//! missing or corrupt inputs give clear errors.
+
+mod common;
+
+use common::{four_view_state, landmark_matches, probe_frames, small_lens};
+use digiview::image_ops::psnr;
+use digiview::layout::Rect;
+use digiview::render::FramePlan;
+use digiview::scene::GridWorld;
+use digiview::scene::synth::{fisheye, truth};
+use image::RgbImage;
+use std::path::Path;
+use std::process::{Command, Output};
+
+const FRAMES: u32 = 6;
+
+fn digiview(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(args)
+        .env(
+            "DIGIVIEW_LENS_CAL",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal"),
+        )
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_fisheye_clip_renders_to_mp4_and_to_an_image_sequence() {
+    let dir = tempfile::tempdir().unwrap();
+    let state = four_view_state(7);
+    let lens = small_lens("CIL216");
+    // The clip: the world at 1 s steps (its objects move), 1280x720, 10 fps.
+    let seq = dir.path().join("fish");
+    std::fs::create_dir_all(&seq).unwrap();
+    for i in 0..FRAMES {
+        let mut s = state.clone();
+        s.time = i as f64;
+        fisheye(&GridWorld::default(), &lens, &s)
+            .save(seq.join(format!("{i:03}.png")))
+            .unwrap();
+    }
+    let clip = dir.path().join("fisheye.mp4");
+    let made = Command::new("gst-launch-1.0")
+        .arg("-q")
+        .arg("multifilesrc")
+        .arg(format!("location={}/%03d.png", seq.display()))
+        .args([
+            "caps=image/png,framerate=10/1",
+            "!",
+            "pngdec",
+            "!",
+            "videoconvert",
+        ])
+        .args([
+            "!",
+            "x264enc",
+            "pass=quant",
+            "quantizer=12",
+            "!",
+            "h264parse",
+            "!",
+            "mp4mux",
+        ])
+        .args(["!", "filesink", &format!("location={}", clip.display())])
+        .status()
+        .unwrap();
+    assert!(made.success());
+    assert_eq!(probe_frames(&clip), (FRAMES as u64, "1280x720".into()));
+
+    // Fisheye MP4 → dewarped MP4, four views at 640x480.
+    let out = dir.path().join("out.mp4");
+    let common_flags = [
+        "--size",
+        "640x480",
+        "--layout",
+        "4",
+        "--overlay",
+        "0",
+        "--cam",
+        "0:yaw=0,pitch=0,fov=90deg,crop=1",
+        "--cam",
+        "1:yaw=0,pitch=-45deg,fov=90deg,crop=1",
+        "--cam",
+        "2:yaw=0,pitch=-90deg,fov=90deg,crop=1",
+        "--cam",
+        "3:yaw=180deg,pitch=-45deg,fov=90deg,crop=1",
+    ];
+    let r = digiview(
+        &[
+            &[
+                "render",
+                "--input",
+                clip.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ][..],
+            &common_flags,
+        ]
+        .concat(),
+    );
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains(&format!("{FRAMES} frames")), "{err}");
+    assert_eq!(probe_frames(&out), (FRAMES as u64, "640x480".into()));
+
+    // The picture, in the MP4 and in a PNG sequence rendered from the clip's frames: the
+    // last frame against the ground truth at its time.
+    let mut s = state.clone();
+    s.time = (FRAMES - 1) as f64;
+    let plan = FramePlan::new(&s, &lens).unwrap();
+    let want = truth(&GridWorld::default(), &plan, &s);
+    let check = |got: &RgbImage, floor: f64, what: &str| {
+        let db = psnr(&want, got, Rect::new(0, 0, 640, 480));
+        let m = landmark_matches(&plan, &s, &want, got);
+        eprintln!("{what}: {db:.1} dB, {} landmarks", m.len());
+        assert!(db > floor, "{what}: {db:.1} dB against the truth");
+        assert!(
+            m.len() >= 3 && m.iter().all(|m| m.error() < 1.5),
+            "{what}: {m:?}"
+        );
+    };
+    let last_png = dir.path().join("last.png");
+    let extracted = Command::new("ffmpeg")
+        .args(["-v", "error", "-i", out.to_str().unwrap()])
+        .args([
+            "-vf",
+            &format!("select=eq(n\\,{})", FRAMES - 1),
+            "-frames:v",
+            "1",
+        ])
+        .arg(&last_png)
+        .status()
+        .unwrap();
+    assert!(extracted.success());
+    check(&image::open(&last_png).unwrap().to_rgb8(), 28.0, "mp4");
+    let seq_out = dir.path().join("views");
+    let pattern = format!("{}/%03d.png", seq_out.display());
+    let input = format!("{}/%03d.png", seq.display());
+    let r = digiview(
+        &[
+            &["render", "--input", &input, "--out", &pattern][..],
+            &common_flags,
+        ]
+        .concat(),
+    );
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let last = image::open(seq_out.join(format!("{:03}.png", FRAMES - 1)))
+        .unwrap()
+        .to_rgb8();
+    check(&last, 30.0, "png sequence");
+    let n = std::fs::read_dir(&seq_out).unwrap().count();
+    assert_eq!(n, FRAMES as usize);
+}
+
+#[test]
+fn missing_and_corrupt_inputs_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.mp4");
+    let r = digiview(&[
+        "render",
+        "--input",
+        "no/such.mp4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("no such file"));
+    let bad = dir.path().join("bad.mp4");
+    std::fs::write(&bad, b"this is not a video, whatever its name says").unwrap();
+    let r = digiview(&[
+        "render",
+        "--input",
+        bad.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("cannot read"), "{err}");
+    assert!(!out.exists(), "nothing written for a bad input");
+    let r = digiview(&["render", "--input", bad.to_str().unwrap(), "--out", "x.gif"]);
+    assert!(!r.status.success());
+}
