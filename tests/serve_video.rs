@@ -454,3 +454,76 @@ fn a_recording_survives_kill_9_up_to_its_last_fragment_and_sigterm_finishes_it()
     let (n, _) = probe_frames(&videos[0]);
     assert!(n >= 30, "{n} frames in 2.5 s at 15 fps");
 }
+
+#[test]
+fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
+    // Any GStreamer source description stands in for a camera (here a live test pattern).
+    let dir = tempfile::tempdir().unwrap();
+    let captures = dir.path().join("captures");
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "source = \"gst:videotestsrc is-live=true ! video/x-raw,width=640,height=360,framerate=15/1\"\n\
+             health_interval_s = 0\n\
+             [rtsp]\nuser = \"pilot\"\npassword = \"s3cret\"\n\
+             [capture]\ndir = \"{}\"\nmin_free_mb = 1000000000\n",
+            captures.display()
+        ),
+    )
+    .unwrap();
+    let serve = Serve::start_video(&["--config", config.to_str().unwrap(), "--size", "640x480"]);
+    let url = serve.rtsp.clone().unwrap();
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let t = Instant::now();
+    while status(&mut ctl) != (1, 0) {
+        assert!(t.elapsed() < Duration::from_secs(20), "never running");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    // Without the password the server says 401; with it the stream plays.
+    let probe = |url: &str| {
+        std::process::Command::new("ffprobe")
+            .args([
+                "-v",
+                "error",
+                "-rtsp_transport",
+                "tcp",
+                "-select_streams",
+                "v:0",
+            ])
+            .args([
+                "-show_entries",
+                "stream=width,height",
+                "-of",
+                "csv=p=0",
+                url,
+            ])
+            .output()
+            .unwrap()
+    };
+    let refused = probe(&url);
+    assert!(!refused.status.success());
+    assert!(
+        String::from_utf8_lossy(&refused.stderr).contains("401"),
+        "{}",
+        String::from_utf8_lossy(&refused.stderr)
+    );
+    let with = url.replace("rtsp://", "rtsp://pilot:s3cret@");
+    let allowed = probe(&with);
+    assert_eq!(String::from_utf8_lossy(&allowed.stdout).trim(), "640,480");
+
+    // A disk without the free space the config keeps is a refused capture, not a bad file.
+    for flags in [1, 2] {
+        let e = ctl
+            .set(Param::Capture(Capture {
+                flags,
+                ..Default::default()
+            }))
+            .unwrap_err()
+            .to_string();
+        assert!(e.to_lowercase().contains("data"), "{e}");
+    }
+    assert_eq!(capture(&mut ctl).flags & 2, 0, "not recording");
+    assert!(files(&captures, "mp4").is_empty() && files(&captures, "jpg").is_empty());
+}
