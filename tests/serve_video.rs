@@ -26,6 +26,14 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 const DEMO: (u32, u32) = (1280, 720);
+
+/// The tests here each run a video head on the same 2 cores; one at a time, so the frame
+/// rates they check are the head's, not the scheduler's.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
 const FPS: u32 = 15;
 
 /// A decoding RTSP client: rtspsrc → H.264 decoder → RGB frames with their timestamps.
@@ -120,6 +128,7 @@ fn landmarks(state: &State, got: &RgbImage) -> (usize, f64) {
 
 #[test]
 fn the_demo_streams_over_rtsp_and_follows_the_control_protocol() {
+    let _serial = serial();
     let dir = tempfile::tempdir().unwrap();
     let mut state = four_view_state(7);
     state.output.fps = FPS;
@@ -330,6 +339,7 @@ fn serve_sequence(dir: &Path, frames: bool) -> (Serve, PathBuf) {
 
 #[test]
 fn a_lost_source_shows_no_signal_and_comes_back_while_captures_go_on() {
+    let _serial = serial();
     // The camera is not there at start: "no signal", error 1 (source), retried with back-off.
     let dir = tempfile::tempdir().unwrap();
     let (serve, captures) = serve_sequence(dir.path(), false);
@@ -415,6 +425,7 @@ fn a_lost_source_shows_no_signal_and_comes_back_while_captures_go_on() {
 
 #[test]
 fn a_recording_survives_kill_9_up_to_its_last_fragment_and_sigterm_finishes_it() {
+    let _serial = serial();
     let dir = tempfile::tempdir().unwrap();
     let (mut serve, captures) = serve_sequence(dir.path(), true);
     let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
@@ -457,6 +468,7 @@ fn a_recording_survives_kill_9_up_to_its_last_fragment_and_sigterm_finishes_it()
 
 #[test]
 fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
+    let _serial = serial();
     // Any GStreamer source description stands in for a camera (here a live test pattern).
     let dir = tempfile::tempdir().unwrap();
     let captures = dir.path().join("captures");
