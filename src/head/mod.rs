@@ -11,7 +11,7 @@ mod no_signal;
 pub mod telemetry;
 
 use crate::control::live::{Failure, Live, RunStatus};
-use crate::render::gpu::{Gpu, Renderer};
+use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::render::{Filter, FramePlan, PixelFormat, PlaneLayout};
 use crate::source::demo::{DemoCamera, Flight};
 use crate::source::{Ended, Frame, FrameSlot, SourceSpec, backoff, clock_us};
@@ -23,7 +23,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use telemetry::Telemetry;
-use tracing::{error, info};
+use tracing::{error, info, warn};
 
 /// A source silent for this long is gone: the stream shows "no signal".
 const SIGNAL_TIMEOUT: Duration = Duration::from_secs(1);
@@ -345,7 +345,11 @@ impl Head {
             };
             let (data, layout) = match rendered {
                 Ok(r) => r,
-                Err(e) => {
+                Err(RenderFailure::Frame(e)) => {
+                    warn!("frame not rendered: {e}");
+                    continue;
+                }
+                Err(RenderFailure::Gpu(e)) => {
                     // The GPU failed: say so, start a new device and renderer, go on.
                     error!("GPU: {e}; rebuilding the renderer");
                     self.live.set_failure(Failure::Gpu);
@@ -382,8 +386,14 @@ impl Head {
                 self.live.set_failure(Failure::Encoder);
                 healthy = Some(false);
                 drop(encoder);
-                std::thread::sleep(Duration::from_millis(500));
-                encoder = self.encoder(state.output.fps)?;
+                encoder = loop {
+                    std::thread::sleep(Duration::from_millis(500));
+                    match self.encoder(state.output.fps) {
+                        Ok(e) => break e,
+                        Err(e) if !self.stop.load(Ordering::Relaxed) => error!("{e}"),
+                        Err(e) => return Err(e),
+                    }
+                };
                 continue;
             }
             self.stats
@@ -421,7 +431,7 @@ impl Head {
         renderer: &mut Renderer,
         frame: &Frame,
         state: &crate::state::State,
-    ) -> Result<(Vec<u8>, PlaneLayout), String> {
+    ) -> Result<(Vec<u8>, PlaneLayout), RenderFailure> {
         let mut s = state.clone();
         let (attitude, position) = self.telemetry.at(frame.captured_us);
         if let Some(a) = attitude {
@@ -437,11 +447,21 @@ impl Head {
         let lens = self
             .live
             .lens_for_frame(&s, frame.layout.width, frame.layout.height)
-            .ok_or("the state's lens is not in lens.cal")?;
-        let plan = FramePlan::new(&s, &lens).map_err(|e| e.to_string())?;
+            .ok_or_else(|| RenderFailure::Frame("the state's lens is not in lens.cal".into()))?;
+        let plan = FramePlan::new(&s, &lens).map_err(|e| RenderFailure::Frame(e.to_string()))?;
         let out = renderer
             .render(&frame.data, &frame.layout, &plan)
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| match e {
+                GpuError::Failed(_) | GpuError::Device { .. } => RenderFailure::Gpu(e.to_string()),
+                other => RenderFailure::Frame(other.to_string()),
+            })?;
         Ok((out.data, out.layout))
     }
+}
+
+/// Why a frame was not rendered: the GPU failed (rebuild it), or this frame or state cannot
+/// be rendered (skip it, say why).
+enum RenderFailure {
+    Gpu(String),
+    Frame(String),
 }
