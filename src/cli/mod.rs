@@ -67,6 +67,7 @@ pub struct StateArgs {
     /// Output size WxH.
     #[arg(long, value_parser = crate::units::parse_size)]
     pub size: Option<(u32, u32)>,
+    /// Output frame rate (5..=30).
     #[arg(long)]
     pub fps: Option<u32>,
     /// A camera: N:yaw=45deg,pitch=-30deg,roll=0,fov=90deg,zoom=0,crop=1,lock=7,control=1 (repeatable).
