@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod control;
 pub mod geometry;
+pub mod gst;
 pub mod head;
 pub mod image_ops;
 pub mod layout;

@@ -273,6 +273,19 @@ fn status(ctl: &mut Client) -> (u8, u8) {
     }
 }
 
+/// Waits until SYSTEM_STATUS reads `want` (status, error), at most `limit`.
+fn wait_status(ctl: &mut Client, want: (u8, u8), limit: Duration) {
+    let t = Instant::now();
+    loop {
+        let now = status(ctl);
+        if now == want {
+            return;
+        }
+        assert!(t.elapsed() < limit, "status stays {now:?}, not {want:?}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
 fn capture(ctl: &mut Client) -> Capture {
     match ctl.get_one(ParamType::Capture.zeroed()).unwrap() {
         Param::Capture(c) => c,
@@ -352,15 +365,7 @@ fn a_lost_source_shows_no_signal_and_comes_back_while_captures_go_on() {
     let frames = dir.path().join("frames");
     write_frames(&frames);
     until(&viewer, Duration::from_secs(20), "the picture", picture);
-    let t = Instant::now();
-    while status(&mut ctl) != (1, 0) {
-        assert!(
-            t.elapsed() < Duration::from_secs(5),
-            "status stays {:?}",
-            status(&mut ctl)
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_status(&mut ctl, (1, 0), Duration::from_secs(5));
 
     // A client joining mid-stream gets a key frame at once, not at the next periodic one
     // (every 10 s in this config).
@@ -393,15 +398,7 @@ fn a_lost_source_shows_no_signal_and_comes_back_while_captures_go_on() {
         "the picture again",
         picture,
     );
-    let t = Instant::now();
-    while status(&mut ctl) != (1, 0) {
-        assert!(
-            t.elapsed() < Duration::from_secs(5),
-            "status stays {:?}",
-            status(&mut ctl)
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_status(&mut ctl, (1, 0), Duration::from_secs(5));
 
     // Recording stops; the counters say one still and one video; both files are good.
     set_capture(&mut ctl, 0);
@@ -429,11 +426,7 @@ fn a_recording_survives_kill_9_up_to_its_last_fragment_and_sigterm_finishes_it()
     let dir = tempfile::tempdir().unwrap();
     let (mut serve, captures) = serve_sequence(dir.path(), true);
     let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
-    let t = Instant::now();
-    while status(&mut ctl).0 != 1 {
-        assert!(t.elapsed() < Duration::from_secs(20), "never running");
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_status(&mut ctl, (1, 0), Duration::from_secs(20));
     set_capture(&mut ctl, 2);
     std::thread::sleep(Duration::from_millis(3500));
     serve.kill();
@@ -449,11 +442,7 @@ fn a_recording_survives_kill_9_up_to_its_last_fragment_and_sigterm_finishes_it()
     let dir = tempfile::tempdir().unwrap();
     let (mut serve, captures) = serve_sequence(dir.path(), true);
     let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
-    let t = Instant::now();
-    while status(&mut ctl).0 != 1 {
-        assert!(t.elapsed() < Duration::from_secs(20), "never running");
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_status(&mut ctl, (1, 0), Duration::from_secs(20));
     set_capture(&mut ctl, 2);
     std::thread::sleep(Duration::from_millis(2500));
     serve.terminate();
@@ -487,11 +476,7 @@ fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
     let serve = Serve::start_video(&["--config", config.to_str().unwrap(), "--size", "640x480"]);
     let url = serve.rtsp.clone().unwrap();
     let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
-    let t = Instant::now();
-    while status(&mut ctl) != (1, 0) {
-        assert!(t.elapsed() < Duration::from_secs(20), "never running");
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_status(&mut ctl, (1, 0), Duration::from_secs(20));
 
     // Without the password the server says 401; with it the stream plays.
     let probe = |url: &str| {

@@ -136,6 +136,12 @@ impl Live {
 
     /// The state's lens at the sensor's frame size, after its crop.
     pub fn lens(&self, state: &State) -> Option<Lens> {
+        self.lens_for_frame(state, state.sensor.width, state.sensor.height)
+    }
+
+    /// The state's lens scaled to a `width` × `height` frame (a source's actual size), after
+    /// the sensor crop.
+    pub fn lens_for_frame(&self, state: &State, width: u32, height: u32) -> Option<Lens> {
         let (_, lens) = self.lenses.iter().find(|(id, _)| *id == state.lens)?;
         let roi = state.sensor.roi.map(|[x, y, w, h]| Roi {
             x: x as f64,
@@ -143,15 +149,7 @@ impl Live {
             width: w as f64,
             height: h as f64,
         });
-        Some(lens.for_frame(state.sensor.width, state.sensor.height, roi))
-    }
-
-    /// The state's lens scaled to a `width` × `height` frame (a source's actual size), after
-    /// the sensor crop.
-    pub fn lens_for_frame(&self, state: &State, width: u32, height: u32) -> Option<Lens> {
-        let mut sized = state.clone();
-        (sized.sensor.width, sized.sensor.height) = (width, height);
-        self.lens(&sized)
+        Some(lens.for_frame(width, height, roi))
     }
 
     /// The calibration frame size of the state's lens.

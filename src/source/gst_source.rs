@@ -3,6 +3,7 @@
 //! one the GPU ingests) to NV12, I420 or RGBA, delivered by an appsink to a [`FrameSlot`].
 
 use super::{Frame, FrameSlot, SourceSpec, clock_us};
+use crate::gst::{bus_error, element, error_text};
 use crate::render::{PixelFormat, PlaneLayout};
 use gstreamer as gst;
 use gstreamer::prelude::*;
@@ -31,7 +32,7 @@ pub struct GstSource {
     looped: bool,
 }
 
-fn launch(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, bool), String> {
+fn description(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, bool), String> {
     // (description, whether to pace at the media's own timestamps)
     Ok(match spec {
         SourceSpec::Demo => return Err("the demo source is not a GStreamer pipeline".into()),
@@ -72,17 +73,13 @@ fn build(
     fps: u32,
     looped: bool,
 ) -> Result<(gst::Pipeline, gst_app::AppSink, bool), String> {
-    gst::init().map_err(|e| format!("GStreamer: {e}"))?;
     if let SourceSpec::File(p) | SourceSpec::Image(p) = spec
         && !p.is_file()
     {
         return Err(format!("{}: no such file", p.display()));
     }
-    let (description, sync) = launch(spec, fps, looped)?;
-    let pipeline = gst::parse::launch(&description)
-        .map_err(|e| format!("source {spec}: {e}"))?
-        .downcast::<gst::Pipeline>()
-        .map_err(|_| format!("source {spec}: not a pipeline"))?;
+    let (description, sync) = description(spec, fps, looped)?;
+    let pipeline = crate::gst::launch(&description).map_err(|e| format!("source {spec}: {e}"))?;
     if let Some(src) = pipeline.by_name("digiview_src") {
         match spec {
             SourceSpec::V4l2(dev) => src.set_property("device", dev.to_string_lossy().as_ref()),
@@ -93,10 +90,7 @@ fn build(
             _ => {}
         }
     }
-    let sink = pipeline
-        .by_name("digiview_sink")
-        .and_then(|e| e.downcast::<gst_app::AppSink>().ok())
-        .ok_or("source pipeline has no appsink")?;
+    let sink: gst_app::AppSink = element(&pipeline, "digiview_sink")?;
     Ok((pipeline, sink, sync))
 }
 
@@ -124,7 +118,7 @@ pub fn open(
             .build(),
     );
     pipeline.set_state(gst::State::Playing).map_err(|_| {
-        first_error(&pipeline).unwrap_or_else(|| format!("source {spec} did not start"))
+        bus_error(&pipeline).unwrap_or_else(|| format!("source {spec} did not start"))
     })?;
     Ok(GstSource { pipeline, looped })
 }
@@ -148,7 +142,7 @@ impl FileFrames {
         sink.set_max_buffers(2);
         pipeline
             .set_state(gst::State::Paused)
-            .map_err(|_| first_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
+            .map_err(|_| bus_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
         // Wait for the first frame (or the error that there is none).
         let bus = pipeline.bus().ok_or("no bus")?;
         let settled = bus.timed_pop_filtered(
@@ -161,7 +155,7 @@ impl FileFrames {
         }
         pipeline
             .set_state(gst::State::Playing)
-            .map_err(|_| first_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
+            .map_err(|_| bus_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
         Ok(FileFrames { pipeline, sink })
     }
 
@@ -178,11 +172,11 @@ impl FileFrames {
     pub fn next_frame(
         &mut self,
     ) -> Result<Option<(Frame, std::time::Duration, Option<f64>)>, String> {
-        if let Some(e) = first_error(&self.pipeline) {
+        if let Some(e) = bus_error(&self.pipeline) {
             return Err(e);
         }
         let Ok(sample) = self.sink.pull_sample() else {
-            return match first_error(&self.pipeline) {
+            return match bus_error(&self.pipeline) {
                 Some(e) => Err(e),
                 None => Ok(None),
             };
@@ -215,25 +209,6 @@ impl Drop for FileFrames {
     fn drop(&mut self) {
         let _ = self.pipeline.set_state(gst::State::Null);
     }
-}
-
-/// The error message the bus holds, if any.
-fn first_error(pipeline: &gst::Pipeline) -> Option<String> {
-    let bus = pipeline.bus()?;
-    while let Some(msg) = bus.pop() {
-        if let gst::MessageView::Error(e) = msg.view() {
-            return Some(error_text(e));
-        }
-    }
-    None
-}
-
-fn error_text(e: &gst::message::Error) -> String {
-    let src = e
-        .src()
-        .map(|s| s.path_string().to_string())
-        .unwrap_or_default();
-    format!("{src}: {}", e.error())
 }
 
 /// Copies a decoded sample into a tightly packed frame with its capture time.

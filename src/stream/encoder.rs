@@ -3,7 +3,8 @@
 //! frame, and an appsink handing each access unit to the caller. A new output size or frame
 //! rate is a caps change on the appsrc: the encoder reconfigures in place, the stream goes on.
 
-use super::{H264_CAPS, bus_error};
+use super::H264_CAPS;
+use crate::gst::{bus_error, element, launch, wait_eos};
 use crate::render::{PixelFormat, PlaneLayout};
 use gstreamer as gst;
 use gstreamer::prelude::*;
@@ -130,19 +131,10 @@ impl Encoder {
              ! {H264_CAPS} ! appsink name=sink sync=false",
             element_description(name, cfg, fps)
         );
-        let pipeline = gst::parse::launch(&description)
-            .map_err(|e| e.to_string())?
-            .downcast::<gst::Pipeline>()
-            .map_err(|_| "not a pipeline")?;
-        let src = pipeline
-            .by_name("src")
-            .and_then(|e| e.downcast::<gst_app::AppSrc>().ok())
-            .ok_or("no appsrc")?;
-        let element = pipeline.by_name("enc").ok_or("no encoder element")?;
-        let appsink = pipeline
-            .by_name("sink")
-            .and_then(|e| e.downcast::<gst_app::AppSink>().ok())
-            .ok_or("no appsink")?;
+        let pipeline = launch(&description)?;
+        let src: gst_app::AppSrc = element(&pipeline, "src")?;
+        let encoder: gst::Element = element(&pipeline, "enc")?;
+        let appsink: gst_app::AppSink = element(&pipeline, "sink")?;
         let pending: Arc<Mutex<VecDeque<Instant>>> = Arc::default();
         let waiting = pending.clone();
         appsink.set_callbacks(
@@ -176,7 +168,7 @@ impl Encoder {
         Ok(Encoder {
             pipeline,
             src,
-            element,
+            element: encoder,
             name: name.to_string(),
             caps: None,
             pending,
@@ -199,18 +191,8 @@ impl Encoder {
     /// Encodes what was pushed and hands out every access unit before returning.
     pub fn finish(self) -> Result<(), String> {
         let _ = self.src.end_of_stream();
-        let bus = self.pipeline.bus().ok_or("no bus")?;
-        let msg = bus.timed_pop_filtered(
-            gst::ClockTime::from_seconds(60),
-            &[gst::MessageType::Eos, gst::MessageType::Error],
-        );
-        match msg.as_ref().map(|m| m.view()) {
-            Some(gst::MessageView::Eos(_)) => Ok(()),
-            Some(gst::MessageView::Error(e)) => {
-                Err(format!("encoder {}: {}", self.name, e.error()))
-            }
-            _ => Err(format!("encoder {}: did not finish within 60 s", self.name)),
-        }
+        wait_eos(&self.pipeline, gst::ClockTime::from_seconds(60))
+            .map_err(|e| format!("encoder {}: {e}", self.name))
     }
 
     /// The encoder element in use.

@@ -11,29 +11,7 @@ pub use encoder::{Encoder, EncoderConfig};
 pub use record::Recorder;
 pub use rtsp::{Rtsp, RtspConfig};
 
-use gstreamer as gst;
-
-/// GStreamer, initialised once; the error says what is missing.
-pub fn init() -> Result<(), String> {
-    gst::init().map_err(|e| format!("GStreamer cannot start: {e}"))
-}
+pub use crate::gst::init;
 
 /// The H.264 caps between the encoder, the RTSP media and the recorder.
 pub(crate) const H264_CAPS: &str = "video/x-h264,stream-format=byte-stream,alignment=au";
-
-/// The first error message on `pipeline`'s bus, if one is waiting.
-pub(crate) fn bus_error(pipeline: &gst::Pipeline) -> Option<String> {
-    use gst::prelude::*;
-    let bus = pipeline.bus()?;
-    while let Some(msg) = bus.pop_filtered(&[gst::MessageType::Error]) {
-        if let gst::MessageView::Error(e) = msg.view() {
-            let src = e.src().map(|s| s.name().to_string()).unwrap_or_default();
-            return Some(format!(
-                "{src}: {} ({})",
-                e.error(),
-                e.debug().unwrap_or_default()
-            ));
-        }
-    }
-    None
-}

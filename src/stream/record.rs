@@ -4,12 +4,12 @@
 //! starts at a key frame; its timestamps start at zero. The file is written unbuffered and
 //! opened O_SYNC, so what mp4mux has written is on the disk, not in a cache.
 
-use super::{H264_CAPS, bus_error};
+use super::H264_CAPS;
+use crate::gst::{bus_error, element, launch, wait_eos};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 pub struct Recorder {
     pipeline: gst::Pipeline,
@@ -20,22 +20,13 @@ pub struct Recorder {
 
 impl Recorder {
     pub fn start(path: &Path) -> Result<Recorder, String> {
-        super::init()?;
-        let pipeline = gst::parse::launch(&format!(
+        let pipeline = launch(&format!(
             "appsrc name=src format=time caps={H264_CAPS} ! h264parse \
              ! mp4mux fragment-duration=1000 streamable=true \
              ! filesink name=file buffer-mode=unbuffered o-sync=true"
-        ))
-        .map_err(|e| e.to_string())?
-        .downcast::<gst::Pipeline>()
-        .map_err(|_| "not a pipeline")?;
-        let src = pipeline
-            .by_name("src")
-            .and_then(|e| e.downcast::<gst_app::AppSrc>().ok())
-            .ok_or("no appsrc")?;
-        pipeline
-            .by_name("file")
-            .ok_or("no filesink")?
+        ))?;
+        let src: gst_app::AppSrc = element(&pipeline, "src")?;
+        element::<gst::Element>(&pipeline, "file")?
             .set_property("location", path.to_string_lossy().as_ref());
         pipeline.set_state(gst::State::Playing).map_err(|_| {
             bus_error(&pipeline).unwrap_or_else(|| format!("cannot record to {}", path.display()))
@@ -86,22 +77,10 @@ impl Recorder {
     /// Ends the file cleanly (its last fragment written) and returns its path.
     pub fn finish(self) -> Result<PathBuf, String> {
         let _ = self.src.end_of_stream();
-        let bus = self.pipeline.bus().ok_or("no bus")?;
-        let msg = bus.timed_pop_filtered(
-            gst::ClockTime::from_seconds(5),
-            &[gst::MessageType::Eos, gst::MessageType::Error],
-        );
+        let ended = wait_eos(&self.pipeline, gst::ClockTime::from_seconds(5));
         let _ = self.pipeline.set_state(gst::State::Null);
-        match msg.as_ref().map(|m| m.view()) {
-            Some(gst::MessageView::Eos(_)) => Ok(self.path.clone()),
-            Some(gst::MessageView::Error(e)) => {
-                Err(format!("recording {}: {}", self.path.display(), e.error()))
-            }
-            _ => Err(format!(
-                "recording {}: not finished within {:?}",
-                self.path.display(),
-                Duration::from_secs(5)
-            )),
-        }
+        ended
+            .map(|()| self.path.clone())
+            .map_err(|e| format!("recording {}: {e}", self.path.display()))
     }
 }
