@@ -11,7 +11,8 @@ const FORMAT_NV12: u32 = 2u;
 struct Params {
     // Output width, height, number of views, luma (or RGBA) row stride in bytes.
     output: vec4u,
-    // Output chroma: U (or UV) plane offset, V plane offset, chroma row stride, all in bytes.
+    // Output chroma: U (or UV) plane offset, V plane offset, chroma row stride, all in bytes;
+    // then the number of blocks the draw pass's per-pixel dispatch draws (render.wgsl).
     output_planes: vec4u,
     // Input width, height, luma (or RGBA) row stride, chroma row stride (bytes).
     input: vec4u,

@@ -1,7 +1,11 @@
-// The frame pass: every view and detection tile of the output frame in one dispatch, from the
-// source texture's mip chain. One invocation draws an 8x2 block (four 2x2 quads), which is
-// what I420 and NV12 need to write whole words of every plane. Per frame only `params` and
-// `views` change; the output format and filter are overrides fixed with the pipeline.
+// The frame pass: every view and detection tile of the output frame, from the source
+// texture's mip chain. One invocation draws an 8x2 block (four 2x2 quads), which is what I420
+// and NV12 need to write whole words of every plane. `draw` covers the frame and draws each
+// block that lies in one view (or none) with that view, named by the block table
+// (src/render/gpu/blocks.rs); `draw_mixed` draws the listed blocks that straddle a view's or
+// the frame's edge, finding each pixel's view. Per frame only `params` and `views` change
+// (`blocks` when the rectangles do); the output format and filter are overrides fixed with
+// the pipeline.
 //
 // Filtering, as src/render/cpu.rs does it: a trilinear sample whose level of detail is
 // log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1, y ^ 1), the
@@ -38,8 +42,12 @@ struct View {
 @group(0) @binding(2) var source: texture_2d<f32>;
 @group(0) @binding(3) var trilinear: sampler;
 @group(0) @binding(4) var<storage, read_write> out: array<u32>;
+// The block table (one word per 8x2 block, row by row: a view index, NO_VIEW or MIXED), then
+// the MIXED blocks' coordinates (bx | by << 16), params.output_planes.w of them.
+@group(0) @binding(5) var<storage, read> blocks: array<u32>;
 
 const NO_VIEW: i32 = -1;
+const MIXED: u32 = 0xfffffffeu;
 // MAX_VIEWS in src/render/gpu/params.rs.
 const MAX_VIEWS: u32 = 68u;
 
@@ -61,11 +69,10 @@ fn view_at(x: u32, y: u32) -> i32 {
 // FramePlan::fisheye_pixel. Written without branches on the view's kind: a software
 // rasterizer runs both sides of a branch whenever its lanes disagree, so one lens projection
 // serves the rectified kinds and selects pick the result.
-fn view_point(vi: i32, p: vec2f) -> vec3f {
-    let v = &views[vi];
-    let m = mat3x3f((*v).m0.xyz, (*v).m1.xyz, (*v).m2.xyz);
-    let k = (*v).p;
-    let kind = (*v).kind.x;
+fn view_point(v: View, p: vec2f) -> vec3f {
+    let m = mat3x3f(v.m0.xyz, v.m1.xyz, v.m2.xyz);
+    let k = v.p;
+    let kind = v.kind.x;
     let a = (p.x - k.z) * k.x;
     let e = k.y - (p.y - k.w) * k.x;
     let panorama = vec3f(cos(e) * cos(a), cos(e) * sin(a), -sin(e));
@@ -79,19 +86,28 @@ fn view_point(vi: i32, p: vec2f) -> vec3f {
 
 // View `vi` at output pixel (x, y); black where there is no view or the pixel is padding.
 fn view_pixel(vi: i32, x: u32, y: u32) -> vec3f {
-    let r = views[max(vi, 0)].rect;
-    let q = view_point(max(vi, 0), vec2f(f32(x) - f32(r.x), f32(y) - f32(r.y)) + 0.5);
+    let q = view_point(views[max(vi, 0)], view_xy(views[max(vi, 0)], x, y));
     return select(vec3f(0.0), q, vi >= 0 && x < params.output.x);
+}
+
+// Output pixel (x, y)'s centre in view `v`'s own pixel coordinates.
+fn view_xy(v: View, x: u32, y: u32) -> vec2f {
+    return vec2f(f32(x) - f32(v.rect.x), f32(y) - f32(v.rect.y)) + 0.5;
 }
 
 // The colour of a pixel of view `vi` that lands at `q`, given its quad neighbours in x and y
 // (their views and landing points). A neighbour drawn by another view, or black, does not
 // count (src/render/cpu.rs measures the same way).
 fn shade(vi: i32, q: vec3f, vx: i32, qx: vec3f, vy: i32, qy: vec3f) -> vec3f {
+    return shade_by(q, qx, vx == vi, qy, vy == vi);
+}
+
+// The same, told whether each neighbour belongs to the pixel's view.
+fn shade_by(q: vec3f, qx: vec3f, x_same: bool, qy: vec3f, y_same: bool) -> vec3f {
     var lod = 0.0;
     if FILTER == FILTER_MIP {
-        let sx = select(0.0, distance(qx.xy, q.xy), vx == vi && qx.z > 0.0);
-        let sy = select(0.0, distance(qy.xy, q.xy), vy == vi && qy.z > 0.0);
+        let sx = select(0.0, distance(qx.xy, q.xy), x_same && qx.z > 0.0);
+        let sy = select(0.0, distance(qy.xy, q.xy), y_same && qy.z > 0.0);
         lod = clamp(log2(max(max(sx, sy), 1.0)), 0.0, f32(params.input_planes.z - 1u));
     }
     let size = params.lens.offset_frame.zw;
@@ -126,6 +142,22 @@ fn draw_quad(x0: u32, y0: u32) -> Quad {
     );
 }
 
+// A quad that lies in view `v` (`drawn`: false for no view, black).
+fn draw_quad_in(v: View, drawn: bool, x0: u32, y0: u32) -> Quad {
+    let p = view_xy(v, x0, y0);
+    let black = vec3f(0.0);
+    let q0 = select(black, view_point(v, p), drawn);
+    let q1 = select(black, view_point(v, p + vec2f(1.0, 0.0)), drawn);
+    let q2 = select(black, view_point(v, p + vec2f(0.0, 1.0)), drawn);
+    let q3 = select(black, view_point(v, p + vec2f(1.0, 1.0)), drawn);
+    return Quad(
+        shade_by(q0, q1, true, q2, true),
+        shade_by(q1, q0, true, q3, true),
+        shade_by(q2, q3, true, q0, true),
+        shade_by(q3, q2, true, q1, true),
+    );
+}
+
 fn luma(c: vec3f) -> f32 {
     return rgb_to_yuv(c).x;
 }
@@ -147,6 +179,11 @@ fn store_quad_rgba(x0: u32, y0: u32, q: Quad) {
     store_rgba(x0 + 1u, y0 + 1u, q.c3);
 }
 
+// Blocks across the frame.
+fn blocks_across() -> u32 {
+    return (params.output.x + 7u) / 8u;
+}
+
 @compute @workgroup_size(8, 8)
 fn draw(@builtin(global_invocation_id) gid: vec3u) {
     let bx = gid.x * 8u;
@@ -154,10 +191,44 @@ fn draw(@builtin(global_invocation_id) gid: vec3u) {
     if bx >= params.output.x || by >= params.output.y {
         return;
     }
-    let a = draw_quad(bx, by);
-    let b = draw_quad(bx + 2u, by);
-    let c = draw_quad(bx + 4u, by);
-    let d = draw_quad(bx + 6u, by);
+    let entry = blocks[gid.y * blocks_across() + gid.x];
+    if entry == MIXED {
+        return;
+    }
+    let vi = bitcast<i32>(entry);
+    // One view for the whole block, fetched once.
+    let v = views[max(vi, 0)];
+    let drawn = vi >= 0;
+    store_block(
+        bx,
+        by,
+        draw_quad_in(v, drawn, bx, by),
+        draw_quad_in(v, drawn, bx + 2u, by),
+        draw_quad_in(v, drawn, bx + 4u, by),
+        draw_quad_in(v, drawn, bx + 6u, by),
+    );
+}
+
+@compute @workgroup_size(64)
+fn draw_mixed(@builtin(global_invocation_id) gid: vec3u) {
+    if gid.x >= params.output_planes.w {
+        return;
+    }
+    let b = blocks[blocks_across() * ((params.output.y + 1u) / 2u) + gid.x];
+    let bx = (b & 0xffffu) * 8u;
+    let by = (b >> 16u) * 2u;
+    store_block(
+        bx,
+        by,
+        draw_quad(bx, by),
+        draw_quad(bx + 2u, by),
+        draw_quad(bx + 4u, by),
+        draw_quad(bx + 6u, by),
+    );
+}
+
+// Writes the block's four quads (left to right) in the output format.
+fn store_block(bx: u32, by: u32, a: Quad, b: Quad, c: Quad, d: Quad) {
     if OUTPUT_FORMAT == FORMAT_RGBA {
         store_quad_rgba(bx, by, a);
         store_quad_rgba(bx + 2u, by, b);

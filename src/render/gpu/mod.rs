@@ -1,8 +1,10 @@
 //! The GPU renderer (wgpu, WGSL in shaders/): fisheye bytes in, output frame bytes out, one
 //! compute pass per frame for all views. `device` picks the adapter, `shaders` composes the
-//! WGSL, `params` lays out the per-frame buffers shared with it, `renderer` owns the GPU
-//! resources and the upload → render → readback ring. Touches no sockets and no GStreamer.
+//! WGSL, `params` lays out the per-frame buffers shared with it, `blocks` says which view
+//! draws each block of the output, `renderer` owns the GPU resources and the upload →
+//! render → readback ring. Touches no sockets and no GStreamer.
 
+pub mod blocks;
 pub mod device;
 pub mod params;
 pub mod renderer;

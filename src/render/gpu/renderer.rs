@@ -6,8 +6,10 @@
 //! copy never waits for a fresh allocation), copied to the GPU, turned into mip levels 0 and
 //! 1 by the ingest pass and into the rest of the chain by the mip passes; the draw pass
 //! writes the output frame (RGBA, I420 or NV12) into a storage buffer, which is copied into a
-//! readback buffer of the ring. [`Renderer::push`] hands back frame N-1 while frame N renders.
+//! readback buffer of the ring. The draw pass is two dispatches: blocks inside one view, then
+//! the few that straddle an edge (the block map, rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N renders.
 
+use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
 use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
 use super::shaders;
 use super::{Gpu, GpuError};
@@ -148,6 +150,8 @@ pub struct Renderer {
     source: Option<Source>,
     target: Option<Target>,
     draw_group: Option<wgpu::BindGroup>,
+    /// The block map of the last frame's rectangles and the buffer holding it.
+    blocks: Option<(BlockMap, wgpu::Buffer)>,
     next_id: u64,
     in_flight: VecDeque<InFlight>,
 }
@@ -200,7 +204,11 @@ fn groups(n: u32) -> u32 {
 const INGEST: usize = 0;
 const MIP: usize = 1;
 const DRAW: usize = 2;
-const ENTRY_POINTS: [&str; 3] = ["ingest", "downsample", "draw"];
+/// The draw pass's per-pixel dispatch, from the draw module.
+const DRAW_MIXED: usize = 3;
+const ENTRY_POINTS: [&str; 4] = ["ingest", "downsample", "draw", "draw_mixed"];
+/// Invocations in a `draw_mixed` workgroup, one block each.
+const MIXED_WORKGROUP: u32 = 64;
 
 impl Renderer {
     /// A renderer producing `output_format` frames filtered with `filter`. Input and output
@@ -239,6 +247,7 @@ impl Renderer {
                         wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                     ),
                     entry(4, storage(false)),
+                    entry(5, storage(true)),
                 ],
             ),
         };
@@ -290,6 +299,7 @@ impl Renderer {
             source: None,
             target: None,
             draw_group: None,
+            blocks: None,
             next_id: 0,
             in_flight: VecDeque::new(),
         })
@@ -332,7 +342,7 @@ impl Renderer {
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(ENTRY_POINTS[pass]),
             layout: Some(&layout),
-            module: &self.modules[pass],
+            module: &self.modules[pass.min(DRAW)],
             entry_point: Some(ENTRY_POINTS[pass]),
             compilation_options: wgpu::PipelineCompilationOptions {
                 constants: &values,
@@ -474,6 +484,7 @@ impl Renderer {
             return;
         }
         let (source, target) = (self.source.as_ref().unwrap(), self.target.as_ref().unwrap());
+        let blocks = &self.blocks.as_ref().unwrap().1;
         self.draw_group = Some(
             self.gpu
                 .device
@@ -486,9 +497,43 @@ impl Renderer {
                         bind(2, wgpu::BindingResource::TextureView(&source.sampled)),
                         bind(3, wgpu::BindingResource::Sampler(&self.sampler)),
                         bind(4, target.buffer.as_entire_binding()),
+                        bind(5, blocks.as_entire_binding()),
                     ],
                 }),
         );
+    }
+
+    /// Makes the block map follow the plan's rectangles, rewriting its buffer when they
+    /// change (and replacing the buffer when it is too small).
+    fn ensure_blocks(&mut self, plan: &FramePlan) {
+        let (w, h) = (plan.layout.width, plan.layout.height);
+        let rects: Vec<_> = plan.views.iter().map(|v| v.rect).collect();
+        if self
+            .blocks
+            .as_ref()
+            .is_some_and(|(m, _)| m.is_for(w, h, &rects))
+        {
+            return;
+        }
+        let map = BlockMap::new(w, h, &rects);
+        let words = map.words();
+        let size = (words.len() * 4) as u64;
+        let buffer = match self.blocks.take() {
+            Some((_, buffer)) if buffer.size() >= size => buffer,
+            _ => {
+                self.draw_group = None;
+                self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("block map"),
+                    size,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            }
+        };
+        self.gpu
+            .queue
+            .write_buffer(&buffer, 0, bytemuck::cast_slice(&words));
+        self.blocks = Some((map, buffer));
     }
 
     /// Checks a frame against the plan, sets up what it needs, and writes its parameters.
@@ -510,20 +555,21 @@ impl Renderer {
         let model = model_code(&plan.lens.radial.model);
         self.pipeline(INGEST, [input.format.shader_code(), 0, 0])?;
         self.pipeline(MIP, [0; 3])?;
-        self.pipeline(
-            DRAW,
-            [
-                model,
-                self.output_format.shader_code(),
-                self.filter.shader_code(),
-            ],
-        )?;
+        let draw = [
+            model,
+            self.output_format.shader_code(),
+            self.filter.shader_code(),
+        ];
+        self.pipeline(DRAW, draw)?;
+        self.pipeline(DRAW_MIXED, draw)?;
         self.ensure_source(input);
         self.ensure_target(plan.layout.width, plan.layout.height)?;
+        self.ensure_blocks(plan);
         self.ensure_draw_group();
         let source = self.source.as_ref().unwrap();
         let target = self.target.as_ref().unwrap();
-        let (params, views) = frame_params(plan, input, &target.layout, source.levels)?;
+        let (mut params, views) = frame_params(plan, input, &target.layout, source.levels)?;
+        params.output_planes[3] = self.mixed_blocks();
         let queue = &self.gpu.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         if !views.is_empty() {
@@ -566,24 +612,33 @@ impl Renderer {
         }
     }
 
+    /// Blocks the draw pass's per-pixel dispatch draws.
+    fn mixed_blocks(&self) -> u32 {
+        self.blocks
+            .as_ref()
+            .map_or(0, |(m, _)| m.mixed.len() as u32)
+    }
+
     fn encode_draw(&self, encoder: &mut wgpu::CommandEncoder, model: u32) {
         let target = self.target.as_ref().unwrap();
-        let key = (
-            DRAW,
-            [
-                model,
-                self.output_format.shader_code(),
-                self.filter.shader_code(),
-            ],
-        );
+        let constants = [
+            model,
+            self.output_format.shader_code(),
+            self.filter.shader_code(),
+        ];
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("draw"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipelines[&key]);
+        pass.set_pipeline(&self.pipelines[&(DRAW, constants)]);
         pass.set_bind_group(0, self.draw_group.as_ref().unwrap(), &[]);
         let (w, h) = (target.layout.width, target.layout.height);
-        pass.dispatch_workgroups(groups(w.div_ceil(8)), groups(h.div_ceil(2)), 1);
+        pass.dispatch_workgroups(groups(w.div_ceil(BLOCK_W)), groups(h.div_ceil(BLOCK_H)), 1);
+        let mixed = self.mixed_blocks();
+        if mixed > 0 {
+            pass.set_pipeline(&self.pipelines[&(DRAW_MIXED, constants)]);
+            pass.dispatch_workgroups(mixed.div_ceil(MIXED_WORKGROUP), 1, 1);
+        }
     }
 
     fn encode_readback(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
