@@ -1,6 +1,8 @@
 // Upload, second half: the raw camera bytes (RGBA8, I420 or NV12, as one array of words) become
 // mip levels 0 and 1 of the source texture. One invocation per 2x2 block, which in 4:2:0
 // shares one chroma sample, so each byte is read once. The format is the INPUT_FORMAT override.
+// Only the lens's imaged box is converted (dispatched over it, from its origin); the texture
+// stays black around it.
 
 override INPUT_FORMAT: u32 = 0u;
 
@@ -23,8 +25,10 @@ fn fetch(x: u32, y: u32, u: f32, v: f32) -> vec3f {
 @compute @workgroup_size(8, 8)
 fn ingest(@builtin(global_invocation_id) gid: vec3u) {
     let size = params.input.xy;
-    let x0 = gid.x * 2u;
-    let y0 = gid.y * 2u;
+    let origin = vec2u(params.input_planes.w & 0xffffu, params.input_planes.w >> 16u);
+    let block = gid.xy + origin / 2u;
+    let x0 = block.x * 2u;
+    let y0 = block.y * 2u;
     if x0 >= size.x || y0 >= size.y {
         return;
     }
@@ -50,7 +54,7 @@ fn ingest(@builtin(global_invocation_id) gid: vec3u) {
             sum += c;
         }
     }
-    if all(gid.xy < textureDimensions(level1)) {
-        textureStore(level1, gid.xy, vec4f(sum * 0.25, 1.0));
+    if all(block < textureDimensions(level1)) {
+        textureStore(level1, block, vec4f(sum * 0.25, 1.0));
     }
 }

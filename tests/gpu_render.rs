@@ -103,6 +103,40 @@ fn every_layout_and_crop_mode_matches_the_cpu_reference_and_ground_truth() {
 }
 
 #[test]
+fn light_outside_the_lens_image_circle_never_reaches_the_output() {
+    // CIL216's circle is narrower than the frame: a third of the columns are not imaged.
+    let world = GridWorld::default();
+    let lens = small_lens("CIL216").for_frame(1920, 1080, None);
+    let (columns, rows) = lens.imaged_box();
+    assert!(columns.len() < lens.width as usize * 2 / 3, "{columns:?}");
+    let mut state = base_state();
+    // The debug view: the whole fisheye minified 40 times, so the rim samples mip levels 5
+    // and 6, whose texels reach past the imaged box's margin.
+    (state.output.width, state.output.height) = (48, 28);
+    (state.output.layout, state.output.overlay) = (6, 0);
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    let dark = fisheye(&world, &lens, &state);
+    // Flare around the image circle: everything outside the imaged box white.
+    let mut flare = dark.clone();
+    for (x, y, p) in flare.enumerate_pixels_mut() {
+        if !columns.contains(&x) || !rows.contains(&y) {
+            *p = image::Rgb([255; 3]);
+        }
+    }
+    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let got_dark = render_image(&mut r, &dark, &plan).unwrap();
+    let got_flare = render_image(&mut r, &flare, &plan).unwrap();
+    assert!(
+        got_dark.data == got_flare.data,
+        "the flare changed the output"
+    );
+    let want = cpu::render(&plan, &flare, Filter::Mip);
+    let got = got_flare.to_rgb();
+    let vs_cpu = psnr(&got, &want, whole(&got));
+    assert!(vs_cpu >= 45.0, "GPU vs CPU with flare {vs_cpu:.2} dB");
+}
+
+#[test]
 fn every_lens_model_matches_the_cpu_reference_and_ground_truth() {
     let world = GridWorld::default();
     let mut r = renderer(PixelFormat::Rgba, Filter::Mip);

@@ -27,6 +27,7 @@ pub mod stereographic;
 pub use calfile::{LensCal, LensEntry, LensError, Provenance};
 
 use glam::{DMat2, DVec2, DVec3};
+use std::ops::Range;
 
 /// The radial part of a lens model and its coefficients.
 #[derive(Clone, Debug, PartialEq)]
@@ -199,6 +200,14 @@ impl PixelAffine {
 /// the GPU computes them in f32.
 pub const FRAME_EDGE_SLACK: f64 = 0.001;
 
+/// How far (pixels) around the image circle's bounding box the frame still counts as imaged
+/// (see [`Lens::imaged_box`]): the rim's trilinear samples see their real neighbourhood up to
+/// mip level 3.
+pub const IMAGED_MARGIN: f64 = 16.0;
+/// [`Lens::imaged_box`] is rounded out to multiples of this many pixels: whole 4:2:0 blocks,
+/// and whole workgroups of the GPU's ingest (8 blocks of 2 pixels).
+pub const IMAGED_ALIGN: u32 = 16;
+
 /// A sensor crop: the part of the calibration frame the camera delivers, in calibration pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Roi {
@@ -276,6 +285,32 @@ impl Lens {
     /// Radius of the image circle in pixels (mean over both axes).
     pub fn circle_radius(&self) -> f64 {
         self.radial.r_of_theta(self.half_fov).unwrap_or(0.0) * self.affine.mean_scale()
+    }
+
+    /// The part of the frame the lens can image: the image circle's bounding box (an ellipse's,
+    /// through the affine) widened by [`IMAGED_MARGIN`], rounded out to multiples of
+    /// [`IMAGED_ALIGN`] and clipped to the frame, as column and row ranges. Both renderers
+    /// take every pixel outside it as black, and the GPU never converts those pixels.
+    pub fn imaged_box(&self) -> (Range<u32>, Range<u32>) {
+        let Some(r) = self
+            .radial
+            .r_of_theta(self.half_fov)
+            .filter(|r| r.is_finite())
+        else {
+            return (0..self.width, 0..self.height);
+        };
+        let m = self.affine.matrix;
+        let half = DVec2::new(m.x_axis.x.hypot(m.y_axis.x), m.x_axis.y.hypot(m.y_axis.y)) * r
+            + IMAGED_MARGIN;
+        let (lo, hi) = (self.affine.offset - half, self.affine.offset + half);
+        let span = |lo: f64, hi: f64, size: u32| {
+            let start = (lo.floor().max(0.0) as u32) / IMAGED_ALIGN * IMAGED_ALIGN;
+            let end = (hi.ceil().max(0.0) as u32 + 1)
+                .next_multiple_of(IMAGED_ALIGN)
+                .min(size);
+            start.min(end)..end
+        };
+        (span(lo.x, hi.x, self.width), span(lo.y, hi.y, self.height))
     }
 
     /// Where the optical axis meets the image.

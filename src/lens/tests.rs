@@ -178,3 +178,41 @@ fn a_sensor_crop_shifts_the_principal_point_by_the_crop_origin() {
     let d = lens.centre() - cropped.centre();
     assert!((d - DVec2::new(100.0, 60.0)).length() < 1e-9);
 }
+
+#[test]
+fn the_imaged_box_holds_the_whole_image_circle_with_its_margin_and_no_more() {
+    for lens in sample_lenses() {
+        let (columns, rows) = lens.imaged_box();
+        for range in [&columns, &rows] {
+            assert_eq!(range.start % IMAGED_ALIGN, 0, "{}", lens.name);
+        }
+        assert!(columns.end % IMAGED_ALIGN == 0 || columns.end == lens.width);
+        assert!(rows.end % IMAGED_ALIGN == 0 || rows.end == lens.height);
+        let (mut lo, mut hi) = (DVec2::splat(f64::MAX), DVec2::splat(f64::MIN));
+        for p in circle_pixels(&lens) {
+            let inside = |v: f64, r: &Range<u32>, size: u32| {
+                (v - IMAGED_MARGIN < 0.0 || v - IMAGED_MARGIN >= r.start as f64)
+                    && (v + IMAGED_MARGIN >= size as f64 || v + IMAGED_MARGIN < r.end as f64)
+            };
+            assert!(
+                inside(p.x, &columns, lens.width) && inside(p.y, &rows, lens.height),
+                "{}: {p} and its margin are not all in {columns:?} x {rows:?}",
+                lens.name
+            );
+            (lo, hi) = (lo.min(p), hi.max(p));
+        }
+        // Tight: no more than the margin and the rounding beyond the circle's extent.
+        let slack = IMAGED_MARGIN + IMAGED_ALIGN as f64 + 1.0;
+        assert!(columns.start as f64 >= lo.x - slack && columns.end as f64 <= hi.x + slack);
+        assert!(rows.start as f64 >= lo.y - slack && rows.end as f64 <= hi.y + slack);
+    }
+}
+
+#[test]
+fn the_cil216_circle_leaves_over_a_third_of_a_4k_frame_unimaged() {
+    let cal = super::calfile::LensCal::load(std::path::Path::new("lens-cal/lens.cal")).unwrap();
+    let lens = cal.by_id(0).unwrap().lens().for_frame(3840, 2160, None);
+    let (columns, rows) = lens.imaged_box();
+    // Circle radius 1175 px about x = 1919.5: 744.5 .. 3094.5, plus 16, rounded out to 16.
+    assert_eq!((columns, rows), (720..3120, 0..2160));
+}

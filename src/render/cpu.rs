@@ -7,19 +7,21 @@
 use super::mip::{Filter, Pyramid, lod};
 use super::plan::{FramePlan, PlannedView};
 use crate::image_ops::{sample_offsets, to_rgb8};
+use crate::lens::Lens;
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use rayon::prelude::*;
 
 /// Renders the output frame; pixels of no view, and pixels whose ray falls outside the lens's
-/// image circle or the fisheye frame, are black.
+/// image circle or the fisheye frame, are black. Fisheye pixels outside the lens's imaged box
+/// count as black (they reach the output only through coarse mip levels at the rim).
 pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage {
     assert_eq!(
         (fisheye.width(), fisheye.height()),
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    let pyramid = Pyramid::new(fisheye);
+    let pyramid = Pyramid::new(&imaged_only(fisheye, &plan.lens));
     render_pixels(plan, |view, x, y| {
         let r = view.rect;
         let p = DVec2::new((x - r.x) as f64 + 0.5, (y - r.y) as f64 + 0.5);
@@ -42,6 +44,18 @@ pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage 
         };
         Some(pyramid.sample(q, level))
     })
+}
+
+/// The fisheye with every pixel outside the lens's imaged box black, as the GPU sees it.
+fn imaged_only(fisheye: &RgbImage, lens: &Lens) -> RgbImage {
+    let (columns, rows) = lens.imaged_box();
+    let mut out = RgbImage::new(fisheye.width(), fisheye.height());
+    for y in rows {
+        for x in columns.clone() {
+            out.put_pixel(x, y, *fisheye.get_pixel(x, y));
+        }
+    }
+    out
 }
 
 /// Renders every view of a plan with `colour(view, point)` averaged over the plan's

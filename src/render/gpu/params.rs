@@ -191,6 +191,8 @@ pub fn frame_params(
     if views.len() > MAX_VIEWS {
         return Err(GpuError::TooManyViews(views.len(), MAX_VIEWS));
     }
+    // The ingest converts the lens's imaged box only; its origin.
+    let (imaged, rows) = plan.lens.imaged_box();
     let params = GpuParams {
         output: [
             output.width,
@@ -200,7 +202,12 @@ pub fn frame_params(
         ],
         output_planes: [output.chroma[0], output.chroma[1], output.chroma_stride, 0],
         input: [input.width, input.height, input.stride, input.chroma_stride],
-        input_planes: [input.chroma[0], input.chroma[1], levels, 0],
+        input_planes: [
+            input.chroma[0],
+            input.chroma[1],
+            levels,
+            imaged.start | rows.start << 16,
+        ],
         lens: gpu_lens(&plan.lens)?,
     };
     Ok((params, views))

@@ -19,6 +19,7 @@ use crate::render::plan::FramePlan;
 use crate::render::yuv;
 use image::RgbImage;
 use std::collections::{HashMap, VecDeque};
+use std::ops::Range;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::{Duration, Instant};
@@ -105,9 +106,14 @@ impl MapSlot {
     }
 }
 
+/// Columns and rows of the input the lens images.
+type ImagedBox = (Range<u32>, Range<u32>);
+
 /// What depends on the input layout: upload ring, raw buffer, the mip-chained texture.
 struct Source {
     layout: PlaneLayout,
+    /// The input pixels the ingest converts (`Lens::imaged_box`).
+    imaged: ImagedBox,
     levels: u32,
     uploads: Vec<MapSlot>,
     raw: wgpu::Buffer,
@@ -360,9 +366,15 @@ impl Renderer {
         Ok(())
     }
 
-    /// Makes the input-side resources match `layout` (kept while it does not change).
-    fn ensure_source(&mut self, layout: &PlaneLayout) {
-        if self.source.as_ref().is_some_and(|s| s.layout == *layout) {
+    /// Makes the input-side resources match `layout` and the lens's imaged box (kept while
+    /// neither changes; a fresh texture is black outside the box, which the ingest never
+    /// writes).
+    fn ensure_source(&mut self, layout: &PlaneLayout, imaged: ImagedBox) {
+        if self
+            .source
+            .as_ref()
+            .is_some_and(|s| s.layout == *layout && s.imaged == imaged)
+        {
             return;
         }
         let device = &self.gpu.device;
@@ -436,6 +448,7 @@ impl Renderer {
         let sampled = texture.create_view(&wgpu::TextureViewDescriptor::default());
         self.source = Some(Source {
             layout: *layout,
+            imaged,
             levels,
             uploads,
             raw,
@@ -562,7 +575,7 @@ impl Renderer {
         ];
         self.pipeline(DRAW, draw)?;
         self.pipeline(DRAW_MIXED, draw)?;
-        self.ensure_source(input);
+        self.ensure_source(input, plan.lens.imaged_box());
         self.ensure_target(plan.layout.width, plan.layout.height)?;
         self.ensure_blocks(plan);
         self.ensure_draw_group();
@@ -603,8 +616,12 @@ impl Renderer {
         });
         pass.set_pipeline(&self.pipelines[&(INGEST, [format, 0, 0])]);
         pass.set_bind_group(0, &source.ingest, &[]);
-        let (w, h) = (source.layout.width, source.layout.height);
-        pass.dispatch_workgroups(groups(w.div_ceil(2)), groups(h.div_ceil(2)), 1);
+        let (columns, rows) = &source.imaged;
+        pass.dispatch_workgroups(
+            groups(columns.len().div_ceil(2) as u32),
+            groups(rows.len().div_ceil(2) as u32),
+            1,
+        );
         pass.set_pipeline(&self.pipelines[&(MIP, [0; 3])]);
         for (group, (w, h)) in &source.mips {
             pass.set_bind_group(0, group, &[]);
