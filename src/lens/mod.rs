@@ -205,8 +205,8 @@ pub const FRAME_EDGE_SLACK: f64 = 0.001;
 /// mip level 3.
 pub const IMAGED_MARGIN: f64 = 16.0;
 /// [`Lens::imaged_box`] is rounded out to multiples of this many pixels: whole 4:2:0 blocks,
-/// and whole workgroups of the GPU's ingest (8 blocks of 2 pixels).
-pub const IMAGED_ALIGN: u32 = 16;
+/// and whole workgroups of the GPU's ingest (8 blocks of 4 pixels each way).
+pub const IMAGED_ALIGN: u32 = 32;
 
 /// A sensor crop: the part of the calibration frame the camera delivers, in calibration pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]

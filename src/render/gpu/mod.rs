@@ -36,6 +36,8 @@ pub enum GpuError {
     TooManyViews(usize, usize),
     #[error("lens {lens}: {what}")]
     Lens { lens: String, what: String },
+    #[error("the input frame is {0}x{1}; the GPU renderer takes at least 4x4")]
+    InputTooSmall(u32, u32),
     #[error("the plan's lens is for a {0}x{1} frame but the input is {2}x{3}")]
     LensSize(u32, u32, u32, u32),
     #[error("the GPU failed: {0}")]

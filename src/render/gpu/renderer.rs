@@ -3,11 +3,13 @@
 //! only the small parameter and view buffers rewritten.
 //!
 //! A frame's path: its bytes are copied into a mapped upload buffer (one of a ring, so the
-//! copy never waits for a fresh allocation), copied to the GPU, turned into mip levels 0 and
-//! 1 by the ingest pass and into the rest of the chain by the mip passes; the draw pass
-//! writes the output frame (RGBA, I420 or NV12) into a storage buffer, which is copied into a
-//! readback buffer of the ring. The draw pass is two dispatches: blocks inside one view, then
-//! the few that straddle an edge (the block map, rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N renders.
+//! copy never waits for a fresh allocation), copied to the GPU, turned into mip levels 0, 1
+//! and 2 by the ingest pass (over the lens's imaged box only) and into the rest of the chain
+//! by the mip passes; the draw pass writes the output frame (RGBA, I420 or NV12) into a
+//! storage buffer, which is copied into a readback buffer of the ring. The draw pass is two
+//! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
+//! rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N
+//! renders.
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
 use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
@@ -119,7 +121,7 @@ struct Source {
     raw: wgpu::Buffer,
     sampled: wgpu::TextureView,
     ingest: wgpu::BindGroup,
-    /// Level k → k + 1 for k = 1..levels-1 (ingest writes levels 0 and 1).
+    /// Level k → k + 1 for k = 2..levels-1 (the ingest writes levels 0, 1 and 2).
     mips: Vec<(wgpu::BindGroup, (u32, u32))>,
 }
 
@@ -213,6 +215,8 @@ const DRAW: usize = 2;
 /// The draw pass's per-pixel dispatch, from the draw module.
 const DRAW_MIXED: usize = 3;
 const ENTRY_POINTS: [&str; 4] = ["ingest", "downsample", "draw", "draw_mixed"];
+/// Mip levels the ingest writes (the rest come from the mip passes).
+const INGEST_LEVELS: u32 = 3;
 /// Invocations in a `draw_mixed` workgroup, one block each.
 const MIXED_WORKGROUP: u32 = 64;
 
@@ -236,6 +240,7 @@ impl Renderer {
                     entry(1, storage(true)),
                     entry(2, store_texture()),
                     entry(3, store_texture()),
+                    entry(4, store_texture()),
                 ],
             ),
             mip: layout(
@@ -391,11 +396,12 @@ impl Renderer {
             .collect();
         let raw = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("raw input"),
-            size,
+            // The ingest reads up to 16 bytes past a row's last block.
+            size: size + 16,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let levels = levels_for(layout.width, layout.height).max(2);
+        let levels = levels_for(layout.width, layout.height);
         let texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("source"),
             size: wgpu::Extent3d {
@@ -426,9 +432,10 @@ impl Renderer {
                 bind(1, raw.as_entire_binding()),
                 bind(2, wgpu::BindingResource::TextureView(&level(0))),
                 bind(3, wgpu::BindingResource::TextureView(&level(1))),
+                bind(4, wgpu::BindingResource::TextureView(&level(2))),
             ],
         });
-        let mips = (1..levels - 1)
+        let mips = (INGEST_LEVELS - 1..levels - 1)
             .map(|k| {
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("mip"),
@@ -557,6 +564,9 @@ impl Renderer {
         plan: &FramePlan,
     ) -> Result<(), GpuError> {
         input.check(data)?;
+        if input.width.min(input.height) < 1 << (INGEST_LEVELS - 1) {
+            return Err(GpuError::InputTooSmall(input.width, input.height));
+        }
         if (plan.lens.width, plan.lens.height) != (input.width, input.height) {
             return Err(GpuError::LensSize(
                 plan.lens.width,
@@ -618,8 +628,8 @@ impl Renderer {
         pass.set_bind_group(0, &source.ingest, &[]);
         let (columns, rows) = &source.imaged;
         pass.dispatch_workgroups(
-            groups(columns.len().div_ceil(2) as u32),
-            groups(rows.len().div_ceil(2) as u32),
+            groups(columns.len().div_ceil(4) as u32),
+            groups(rows.len().div_ceil(4) as u32),
             1,
         );
         pass.set_pipeline(&self.pipelines[&(MIP, [0; 3])]);
