@@ -180,19 +180,21 @@ pub fn gpu_view(plan: &FramePlan, view: &PlannedView) -> GpuView {
     }
 }
 
-/// The frame's parameters and views.
+/// The frame's parameters and views: `levels` in the source's mip chain, `mixed_blocks` in
+/// the block map's list for the draw pass's per-pixel dispatch.
 pub fn frame_params(
     plan: &FramePlan,
     input: &PlaneLayout,
     output: &PlaneLayout,
     levels: u32,
+    mixed_blocks: u32,
 ) -> Result<(GpuParams, Vec<GpuView>), GpuError> {
     let views: Vec<GpuView> = plan.views.iter().map(|v| gpu_view(plan, v)).collect();
     if views.len() > MAX_VIEWS {
         return Err(GpuError::TooManyViews(views.len(), MAX_VIEWS));
     }
     // The ingest converts the lens's imaged box only; its origin.
-    let (imaged, rows) = plan.lens.imaged_box();
+    let (columns, rows) = plan.lens.imaged_box();
     let params = GpuParams {
         output: [
             output.width,
@@ -200,13 +202,18 @@ pub fn frame_params(
             views.len() as u32,
             output.stride,
         ],
-        output_planes: [output.chroma[0], output.chroma[1], output.chroma_stride, 0],
+        output_planes: [
+            output.chroma[0],
+            output.chroma[1],
+            output.chroma_stride,
+            mixed_blocks,
+        ],
         input: [input.width, input.height, input.stride, input.chroma_stride],
         input_planes: [
             input.chroma[0],
             input.chroma[1],
             levels,
-            imaged.start | rows.start << 16,
+            columns.start | rows.start << 16,
         ],
         lens: gpu_lens(&plan.lens)?,
     };

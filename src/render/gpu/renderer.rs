@@ -591,8 +591,8 @@ impl Renderer {
         self.ensure_draw_group();
         let source = self.source.as_ref().unwrap();
         let target = self.target.as_ref().unwrap();
-        let (mut params, views) = frame_params(plan, input, &target.layout, source.levels)?;
-        params.output_planes[3] = self.mixed_blocks();
+        let mixed = self.mixed_blocks();
+        let (params, views) = frame_params(plan, input, &target.layout, source.levels, mixed)?;
         let queue = &self.gpu.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         if !views.is_empty() {
