@@ -592,7 +592,10 @@ impl Renderer {
         let source = self.source.as_ref().unwrap();
         let target = self.target.as_ref().unwrap();
         let mixed = self.mixed_blocks();
-        let (params, views) = frame_params(plan, input, &target.layout, source.levels, mixed)?;
+        let (columns, rows) = &source.imaged;
+        let origin = (columns.start, rows.start);
+        let (params, views) =
+            frame_params(plan, input, &target.layout, source.levels, origin, mixed)?;
         let queue = &self.gpu.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         if !views.is_empty() {
