@@ -6,7 +6,7 @@
 mod common;
 
 use common::serve::Serve;
-use common::{four_view_state, landmark_matches, lens_cal, probe_frames};
+use common::{four_view_state, landmark_matches, lens_cal, probe_frames, probe_rtsp};
 use digiview::control::client::Client;
 use digiview::image_ops;
 use digiview::layout::Rect;
@@ -169,24 +169,7 @@ fn the_demo_streams_over_rtsp_and_follows_the_control_protocol() {
     assert!(quality > 24.0, "{quality:.1} dB against the truth");
 
     // ffprobe, a different RTSP client, sees the same stream.
-    let probe = std::process::Command::new("ffprobe")
-        .args([
-            "-v",
-            "error",
-            "-rtsp_transport",
-            "tcp",
-            "-select_streams",
-            "v:0",
-        ])
-        .args([
-            "-show_entries",
-            "stream=codec_name,width,height",
-            "-of",
-            "csv=p=0",
-        ])
-        .arg(&url)
-        .output()
-        .expect("ffprobe runs (scripts/setup.sh installs ffmpeg)");
+    let probe = probe_rtsp(&url, "codec_name,width,height");
     assert_eq!(
         String::from_utf8_lossy(&probe.stdout).trim(),
         "h264,640,480",
@@ -479,27 +462,7 @@ fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
     wait_status(&mut ctl, (1, 0), Duration::from_secs(20));
 
     // Without the password the server says 401; with it the stream plays.
-    let probe = |url: &str| {
-        std::process::Command::new("ffprobe")
-            .args([
-                "-v",
-                "error",
-                "-rtsp_transport",
-                "tcp",
-                "-select_streams",
-                "v:0",
-            ])
-            .args([
-                "-show_entries",
-                "stream=width,height",
-                "-of",
-                "csv=p=0",
-                url,
-            ])
-            .output()
-            .unwrap()
-    };
-    let refused = probe(&url);
+    let refused = probe_rtsp(&url, "width,height");
     assert!(!refused.status.success());
     assert!(
         String::from_utf8_lossy(&refused.stderr).contains("401"),
@@ -507,7 +470,7 @@ fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
         String::from_utf8_lossy(&refused.stderr)
     );
     let with = url.replace("rtsp://", "rtsp://pilot:s3cret@");
-    let allowed = probe(&with);
+    let allowed = probe_rtsp(&with, "width,height");
     assert_eq!(String::from_utf8_lossy(&allowed.stdout).trim(), "640,480");
 
     // A disk without the free space the config keeps is a refused capture, not a bad file.

@@ -146,6 +146,29 @@ pub fn three_tracked() -> Vec<Tracked> {
         .collect()
 }
 
+/// ffprobe pulling `url` over RTSP (TCP) and printing the first video stream's `entries`
+/// (for example `"width,height"`) as one CSV line.
+pub fn probe_rtsp(url: &str, entries: &str) -> std::process::Output {
+    std::process::Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-rtsp_transport",
+            "tcp",
+            "-select_streams",
+            "v:0",
+        ])
+        .args([
+            "-show_entries",
+            &format!("stream={entries}"),
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(url)
+        .output()
+        .expect("ffprobe runs (scripts/setup.sh installs ffmpeg)")
+}
+
 /// ffprobe's count of decodable video frames in `path`, and their size.
 pub fn probe_frames(path: &std::path::Path) -> (u64, String) {
     let out = std::process::Command::new("ffprobe")
