@@ -16,8 +16,7 @@ struct Params {
     output_planes: vec4u,
     // Input width, height, luma (or RGBA) row stride, chroma row stride (bytes).
     input: vec4u,
-    // Input chroma plane offsets (U or UV, V) in bytes, mip levels, and the origin of the
-    // part of the input the ingest converts (x | y << 16; Lens::imaged_box, multiples of 16).
+    // Input chroma plane offsets (U or UV, V) in bytes, mip levels, unused.
     input_planes: vec4u,
     lens: Lens,
 }

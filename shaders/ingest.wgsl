@@ -1,125 +1,119 @@
-// Upload, second half: the raw camera bytes (RGBA8, I420 or NV12, as one array of words) become
-// mip levels 0, 1 and 2 of the source texture. One invocation per 4x4 block: it reads each
-// row's four luma bytes as one word and each 2x2's chroma sample once, stores 16 texels of
-// level 0, the 4 of level 1 they average to and the 1 of level 2 those average to (each
-// level averages what the level below holds, quantized as the texture stores it). The format
-// is the INPUT_FORMAT override. Only the lens's imaged box is converted (dispatched over it,
-// from its origin); the texture stays black around it.
+// Upload, second half: mip levels 1 and 2 of the frame's planes from its raw bytes (RGBA8,
+// I420 or NV12, as one array of words), written as packed rows into the level buffer that the
+// renderer then copies into the planes' textures. Level 0 of each plane is copied straight
+// from the frame (src/render/gpu/renderer.rs), so nothing here is done per input pixel; only
+// I420's chroma is woven here into the Cb Cr pairs NV12 has.
+//
+// The planes (src/render/gpu/planes.rs; src/render/mip.rs is the twin): RGBA, or for 4:2:0
+// input the luma and the half-size chroma. Each plane's level k + 1 averages 2x2 texels of
+// its level k, per channel, in integer code values rounded half up.
+//
+// One invocation per 16x4 block of the frame: it reads whole words (rows are padded to 256
+// bytes and the imaged box starts on a multiple of 32) and writes the words the block makes:
+// for 4:2:0, 4 words of luma level 1, 1 of luma level 2 and 2 of chroma level 1 (and 8 of
+// woven chroma for I420). Only the lens's imaged box is done (dispatched over it, from its
+// origin); the level buffer keeps its black around it.
 
 override INPUT_FORMAT: u32 = 0u;
+
+// The regions the ingest writes.
+struct Targets {
+    // RGBA, or luma: levels 1 and 2.
+    level1: Region,
+    level2: Region,
+    // Chroma: level 0 (woven from I420's planes), level 1.
+    chroma0: Region,
+    chroma1: Region,
+    // The lens's imaged box: first column and row, and past the last (Lens::imaged_box).
+    imaged: vec4u,
+}
 
 @group(0) @binding(0) var<uniform> params: Params;
 // The frame's bytes, padded by 16 so that reading a row's last block never leaves the buffer.
 @group(0) @binding(1) var<storage, read> raw: array<u32>;
-@group(0) @binding(2) var level0: texture_storage_2d<rgba8unorm, write>;
-@group(0) @binding(3) var level1: texture_storage_2d<rgba8unorm, write>;
-@group(0) @binding(4) var level2: texture_storage_2d<rgba8unorm, write>;
+@group(0) @binding(2) var<storage, read_write> levels: array<u32>;
+@group(0) @binding(3) var<uniform> targets: Targets;
 
-// The four bytes from byte `i` on, any alignment, as code values 0..255.
-fn bytes4(i: u32) -> vec4f {
-    let shift = (i & 3u) * 8u;
-    let lo = raw[i >> 2u];
-    let hi = raw[(i >> 2u) + 1u];
-    let w = select((lo >> shift) | (hi << (32u - shift)), lo, shift == 0u);
-    return vec4f(f32(w & 0xffu), f32((w >> 8u) & 0xffu), f32((w >> 16u) & 0xffu), f32(w >> 24u));
-}
-
-// As the texture stores it, so each level averages what the one below holds; halves round
-// up, as src/render/mip.rs rounds its averages.
-fn stored(c: vec3f) -> vec3f {
-    return floor(c * 255.0 + 0.5) / 255.0;
-}
-
-// Four pixels of a row, left to right.
-struct Row4 {
-    c0: vec3f,
-    c1: vec3f,
-    c2: vec3f,
-    c3: vec3f,
-}
-
-// Pixels x0..x0+3 of row y (x0 a multiple of 4), as stored. Past the frame's right edge the
-// values are whatever the bytes hold; they are never stored.
-fn row4(x0: u32, y: u32) -> Row4 {
-    if INPUT_FORMAT == FORMAT_RGBA {
-        let i = (y * params.input.z) / 4u + x0;
-        return Row4(
-            stored(unpack4x8unorm(raw[i]).rgb),
-            stored(unpack4x8unorm(raw[i + 1u]).rgb),
-            stored(unpack4x8unorm(raw[i + 2u]).rgb),
-            stored(unpack4x8unorm(raw[i + 3u]).rgb),
-        );
-    }
-    let luma = bytes4(y * params.input.z + x0);
-    let row = (y / 2u) * params.input.w;
-    // The two 2x2 blocks' chroma: u0, v0 (pixels x0, x0 + 1), u1, v1 (x0 + 2, x0 + 3).
-    var uv = bytes4(params.input_planes.x + row + x0);
-    if INPUT_FORMAT == FORMAT_I420 {
-        let u = bytes4(params.input_planes.x + row + x0 / 2u);
-        let v = bytes4(params.input_planes.y + row + x0 / 2u);
-        uv = vec4f(u.x, v.x, u.y, v.y);
-    }
-    return Row4(
-        stored(yuv_to_rgb(luma.x, uv.x, uv.y)),
-        stored(yuv_to_rgb(luma.y, uv.x, uv.y)),
-        stored(yuv_to_rgb(luma.z, uv.z, uv.w)),
-        stored(yuv_to_rgb(luma.w, uv.z, uv.w)),
-    );
-}
-
-fn store0(x: u32, y: u32, c: vec3f) {
-    if x < params.input.x && y < params.input.y {
-        textureStore(level0, vec2u(x, y), vec4f(c, 1.0));
+// Word `i` of row `y` of a region (rows past its height are not written).
+fn put(r: Region, y: u32, i: u32, w: u32) {
+    if y < r.height {
+        levels[(r.offset + y * r.stride) / 4u + i] = w;
     }
 }
 
-fn store1(t: vec2u, c: vec3f) {
-    if all(t < textureDimensions(level1)) {
-        textureStore(level1, t, vec4f(c, 1.0));
-    }
-}
-
-// Two level-1 texels, left and right.
-struct Pair {
-    a: vec3f,
-    b: vec3f,
-}
-
-// Rows y and y + 1 of the block at x0: stores their 8 level-0 texels and the 2 level-1
-// texels (at t and t + (1, 0)) they make, and returns those as stored.
-fn two_rows(x0: u32, y: u32, t: vec2u) -> Pair {
-    // Rows past the frame's bottom edge read its last row instead (never stored).
-    let last = params.input.y - 1u;
-    let top = row4(x0, min(y, last));
-    let bottom = row4(x0, min(y + 1u, last));
-    store0(x0, y, top.c0);
-    store0(x0 + 1u, y, top.c1);
-    store0(x0 + 2u, y, top.c2);
-    store0(x0 + 3u, y, top.c3);
-    store0(x0, y + 1u, bottom.c0);
-    store0(x0 + 1u, y + 1u, bottom.c1);
-    store0(x0 + 2u, y + 1u, bottom.c2);
-    store0(x0 + 3u, y + 1u, bottom.c3);
-    let a = stored((top.c0 + top.c1 + bottom.c0 + bottom.c1) * 0.25);
-    let b = stored((top.c2 + top.c3 + bottom.c2 + bottom.c3) * 0.25);
-    store1(t, a);
-    store1(t + vec2u(1u, 0u), b);
-    return Pair(a, b);
+// The frame's row y from byte `x` on, as a word index; rows past the bottom read the last.
+fn at(plane: u32, stride: u32, rows: u32, y: u32, x: u32) -> u32 {
+    return (plane + min(y, rows - 1u) * stride + x) / 4u;
 }
 
 @compute @workgroup_size(8, 8)
 fn ingest(@builtin(global_invocation_id) gid: vec3u) {
-    let origin = vec2u(params.input_planes.w & 0xffffu, params.input_planes.w >> 16u);
-    let block = gid.xy + origin / 4u;
-    let x0 = block.x * 4u;
-    let y0 = block.y * 4u;
-    if x0 >= params.input.x || y0 >= params.input.y {
+    let x0 = gid.x * 16u + targets.imaged.x;
+    let y0 = gid.y * 4u + targets.imaged.y;
+    if x0 >= targets.imaged.z || y0 >= targets.imaged.w {
         return;
     }
-    let upper = two_rows(x0, y0, block * 2u);
-    let lower = two_rows(x0, y0 + 2u, block * 2u + vec2u(0u, 1u));
-    if all(block < textureDimensions(level2)) {
-        let c = (upper.a + upper.b + lower.a + lower.b) * 0.25;
-        textureStore(level2, block, vec4f(c, 1.0));
+    let h = params.input.y;
+    let stride = params.input.z;
+    if INPUT_FORMAT == FORMAT_RGBA {
+        // Level 1: 8 texels in each of 2 rows, a word each; level 2: 4 texels in 1 row.
+        var l1: array<u32, 16>;
+        for (var r = 0u; r < 2u; r++) {
+            let top = at(0u, stride, h, y0 + 2u * r, x0 * 4u);
+            let bottom = at(0u, stride, h, y0 + 2u * r + 1u, x0 * 4u);
+            for (var i = 0u; i < 8u; i++) {
+                let w = halve(raw[top + 2u * i], raw[top + 2u * i + 1u], raw[bottom + 2u * i], raw[bottom + 2u * i + 1u], 4u);
+                l1[r * 8u + i] = w;
+                put(targets.level1, y0 / 2u + r, x0 / 2u + i, w);
+            }
+        }
+        for (var i = 0u; i < 4u; i++) {
+            let w = halve(l1[2u * i], l1[2u * i + 1u], l1[8u + 2u * i], l1[9u + 2u * i], 4u);
+            put(targets.level2, y0 / 4u, x0 / 4u + i, w);
+        }
+        return;
     }
+    // Luma level 1: 8 texels (2 words) in each of 2 rows; level 2: 4 texels (1 word).
+    var l1: array<u32, 4>;
+    for (var r = 0u; r < 2u; r++) {
+        let top = at(0u, stride, h, y0 + 2u * r, x0);
+        let bottom = at(0u, stride, h, y0 + 2u * r + 1u, x0);
+        for (var i = 0u; i < 2u; i++) {
+            let w = halve(raw[top + 2u * i], raw[top + 2u * i + 1u], raw[bottom + 2u * i], raw[bottom + 2u * i + 1u], 1u);
+            l1[r * 2u + i] = w;
+            put(targets.level1, y0 / 2u + r, x0 / 8u + i, w);
+        }
+    }
+    put(targets.level2, y0 / 4u, x0 / 16u, halve(l1[0], l1[1], l1[2], l1[3], 1u));
+    // Chroma: rows y0 / 2 and y0 / 2 + 1 of the half-size plane, 8 Cb Cr pairs (4 words)
+    // each.
+    let cs = params.input.w;
+    let ch = h / 2u;
+    let cy = y0 / 2u;
+    var uv: array<u32, 8>;
+    for (var r = 0u; r < 2u; r++) {
+        if INPUT_FORMAT == FORMAT_I420 {
+            let u = at(params.input_planes.x, cs, ch, cy + r, x0 / 2u);
+            let v = at(params.input_planes.y, cs, ch, cy + r, x0 / 2u);
+            for (var i = 0u; i < 2u; i++) {
+                uv[r * 4u + 2u * i] = weave(raw[u + i], raw[v + i]);
+                uv[r * 4u + 2u * i + 1u] = weave(raw[u + i] >> 16u, raw[v + i] >> 16u);
+            }
+            for (var i = 0u; i < 4u; i++) {
+                put(targets.chroma0, cy + r, x0 / 4u + i, uv[r * 4u + i]);
+            }
+        } else {
+            let a = at(params.input_planes.x, cs, ch, cy + r, x0);
+            for (var i = 0u; i < 4u; i++) {
+                uv[r * 4u + i] = raw[a + i];
+            }
+        }
+    }
+    put(targets.chroma1, cy / 2u, x0 / 8u, halve(uv[0], uv[1], uv[4], uv[5], 2u));
+    put(targets.chroma1, cy / 2u, x0 / 8u + 1u, halve(uv[2], uv[3], uv[6], uv[7], 2u));
+}
+
+// The Cb Cr pairs of two Cb and two Cr samples (the low half of each word): u0 v0 u1 v1.
+fn weave(u: u32, v: u32) -> u32 {
+    return (u & 0xffu) | ((v & 0xffu) << 8u) | ((u & 0xff00u) << 8u) | ((v & 0xff00u) << 16u);
 }

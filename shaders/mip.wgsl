@@ -1,16 +1,28 @@
-// The rest of the source's mip chain: level k + 1 is the 2x2 box average of level k (the last
-// row or column of an odd level is dropped, as the texture's own level sizes do).
+// The rest of each plane's mip chain, in the level buffer: level k + 1 from level k, one word
+// of the coarser level per invocation, each byte the rounded mean of its channel in the 2x2
+// texels under it (the last row or column of an odd level is dropped, as the textures' own
+// level sizes do). The renderer copies every level into its plane's texture afterwards.
 
-@group(0) @binding(0) var finer: texture_2d<f32>;
-@group(0) @binding(1) var coarser: texture_storage_2d<rgba8unorm, write>;
+struct Step {
+    finer: Region,
+    coarser: Region,
+    // Bytes per texel: 1, 2 or 4.
+    channels: vec4u,
+}
+
+@group(0) @binding(0) var<storage, read_write> levels: array<u32>;
+@group(0) @binding(1) var<uniform> step: Step;
 
 @compute @workgroup_size(8, 8)
 fn downsample(@builtin(global_invocation_id) gid: vec3u) {
-    if any(gid.xy >= textureDimensions(coarser)) {
+    let ch = step.channels.x;
+    let c = step.coarser;
+    if gid.x * 4u >= c.width * ch || gid.y >= c.height {
         return;
     }
-    let p = gid.xy * 2u;
-    let c = textureLoad(finer, p, 0) + textureLoad(finer, p + vec2u(1u, 0u), 0)
-        + textureLoad(finer, p + vec2u(0u, 1u), 0) + textureLoad(finer, p + vec2u(1u, 1u), 0);
-    textureStore(coarser, gid.xy, vec4f(c.rgb * 0.25, 1.0));
+    let f = step.finer;
+    let top = (f.offset + 2u * gid.y * f.stride) / 4u + 2u * gid.x;
+    let bottom = top + f.stride / 4u;
+    let out = halve(levels[top], levels[top + 1u], levels[bottom], levels[bottom + 1u], ch);
+    levels[(c.offset + gid.y * c.stride) / 4u + gid.x] = out;
 }

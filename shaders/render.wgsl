@@ -1,15 +1,16 @@
-// The frame pass: every view and detection tile of the output frame, from the source
-// texture's mip chain. One invocation draws an 8x2 block (four 2x2 quads), which is what I420
-// and NV12 need to write whole words of every plane. `draw` covers the frame and draws each
-// block that lies in one view (or none) with that view, named by the block table
-// (src/render/gpu/blocks.rs); `draw_mixed` draws the listed blocks that straddle a view's or
-// the frame's edge, finding each pixel's view. Per frame only `params` and `views` change
-// (`blocks` when the rectangles do); the output format and filter are overrides fixed with
-// the pipeline.
+// The frame pass: every view and detection tile of the output frame, from the source's mip
+// chain. One invocation draws an 8x2 block (four 2x2 quads), which is what I420 and NV12 need
+// to write whole words of every plane. `draw` covers the frame and draws each block that lies
+// in one view (or none) with that view, named by the block table (src/render/gpu/blocks.rs);
+// `draw_mixed` draws the listed blocks that straddle a view's or the frame's edge, finding
+// each pixel's view. Per frame only `params` and `views` change (`blocks` when the rectangles
+// do); the input and output formats and the filter are overrides fixed with the pipeline.
 //
-// Filtering, as src/render/cpu.rs does it: a trilinear sample whose level of detail is
-// log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1, y ^ 1), the
-// derivatives a fragment shader would take.
+// Filtering, as src/render/cpu.rs and src/render/mip.rs do it: a trilinear sample whose level
+// of detail is log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1,
+// y ^ 1), the derivatives a fragment shader would take. Each plane of the source has its own
+// texture and chain (src/render/gpu/planes.rs): RGBA; or luma, and Cb Cr pairs from half size,
+// filtered in Y Cb Cr and converted afterwards.
 
 const KIND_BLACK: u32 = 0u;
 const KIND_RECTILINEAR: u32 = 1u;
@@ -19,6 +20,7 @@ const KIND_FISHEYE: u32 = 3u;
 const FILTER_MIP: u32 = 0u;
 const FILTER_BILINEAR: u32 = 1u;
 
+override INPUT_FORMAT: u32 = 0u;
 override OUTPUT_FORMAT: u32 = 0u;
 override FILTER: u32 = 0u;
 
@@ -39,12 +41,15 @@ struct View {
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> views: array<View, MAX_VIEWS>;
-@group(0) @binding(2) var source: texture_2d<f32>;
+// RGBA, or luma.
+@group(0) @binding(2) var plane0: texture_2d<f32>;
 @group(0) @binding(3) var trilinear: sampler;
 @group(0) @binding(4) var<storage, read_write> out: array<u32>;
 // The block table (one word per 8x2 block, row by row: a view index, NO_VIEW or MIXED), then
 // the MIXED blocks' coordinates (bx | by << 16), params.output_planes.w of them.
 @group(0) @binding(5) var<storage, read> blocks: array<u32>;
+// Chroma (Cb Cr), for 4:2:0 input.
+@group(0) @binding(6) var plane1: texture_2d<f32>;
 
 const NO_VIEW: i32 = -1;
 const MIXED: u32 = 0xfffffffeu;
@@ -110,8 +115,14 @@ fn shade_by(q: vec3f, qx: vec3f, x_same: bool, qy: vec3f, y_same: bool) -> vec3f
         let sy = select(0.0, distance(qy.xy, q.xy), y_same && qy.z > 0.0);
         lod = clamp(log2(max(max(sx, sy), 1.0)), 0.0, f32(params.input_planes.z - 1u));
     }
-    let size = params.lens.offset_frame.zw;
-    let c = textureSampleLevel(source, trilinear, (q.xy + 0.5) / size, lod).rgb;
+    let uv = (q.xy + 0.5) / params.lens.offset_frame.zw;
+    let first = textureSampleLevel(plane0, trilinear, uv, lod);
+    var c = first.rgb;
+    if INPUT_FORMAT != FORMAT_RGBA {
+        // Chroma's level 0 is the frame's level 1.
+        let cbcr = textureSampleLevel(plane1, trilinear, uv, max(lod - 1.0, 0.0)).rg;
+        c = yuv_to_rgb(first.r * 255.0, cbcr.x * 255.0, cbcr.y * 255.0);
+    }
     return select(vec3f(0.0), c, q.z > 0.0);
 }
 

@@ -3,7 +3,7 @@
 
 use crate::layout::Rect;
 use glam::{DVec2, DVec3};
-use image::RgbImage;
+use image::{GrayImage, RgbImage};
 
 pub fn pixel(img: &RgbImage, x: u32, y: u32) -> DVec3 {
     let p = img.get_pixel(x, y).0;
@@ -16,6 +16,16 @@ pub fn bilinear(img: &RgbImage, p: DVec2) -> DVec3 {
     bilinear_by(p, |x, y| {
         pixel(img, x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32)
     })
+}
+
+/// Bilinear sample of a one-channel image at `p`, edges clamped.
+pub fn bilinear_luma(img: &GrayImage, p: DVec2) -> f64 {
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    bilinear_by(p, |x, y| {
+        let v = img.get_pixel(x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32)[0];
+        DVec3::splat(v as f64)
+    })
+    .x
 }
 
 /// Bilinear sample at `p`, wrapping around in x (longitude) and clamped in y.

@@ -4,6 +4,7 @@
 //! sample of the fisheye's mip chain at the footprint its quad neighbours give (those the
 //! same view draws).
 
+use super::frame::{FrameError, PlaneLayout};
 use super::mip::{Filter, Pyramid, lod};
 use super::plan::{FramePlan, PlannedView};
 use crate::image_ops::{sample_offsets, to_rgb8};
@@ -21,7 +22,33 @@ pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage 
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    let pyramid = Pyramid::new(&imaged_only(fisheye, &plan.lens));
+    render_from(
+        plan,
+        &Pyramid::new(&imaged_only(fisheye, &plan.lens)),
+        filter,
+    )
+}
+
+/// The same from a frame's bytes in any [`PixelFormat`](super::PixelFormat): a 4:2:0 frame
+/// is filtered as it comes, luma from full size and chroma from half (`render::mip`), as the
+/// GPU does.
+pub fn render_frame(
+    plan: &FramePlan,
+    data: &[u8],
+    layout: &PlaneLayout,
+    filter: Filter,
+) -> Result<RgbImage, FrameError> {
+    layout.check(data)?;
+    assert_eq!(
+        (layout.width, layout.height),
+        (plan.lens.width, plan.lens.height),
+        "the plan's lens must be scaled to the fisheye frame"
+    );
+    let pyramid = Pyramid::from_frame(data, layout, &plan.lens.imaged_box());
+    Ok(render_from(plan, &pyramid, filter))
+}
+
+fn render_from(plan: &FramePlan, pyramid: &Pyramid, filter: Filter) -> RgbImage {
     render_pixels(plan, |view, x, y| {
         let r = view.rect;
         let p = DVec2::new((x - r.x) as f64 + 0.5, (y - r.y) as f64 + 0.5);

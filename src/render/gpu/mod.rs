@@ -1,12 +1,14 @@
 //! The GPU renderer (wgpu, WGSL in shaders/): fisheye bytes in, output frame bytes out, one
 //! compute pass per frame for all views. `device` picks the adapter, `shaders` composes the
-//! WGSL, `params` lays out the per-frame buffers shared with it, `blocks` says which view
-//! draws each block of the output, `renderer` owns the GPU resources and the upload →
+//! WGSL, `params` lays out the per-frame buffers shared with it, `planes` how the source's
+//! planes and mip levels are held, `blocks` says which view draws each block of the output,
+//! `renderer` owns the GPU resources and the upload →
 //! render → readback ring. Touches no sockets and no GStreamer.
 
 pub mod blocks;
 pub mod device;
 pub mod params;
+pub mod planes;
 pub mod renderer;
 pub mod shaders;
 

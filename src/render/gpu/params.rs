@@ -180,16 +180,13 @@ pub fn gpu_view(plan: &FramePlan, view: &PlannedView) -> GpuView {
     }
 }
 
-/// The frame's parameters and views: `levels` in the source's mip chain, `imaged_origin`
-/// the first column and row of the input the ingest converts (its dispatch covers the
-/// lens's imaged box from there), `mixed_blocks` in the block map's list for the draw pass's
+/// The frame's parameters and views: `levels` in the source's mip chain, `mixed_blocks` in the block map's list for the draw pass's
 /// per-pixel dispatch.
 pub fn frame_params(
     plan: &FramePlan,
     input: &PlaneLayout,
     output: &PlaneLayout,
     levels: u32,
-    imaged_origin: (u32, u32),
     mixed_blocks: u32,
 ) -> Result<(GpuParams, Vec<GpuView>), GpuError> {
     let views: Vec<GpuView> = plan.views.iter().map(|v| gpu_view(plan, v)).collect();
@@ -210,12 +207,7 @@ pub fn frame_params(
             mixed_blocks,
         ],
         input: [input.width, input.height, input.stride, input.chroma_stride],
-        input_planes: [
-            input.chroma[0],
-            input.chroma[1],
-            levels,
-            imaged_origin.0 | imaged_origin.1 << 16,
-        ],
+        input_planes: [input.chroma[0], input.chroma[1], levels, 0],
         lens: gpu_lens(&plan.lens)?,
     };
     Ok((params, views))

@@ -3,9 +3,10 @@
 //! only the small parameter and view buffers rewritten.
 //!
 //! A frame's path: its bytes are copied into a mapped upload buffer (one of a ring, so the
-//! copy never waits for a fresh allocation), copied to the GPU, turned into mip levels 0, 1
-//! and 2 by the ingest pass (over the lens's imaged box only) and into the rest of the chain
-//! by the mip passes; the draw pass writes the output frame (RGBA, I420 or NV12) into a
+//! copy never waits for a fresh allocation; rows padded as texture copies need), from there
+//! into the level-0 texture (RGBA, or the luma plane of 4:2:0 input: no conversion at full
+//! size) and into a raw buffer, which the ingest pass turns into mip levels 1 and 2 (over the
+//! lens's imaged box only) and the mip passes into the rest of the chain; the draw pass writes the output frame (RGBA, I420 or NV12) into a
 //! storage buffer, which is copied into a readback buffer of the ring. The draw pass is two
 //! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
 //! rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N
@@ -13,15 +14,17 @@
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
 use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
+use super::planes::{PlaneSpec, SourcePlanes, padded_for_copy};
 use super::shaders;
 use super::{Gpu, GpuError};
 use crate::render::frame::{PixelFormat, PlaneLayout};
-use crate::render::mip::{Filter, levels_for};
+use crate::render::mip::{Filter, ImagedBox, levels_for};
 use crate::render::plan::FramePlan;
 use crate::render::yuv;
 use image::RgbImage;
 use std::collections::{HashMap, VecDeque};
-use std::ops::Range;
+use wgpu::util::DeviceExt;
+
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::{Duration, Instant};
@@ -108,20 +111,29 @@ impl MapSlot {
     }
 }
 
-/// Columns and rows of the input the lens images.
-type ImagedBox = (Range<u32>, Range<u32>);
+/// One plane of the source on the GPU: its texture (all levels) and where its levels from 1
+/// on lie in the level buffer.
+struct Plane {
+    spec: PlaneSpec,
+    texture: wgpu::Texture,
+    view: wgpu::TextureView,
+}
 
-/// What depends on the input layout: upload ring, raw buffer, the mip-chained texture.
+/// What depends on the input layout: upload ring, raw buffer, level buffer, the planes.
 struct Source {
     layout: PlaneLayout,
-    /// The input pixels the ingest converts (`Lens::imaged_box`).
+    /// The layout in the upload buffers: `layout` with rows padded for texture copies.
+    padded: PlaneLayout,
+    /// The input pixels the GPU takes in (`Lens::imaged_box`).
     imaged: ImagedBox,
     levels: u32,
     uploads: Vec<MapSlot>,
     raw: wgpu::Buffer,
-    sampled: wgpu::TextureView,
+    /// Every plane's levels from 1 on, packed (`planes::SourcePlanes`).
+    level_buffer: wgpu::Buffer,
+    planes: Vec<Plane>,
     ingest: wgpu::BindGroup,
-    /// Level k → k + 1 for k = 2..levels-1 (the ingest writes levels 0, 1 and 2).
+    /// The mip passes: bind group and dispatch size (words across, rows).
     mips: Vec<(wgpu::BindGroup, (u32, u32))>,
 }
 
@@ -154,7 +166,7 @@ pub struct Renderer {
     sampler: wgpu::Sampler,
     layouts: Layouts,
     modules: [wgpu::ShaderModule; 3],
-    pipelines: HashMap<(usize, [u32; 3]), wgpu::ComputePipeline>,
+    pipelines: HashMap<(usize, [u32; 4]), wgpu::ComputePipeline>,
     source: Option<Source>,
     target: Option<Target>,
     draw_group: Option<wgpu::BindGroup>,
@@ -189,14 +201,6 @@ fn storage(read_only: bool) -> wgpu::BindingType {
     }
 }
 
-fn store_texture() -> wgpu::BindingType {
-    wgpu::BindingType::StorageTexture {
-        access: wgpu::StorageTextureAccess::WriteOnly,
-        format: wgpu::TextureFormat::Rgba8Unorm,
-        view_dimension: wgpu::TextureViewDimension::D2,
-    }
-}
-
 fn sampled_texture() -> wgpu::BindingType {
     wgpu::BindingType::Texture {
         sample_type: wgpu::TextureSampleType::Float { filterable: true },
@@ -215,8 +219,8 @@ const DRAW: usize = 2;
 /// The draw pass's per-pixel dispatch, from the draw module.
 const DRAW_MIXED: usize = 3;
 const ENTRY_POINTS: [&str; 4] = ["ingest", "downsample", "draw", "draw_mixed"];
-/// Mip levels the ingest writes (the rest come from the mip passes).
-const INGEST_LEVELS: u32 = 3;
+/// The frame pixels (across, down) one ingest invocation takes (shaders/ingest.wgsl).
+const INGEST_BLOCK: (u32, u32) = (16, 4);
 /// Invocations in a `draw_mixed` workgroup, one block each.
 const MIXED_WORKGROUP: u32 = 64;
 
@@ -238,14 +242,13 @@ impl Renderer {
                 &[
                     entry(0, uniform()),
                     entry(1, storage(true)),
-                    entry(2, store_texture()),
-                    entry(3, store_texture()),
-                    entry(4, store_texture()),
+                    entry(2, storage(false)),
+                    entry(3, uniform()),
                 ],
             ),
             mip: layout(
                 "mip bindings",
-                &[entry(0, sampled_texture()), entry(1, store_texture())],
+                &[entry(0, storage(false)), entry(1, uniform())],
             ),
             draw: layout(
                 "draw bindings",
@@ -259,6 +262,7 @@ impl Renderer {
                     ),
                     entry(4, storage(false)),
                     entry(5, storage(true)),
+                    entry(6, sampled_texture()),
                 ],
             ),
         };
@@ -324,7 +328,7 @@ impl Renderer {
         &self.gpu
     }
 
-    fn pipeline(&mut self, pass: usize, constants: [u32; 3]) -> Result<(), GpuError> {
+    fn pipeline(&mut self, pass: usize, constants: [u32; 4]) -> Result<(), GpuError> {
         if self.pipelines.contains_key(&(pass, constants)) {
             return Ok(());
         }
@@ -332,7 +336,7 @@ impl Renderer {
         let names: &[&str] = match pass {
             INGEST => &["INPUT_FORMAT"],
             MIP => &[],
-            _ => &["LENS_MODEL", "OUTPUT_FORMAT", "FILTER"],
+            _ => &["LENS_MODEL", "OUTPUT_FORMAT", "FILTER", "INPUT_FORMAT"],
         };
         let values: Vec<(&str, f64)> = names
             .iter()
@@ -372,8 +376,7 @@ impl Renderer {
     }
 
     /// Makes the input-side resources match `layout` and the lens's imaged box (kept while
-    /// neither changes; a fresh texture is black outside the box, which the ingest never
-    /// writes).
+    /// neither changes; everything starts black, and nothing outside the box is written).
     fn ensure_source(&mut self, layout: &PlaneLayout, imaged: ImagedBox) {
         if self
             .source
@@ -383,7 +386,8 @@ impl Renderer {
             return;
         }
         let device = &self.gpu.device;
-        let size = (layout.size as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let padded = padded_for_copy(layout);
+        let size = (padded.size as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
         let uploads = (0..RING)
             .map(|i| {
                 MapSlot::new(
@@ -396,70 +400,117 @@ impl Renderer {
             .collect();
         let raw = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("raw input"),
-            // The ingest reads up to 16 bytes past a row's last block.
+            // The ingest may read a word past the last row's end.
             size: size + 16,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let levels = levels_for(layout.width, layout.height);
-        let texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("source"),
-            size: wgpu::Extent3d {
-                width: layout.width,
-                height: layout.height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: levels,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8Unorm,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::STORAGE_BINDING,
-            view_formats: &[],
+        let specs = SourcePlanes::new(layout.format, layout.width, layout.height);
+        let level_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("source levels"),
+            contents: &specs.black_levels(),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         });
-        let level = |k: u32| {
-            texture.create_view(&wgpu::TextureViewDescriptor {
-                label: Some("source level"),
-                base_mip_level: k,
-                mip_level_count: Some(1),
-                ..Default::default()
+        let planes: Vec<Plane> = specs
+            .planes
+            .iter()
+            .map(|spec| {
+                let texture = device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some("source plane"),
+                    size: wgpu::Extent3d {
+                        width: spec.width,
+                        height: spec.height,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: spec.levels,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: match spec.channels {
+                        1 => wgpu::TextureFormat::R8Unorm,
+                        2 => wgpu::TextureFormat::Rg8Unorm,
+                        _ => wgpu::TextureFormat::Rgba8Unorm,
+                    },
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                    view_formats: &[],
+                });
+                // Level 0 is copied over the imaged box only: black around it.
+                fill_level0(&self.gpu.queue, &texture, spec);
+                Plane {
+                    spec: spec.clone(),
+                    view: texture.create_view(&wgpu::TextureViewDescriptor::default()),
+                    texture,
+                }
+            })
+            .collect();
+        let uniform_init = |label, contents: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::UNIFORM,
             })
         };
+        let region = |p: usize, k: usize| {
+            specs
+                .planes
+                .get(p)
+                .and_then(|s| s.regions.get(k))
+                .copied()
+                .unwrap_or_default()
+        };
+        let woven = specs
+            .planes
+            .get(1)
+            .and_then(|p| p.woven)
+            .unwrap_or_default();
+        let regions = [region(0, 0), region(0, 1), woven, region(1, 0)];
+        let mut targets = bytemuck::cast_slice(&regions).to_vec();
+        let (columns, rows) = &imaged;
+        let bounds = [columns.start, rows.start, columns.end, rows.end];
+        targets.extend_from_slice(bytemuck::cast_slice(&bounds));
+        let targets = uniform_init("ingest targets", &targets);
         let ingest = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ingest"),
             layout: &self.layouts.ingest,
             entries: &[
                 bind(0, self.params.as_entire_binding()),
                 bind(1, raw.as_entire_binding()),
-                bind(2, wgpu::BindingResource::TextureView(&level(0))),
-                bind(3, wgpu::BindingResource::TextureView(&level(1))),
-                bind(4, wgpu::BindingResource::TextureView(&level(2))),
+                bind(2, level_buffer.as_entire_binding()),
+                bind(3, targets.as_entire_binding()),
             ],
         });
-        let mips = (INGEST_LEVELS - 1..levels - 1)
-            .map(|k| {
+        let mips = specs
+            .mip_steps()
+            .into_iter()
+            .map(|(p, k)| {
+                // Regions are indexed from level 1.
+                let (finer, coarser) = (region(p, k - 1), region(p, k));
+                let channels = specs.planes[p].channels;
+                let mut step = bytemuck::bytes_of(&[finer, coarser]).to_vec();
+                step.extend_from_slice(bytemuck::bytes_of(&[channels, 0, 0, 0]));
+                let step = uniform_init("mip step", &step);
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("mip"),
                     layout: &self.layouts.mip,
                     entries: &[
-                        bind(0, wgpu::BindingResource::TextureView(&level(k))),
-                        bind(1, wgpu::BindingResource::TextureView(&level(k + 1))),
+                        bind(0, level_buffer.as_entire_binding()),
+                        bind(1, step.as_entire_binding()),
                     ],
                 });
-                let size = (
-                    (layout.width >> (k + 1)).max(1),
-                    (layout.height >> (k + 1)).max(1),
-                );
-                (group, size)
+                (
+                    group,
+                    ((coarser.width * channels).div_ceil(4), coarser.height),
+                )
             })
             .collect();
-        let sampled = texture.create_view(&wgpu::TextureViewDescriptor::default());
         self.source = Some(Source {
             layout: *layout,
+            padded,
             imaged,
-            levels,
+            levels: levels_for(layout.width, layout.height),
             uploads,
             raw,
-            sampled,
+            level_buffer,
+            planes,
             ingest,
             mips,
         });
@@ -505,6 +556,11 @@ impl Renderer {
         }
         let (source, target) = (self.source.as_ref().unwrap(), self.target.as_ref().unwrap());
         let blocks = &self.blocks.as_ref().unwrap().1;
+        // RGBA has one plane: bound twice, the second never sampled.
+        let plane = |i: usize| {
+            let p = &source.planes[i.min(source.planes.len() - 1)];
+            wgpu::BindingResource::TextureView(&p.view)
+        };
         self.draw_group = Some(
             self.gpu
                 .device
@@ -514,10 +570,11 @@ impl Renderer {
                     entries: &[
                         bind(0, self.params.as_entire_binding()),
                         bind(1, self.views.as_entire_binding()),
-                        bind(2, wgpu::BindingResource::TextureView(&source.sampled)),
+                        bind(2, plane(0)),
                         bind(3, wgpu::BindingResource::Sampler(&self.sampler)),
                         bind(4, target.buffer.as_entire_binding()),
                         bind(5, blocks.as_entire_binding()),
+                        bind(6, plane(1)),
                     ],
                 }),
         );
@@ -564,7 +621,7 @@ impl Renderer {
         plan: &FramePlan,
     ) -> Result<(), GpuError> {
         input.check(data)?;
-        if input.width.min(input.height) < 1 << (INGEST_LEVELS - 1) {
+        if input.width.min(input.height) < INGEST_BLOCK.1 {
             return Err(GpuError::InputTooSmall(input.width, input.height));
         }
         if (plan.lens.width, plan.lens.height) != (input.width, input.height) {
@@ -575,14 +632,9 @@ impl Renderer {
                 input.height,
             ));
         }
-        let model = model_code(&plan.lens.radial.model);
-        self.pipeline(INGEST, [input.format.shader_code(), 0, 0])?;
-        self.pipeline(MIP, [0; 3])?;
-        let draw = [
-            model,
-            self.output_format.shader_code(),
-            self.filter.shader_code(),
-        ];
+        self.pipeline(INGEST, [input.format.shader_code(), 0, 0, 0])?;
+        self.pipeline(MIP, [0; 4])?;
+        let draw = self.draw_constants(plan, input.format);
         self.pipeline(DRAW, draw)?;
         self.pipeline(DRAW_MIXED, draw)?;
         self.ensure_source(input, plan.lens.imaged_box());
@@ -592,10 +644,8 @@ impl Renderer {
         let source = self.source.as_ref().unwrap();
         let target = self.target.as_ref().unwrap();
         let mixed = self.mixed_blocks();
-        let (columns, rows) = &source.imaged;
-        let origin = (columns.start, rows.start);
         let (params, views) =
-            frame_params(plan, input, &target.layout, source.levels, origin, mixed)?;
+            frame_params(plan, &source.padded, &target.layout, source.levels, mixed)?;
         let queue = &self.gpu.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         if !views.is_empty() {
@@ -604,16 +654,28 @@ impl Renderer {
         Ok(())
     }
 
-    /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free).
+    /// The draw pipeline's override constants for a plan and an input format.
+    fn draw_constants(&self, plan: &FramePlan, input: PixelFormat) -> [u32; 4] {
+        [
+            model_code(&plan.lens.radial.model),
+            self.output_format.shader_code(),
+            self.filter.shader_code(),
+            input.shader_code(),
+        ]
+    }
+
+    /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free), rows
+    /// padded as the source's upload layout says.
     fn fill_upload(&self, slot: usize, data: &[u8]) -> Result<(), GpuError> {
-        let upload = &self.source.as_ref().unwrap().uploads[slot];
+        let source = self.source.as_ref().unwrap();
+        let upload = &source.uploads[slot];
         upload.wait(&self.gpu.device)?;
         {
             let mut view = upload
                 .buffer
                 .get_mapped_range_mut(..)
                 .map_err(|e| GpuError::Failed(e.to_string()))?;
-            view.slice(..data.len()).copy_from_slice(data);
+            restride(data, &source.layout, view.slice(..), &source.padded);
         }
         upload.buffer.unmap();
         Ok(())
@@ -621,24 +683,78 @@ impl Renderer {
 
     fn encode_upload(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
         let source = self.source.as_ref().unwrap();
-        encoder.copy_buffer_to_buffer(&source.uploads[slot].buffer, 0, &source.raw, 0, None);
-        let format = source.layout.format.shader_code();
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("ingest and mip chain"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.pipelines[&(INGEST, [format, 0, 0])]);
-        pass.set_bind_group(0, &source.ingest, &[]);
+        let upload = &source.uploads[slot].buffer;
+        encoder.copy_buffer_to_buffer(upload, 0, &source.raw, 0, None);
+        // Level 0 of every plane over the imaged box, straight from the upload buffer (woven
+        // I420 chroma comes from the level buffer, below).
         let (columns, rows) = &source.imaged;
-        pass.dispatch_workgroups(
-            groups(columns.len().div_ceil(4) as u32),
-            groups(rows.len().div_ceil(4) as u32),
-            1,
-        );
-        pass.set_pipeline(&self.pipelines[&(MIP, [0; 3])]);
-        for (group, (w, h)) in &source.mips {
-            pass.set_bind_group(0, group, &[]);
-            pass.dispatch_workgroups(groups(*w), groups(*h), 1);
+        let padded = &source.padded;
+        for (i, plane) in source.planes.iter().enumerate() {
+            if plane.spec.woven.is_some() {
+                continue;
+            }
+            // Chroma planes are half size, starting at their plane's offset.
+            let (scale, start, stride) = match i {
+                0 => (1, 0, padded.stride),
+                _ => (2, padded.chroma[i - 1], padded.chroma_stride),
+            };
+            let (x, y) = (columns.start / scale, rows.start / scale);
+            let texel = plane.spec.channels;
+            encoder.copy_buffer_to_texture(
+                wgpu::TexelCopyBufferInfo {
+                    buffer: upload,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: (start + y * stride + x * texel) as u64,
+                        bytes_per_row: Some(stride),
+                        rows_per_image: None,
+                    },
+                },
+                texture_level(&plane.texture, 0, (x, y)),
+                extent(columns.len() as u32 / scale, rows.len() as u32 / scale),
+            );
+        }
+        let format = source.layout.format.shader_code();
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("ingest and mip chain"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipelines[&(INGEST, [format, 0, 0, 0])]);
+            pass.set_bind_group(0, &source.ingest, &[]);
+            pass.dispatch_workgroups(
+                groups(columns.len().div_ceil(INGEST_BLOCK.0 as usize) as u32),
+                groups(rows.len().div_ceil(INGEST_BLOCK.1 as usize) as u32),
+                1,
+            );
+            pass.set_pipeline(&self.pipelines[&(MIP, [0; 4])]);
+            for (group, (w, h)) in &source.mips {
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(groups(*w), groups(*h), 1);
+            }
+        }
+        // Levels 1 and up of every plane (and woven level 0), whole, from the level buffer.
+        for plane in &source.planes {
+            let woven = plane.spec.woven.iter().map(|r| (0, r));
+            let levels = plane
+                .spec
+                .regions
+                .iter()
+                .enumerate()
+                .map(|(k, r)| (k + 1, r));
+            for (k, r) in woven.chain(levels) {
+                encoder.copy_buffer_to_texture(
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: &source.level_buffer,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: r.offset as u64,
+                            bytes_per_row: Some(r.stride),
+                            rows_per_image: None,
+                        },
+                    },
+                    texture_level(&plane.texture, k as u32, (0, 0)),
+                    extent(r.width, r.height),
+                );
+            }
         }
     }
 
@@ -649,13 +765,10 @@ impl Renderer {
             .map_or(0, |(m, _)| m.mixed.len() as u32)
     }
 
-    fn encode_draw(&self, encoder: &mut wgpu::CommandEncoder, model: u32) {
+    fn encode_draw(&self, encoder: &mut wgpu::CommandEncoder, plan: &FramePlan) {
         let target = self.target.as_ref().unwrap();
-        let constants = [
-            model,
-            self.output_format.shader_code(),
-            self.filter.shader_code(),
-        ];
+        let input = self.source.as_ref().unwrap().layout.format;
+        let constants = self.draw_constants(plan, input);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("draw"),
             timestamp_writes: None,
@@ -704,7 +817,7 @@ impl Renderer {
         self.fill_upload(slot, data)?;
         let mut encoder = self.encoder();
         self.encode_upload(&mut encoder, slot);
-        self.encode_draw(&mut encoder, model_code(&plan.lens.radial.model));
+        self.encode_draw(&mut encoder, plan);
         self.encode_readback(&mut encoder, slot);
         self.submit(encoder);
         self.next_id += 1;
@@ -781,7 +894,7 @@ impl Renderer {
         self.source.as_ref().unwrap().uploads[slot].request(wgpu::MapMode::Write);
         let t1 = Instant::now();
         let mut encoder = self.encoder();
-        self.encode_draw(&mut encoder, model_code(&plan.lens.radial.model));
+        self.encode_draw(&mut encoder, plan);
         wait(self.submit(encoder))?;
         let t2 = Instant::now();
         let mut encoder = self.encoder();
@@ -805,6 +918,79 @@ impl Renderer {
             readback: t3 - t2,
         };
         Ok((frame, times))
+    }
+}
+
+/// Copies every plane's rows of a frame laid out as `from` into `to`'s places in `out`
+/// (one copy when the layouts agree); padding is left as it is.
+fn restride(data: &[u8], from: &PlaneLayout, mut out: wgpu::WriteOnly<[u8]>, to: &PlaneLayout) {
+    if from == to {
+        out.slice(..data.len()).copy_from_slice(data);
+        return;
+    }
+    let mut rows = |(src, src_stride), (dst, dst_stride), bytes, count| {
+        for r in 0..count {
+            let s = (src + r * src_stride) as usize;
+            let d = (dst + r * dst_stride) as usize;
+            let n = bytes as usize;
+            out.slice(d..d + n).copy_from_slice(&data[s..s + n]);
+        }
+    };
+    let (w, h) = (from.width, from.height);
+    match from.format {
+        PixelFormat::Rgba => rows((0, from.stride), (0, to.stride), 4 * w, h),
+        format => {
+            rows((0, from.stride), (0, to.stride), w, h);
+            let (planes, bytes) = if format == PixelFormat::I420 {
+                (2, w / 2)
+            } else {
+                (1, w)
+            };
+            for p in 0..planes {
+                let src = (from.chroma[p], from.chroma_stride);
+                rows(src, (to.chroma[p], to.chroma_stride), bytes, h / 2);
+            }
+        }
+    }
+}
+
+/// Fills level 0 of a fresh plane texture with the plane's black (fresh textures are zero,
+/// which is black only for RGBA).
+fn fill_level0(queue: &wgpu::Queue, texture: &wgpu::Texture, spec: &PlaneSpec) {
+    if spec.black == 0 {
+        return;
+    }
+    let row = spec.width * spec.channels;
+    queue.write_texture(
+        texture_level(texture, 0, (0, 0)),
+        &vec![spec.black; (row * spec.height) as usize],
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(row),
+            rows_per_image: None,
+        },
+        extent(spec.width, spec.height),
+    );
+}
+
+fn texture_level(
+    texture: &wgpu::Texture,
+    level: u32,
+    (x, y): (u32, u32),
+) -> wgpu::TexelCopyTextureInfo<'_> {
+    wgpu::TexelCopyTextureInfo {
+        texture,
+        mip_level: level,
+        origin: wgpu::Origin3d { x, y, z: 0 },
+        aspect: wgpu::TextureAspect::All,
+    }
+}
+
+fn extent(width: u32, height: u32) -> wgpu::Extent3d {
+    wgpu::Extent3d {
+        width,
+        height,
+        depth_or_array_layers: 1,
     }
 }
 

@@ -5,6 +5,7 @@
 pub const LENS: &str = include_str!("../../../shaders/lens.wgsl");
 pub const COMMON: &str = include_str!("../../../shaders/common.wgsl");
 pub const INGEST: &str = include_str!("../../../shaders/ingest.wgsl");
+pub const LEVELS: &str = include_str!("../../../shaders/levels.wgsl");
 pub const MIP: &str = include_str!("../../../shaders/mip.wgsl");
 pub const RENDER: &str = include_str!("../../../shaders/render.wgsl");
 
@@ -16,9 +17,9 @@ pub fn compose(pass: &str) -> String {
 /// Every pass, named, as compiled.
 pub fn passes() -> [(&'static str, String); 3] {
     [
-        ("ingest", compose(INGEST)),
+        ("ingest", [LENS, COMMON, LEVELS, INGEST].join("\n")),
         // The mip pass reads no lens and no parameters.
-        ("mip", MIP.to_string()),
+        ("mip", [LEVELS, MIP].join("\n")),
         ("render", compose(RENDER)),
     ]
 }
