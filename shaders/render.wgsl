@@ -10,7 +10,9 @@
 // of detail is log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1,
 // y ^ 1), the derivatives a fragment shader would take. Each plane of the source has its own
 // texture and chain (src/render/gpu/planes.rs): RGBA; or luma, and Cb Cr pairs from half size,
-// filtered in Y Cb Cr and converted afterwards.
+// filtered in Y Cb Cr and converted afterwards. For 4:2:0 output, 4:2:0 chroma is sampled once
+// per 2x2 quad of the output (per view in a quad that straddles views), as the output keeps
+// it; for RGBA output, once per pixel.
 
 const KIND_BLACK: u32 = 0u;
 const KIND_RECTILINEAR: u32 = 1u;
@@ -100,27 +102,67 @@ fn view_xy(v: View, x: u32, y: u32) -> vec2f {
     return vec2f(f32(x) - f32(v.rect.x), f32(y) - f32(v.rect.y)) + 0.5;
 }
 
-// The colour of a pixel of view `vi` that lands at `q`, given its quad neighbours in x and y
-// (their views and landing points). A neighbour drawn by another view, or black, does not
-// count (src/render/cpu.rs measures the same way).
-fn shade(vi: i32, q: vec3f, vx: i32, qx: vec3f, vy: i32, qy: vec3f) -> vec3f {
-    return shade_by(q, qx, vx == vi, qy, vy == vi);
+// A pixel's level of detail, from where it lands (`q`) and where its quad neighbours in x and
+// y land. A neighbour drawn by another view, or black, does not count (src/render/cpu.rs
+// measures the same way).
+fn lod_of(q: vec3f, qx: vec3f, x_same: bool, qy: vec3f, y_same: bool) -> f32 {
+    if FILTER == FILTER_BILINEAR {
+        return 0.0;
+    }
+    let sx = select(0.0, distance(qx.xy, q.xy), x_same && qx.z > 0.0);
+    let sy = select(0.0, distance(qy.xy, q.xy), y_same && qy.z > 0.0);
+    return clamp(log2(max(max(sx, sy), 1.0)), 0.0, f32(params.input_planes.z - 1u));
 }
 
-// The same, told whether each neighbour belongs to the pixel's view.
-fn shade_by(q: vec3f, qx: vec3f, x_same: bool, qy: vec3f, y_same: bool) -> vec3f {
-    var lod = 0.0;
-    if FILTER == FILTER_MIP {
-        let sx = select(0.0, distance(qx.xy, q.xy), x_same && qx.z > 0.0);
-        let sy = select(0.0, distance(qy.xy, q.xy), y_same && qy.z > 0.0);
-        lod = clamp(log2(max(max(sx, sy), 1.0)), 0.0, f32(params.input_planes.z - 1u));
-    }
-    let uv = (q.xy + 0.5) / params.lens.offset_frame.zw;
-    let first = textureSampleLevel(plane0, trilinear, uv, lod);
+// Fisheye pixel coordinates → texture coordinates.
+fn uv_of(q: vec2f) -> vec2f {
+    return (q + 0.5) / params.lens.offset_frame.zw;
+}
+
+// 4:2:0 input's chroma (Cb Cr, 0..1) at fisheye point q, level of detail `lod` counted in
+// the chroma's own chain (whose level 0 is the frame's level 1).
+fn chroma_at(q: vec2f, lod: f32) -> vec2f {
+    return textureSampleLevel(plane1, trilinear, uv_of(q), lod).rg;
+}
+
+// A pixel's own chroma, for RGBA output: at the pixel, one level up.
+fn pixel_chroma(q: vec3f, lod: f32) -> vec2f {
+    return chroma_at(q.xy, max(lod - 1.0, 0.0));
+}
+
+// For 4:2:0 output, the chroma a group of a quad's pixels share (4:2:0 output keeps one per
+// quad): one sample at the mean of where they land, at the largest of their levels of detail
+// (a quad spans two pixels each way, as a chroma texel spans two of the frame's, so a pixel's
+// level of detail is the chroma chain's own). The group is pixel a and those of b, c, d whose
+// flag is set; pixels that see nothing do not count.
+fn group_chroma(
+    a: vec3f, la: f32,
+    b: vec3f, lb: f32, b_in: bool,
+    c: vec3f, lc: f32, c_in: bool,
+    d: vec3f, ld: f32, d_in: bool,
+) -> vec2f {
+    let ia = a.z > 0.0;
+    let ib = b_in && b.z > 0.0;
+    let ic = c_in && c.z > 0.0;
+    let id = d_in && d.z > 0.0;
+    let zero = vec2f(0.0);
+    let sum = select(zero, a.xy, ia) + select(zero, b.xy, ib) + select(zero, c.xy, ic)
+        + select(zero, d.xy, id);
+    let n = select(0.0, 1.0, ia) + select(0.0, 1.0, ib) + select(0.0, 1.0, ic)
+        + select(0.0, 1.0, id);
+    let lod = max(
+        max(select(0.0, la, ia), select(0.0, lb, ib)),
+        max(select(0.0, lc, ic), select(0.0, ld, id)),
+    );
+    return chroma_at(sum / max(n, 1.0), lod);
+}
+
+// The colour of a pixel that lands at `q` with level of detail `lod`: RGBA, or luma at the
+// pixel with its group's chroma `cbcr` for 4:2:0 input.
+fn colour(q: vec3f, lod: f32, cbcr: vec2f) -> vec3f {
+    let first = textureSampleLevel(plane0, trilinear, uv_of(q.xy), lod);
     var c = first.rgb;
     if INPUT_FORMAT != FORMAT_RGBA {
-        // Chroma's level 0 is the frame's level 1.
-        let cbcr = textureSampleLevel(plane1, trilinear, uv, max(lod - 1.0, 0.0)).rg;
         c = yuv_to_rgb(first.r * 255.0, cbcr.x * 255.0, cbcr.y * 255.0);
     }
     return select(vec3f(0.0), c, q.z > 0.0);
@@ -134,6 +176,8 @@ struct Quad {
     c3: vec3f,
 }
 
+// A quad whose pixels may belong to different views (or none); for 4:2:0 in and out, each
+// view's pixels share their chroma.
 fn draw_quad(x0: u32, y0: u32) -> Quad {
     let x1 = x0 + 1u;
     let y1 = y0 + 1u;
@@ -145,12 +189,26 @@ fn draw_quad(x0: u32, y0: u32) -> Quad {
     let q1 = view_pixel(v1, x1, y0);
     let q2 = view_pixel(v2, x0, y1);
     let q3 = view_pixel(v3, x1, y1);
-    return Quad(
-        shade(v0, q0, v1, q1, v2, q2),
-        shade(v1, q1, v0, q0, v3, q3),
-        shade(v2, q2, v3, q3, v0, q0),
-        shade(v3, q3, v2, q2, v1, q1),
-    );
+    let l0 = lod_of(q0, q1, v1 == v0, q2, v2 == v0);
+    let l1 = lod_of(q1, q0, v0 == v1, q3, v3 == v1);
+    let l2 = lod_of(q2, q3, v3 == v2, q0, v0 == v2);
+    let l3 = lod_of(q3, q2, v2 == v3, q1, v1 == v3);
+    var c0 = vec2f(0.5);
+    var c1 = c0;
+    var c2 = c0;
+    var c3 = c0;
+    if INPUT_FORMAT != FORMAT_RGBA && OUTPUT_FORMAT == FORMAT_RGBA {
+        c0 = pixel_chroma(q0, l0);
+        c1 = pixel_chroma(q1, l1);
+        c2 = pixel_chroma(q2, l2);
+        c3 = pixel_chroma(q3, l3);
+    } else if INPUT_FORMAT != FORMAT_RGBA {
+        c0 = group_chroma(q0, l0, q1, l1, v1 == v0, q2, l2, v2 == v0, q3, l3, v3 == v0);
+        c1 = group_chroma(q1, l1, q0, l0, v0 == v1, q2, l2, v2 == v1, q3, l3, v3 == v1);
+        c2 = group_chroma(q2, l2, q0, l0, v0 == v2, q1, l1, v1 == v2, q3, l3, v3 == v2);
+        c3 = group_chroma(q3, l3, q0, l0, v0 == v3, q1, l1, v1 == v3, q2, l2, v2 == v3);
+    }
+    return Quad(colour(q0, l0, c0), colour(q1, l1, c1), colour(q2, l2, c2), colour(q3, l3, c3));
 }
 
 // A quad that lies in view `v` (`drawn`: false for no view, black).
@@ -161,12 +219,23 @@ fn draw_quad_in(v: View, drawn: bool, x0: u32, y0: u32) -> Quad {
     let q1 = select(black, view_point(v, p + vec2f(1.0, 0.0)), drawn);
     let q2 = select(black, view_point(v, p + vec2f(0.0, 1.0)), drawn);
     let q3 = select(black, view_point(v, p + vec2f(1.0, 1.0)), drawn);
-    return Quad(
-        shade_by(q0, q1, true, q2, true),
-        shade_by(q1, q0, true, q3, true),
-        shade_by(q2, q3, true, q0, true),
-        shade_by(q3, q2, true, q1, true),
-    );
+    let l0 = lod_of(q0, q1, true, q2, true);
+    let l1 = lod_of(q1, q0, true, q3, true);
+    let l2 = lod_of(q2, q3, true, q0, true);
+    let l3 = lod_of(q3, q2, true, q1, true);
+    if INPUT_FORMAT != FORMAT_RGBA && OUTPUT_FORMAT == FORMAT_RGBA {
+        return Quad(
+            colour(q0, l0, pixel_chroma(q0, l0)),
+            colour(q1, l1, pixel_chroma(q1, l1)),
+            colour(q2, l2, pixel_chroma(q2, l2)),
+            colour(q3, l3, pixel_chroma(q3, l3)),
+        );
+    }
+    var cbcr = vec2f(0.5);
+    if INPUT_FORMAT != FORMAT_RGBA {
+        cbcr = group_chroma(q0, l0, q1, l1, true, q2, l2, true, q3, l3, true);
+    }
+    return Quad(colour(q0, l0, cbcr), colour(q1, l1, cbcr), colour(q2, l2, cbcr), colour(q3, l3, cbcr));
 }
 
 fn luma(c: vec3f) -> f32 {

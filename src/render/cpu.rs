@@ -4,7 +4,7 @@
 //! sample of the fisheye's mip chain at the footprint its quad neighbours give (those the
 //! same view draws).
 
-use super::frame::{FrameError, PlaneLayout};
+use super::frame::{FrameError, PixelFormat, PlaneLayout};
 use super::mip::{Filter, Pyramid, lod};
 use super::plan::{FramePlan, PlannedView};
 use crate::image_ops::{sample_offsets, to_rgb8};
@@ -22,21 +22,20 @@ pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage 
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    render_from(
-        plan,
-        &Pyramid::new(&imaged_only(fisheye, &plan.lens)),
-        filter,
-    )
+    let pyramid = Pyramid::new(&imaged_only(fisheye, &plan.lens));
+    render_from(plan, &pyramid, filter, false)
 }
 
-/// The same from a frame's bytes in any [`PixelFormat`](super::PixelFormat): a 4:2:0 frame
-/// is filtered as it comes, luma from full size and chroma from half (`render::mip`), as the
-/// GPU does.
+/// The same from a frame's bytes in any [`PixelFormat`], as the GPU renders it into `output`
+/// frames: a 4:2:0 frame is filtered as it comes, luma from full size and chroma from half
+/// (`render::mip`); when `output` is 4:2:0 too, its chroma is sampled once per 2x2 quad of
+/// the output (per view), else once per pixel.
 pub fn render_frame(
     plan: &FramePlan,
     data: &[u8],
     layout: &PlaneLayout,
     filter: Filter,
+    output: PixelFormat,
 ) -> Result<RgbImage, FrameError> {
     layout.check(data)?;
     assert_eq!(
@@ -45,31 +44,51 @@ pub fn render_frame(
         "the plan's lens must be scaled to the fisheye frame"
     );
     let pyramid = Pyramid::from_frame(data, layout, &plan.lens.imaged_box());
-    Ok(render_from(plan, &pyramid, filter))
+    Ok(render_from(plan, &pyramid, filter, output.is_yuv()))
 }
 
-fn render_from(plan: &FramePlan, pyramid: &Pyramid, filter: Filter) -> RgbImage {
-    render_pixels(plan, |view, x, y| {
+/// `quad_chroma`: 4:2:0 chroma once per quad (4:2:0 output) rather than per pixel.
+fn render_from(plan: &FramePlan, pyramid: &Pyramid, filter: Filter, quad_chroma: bool) -> RgbImage {
+    // Whether `view` draws frame pixel (x, y): the last view containing it (tiles cover views).
+    let draws = |view: &PlannedView, x: u32, y: u32| {
+        let drawn = plan.views.iter().rev().find(|v| v.rect.contains(x, y));
+        drawn.is_some_and(|v| std::ptr::eq(v, view))
+    };
+    // Where frame pixel (x, y) of `view` lands in the fisheye, if it sees anything.
+    let land = |view: &PlannedView, x: u32, y: u32| {
         let r = view.rect;
-        let p = DVec2::new((x - r.x) as f64 + 0.5, (y - r.y) as f64 + 0.5);
-        let q = plan.fisheye_pixel(view, p)?;
+        let p = DVec2::new(x as f64 - r.x as f64 + 0.5, y as f64 - r.y as f64 + 0.5);
+        plan.fisheye_pixel(view, p)
+    };
+    // Where a pixel of `view` lands and its level of detail, from its quad neighbours x ^ 1
+    // and y ^ 1 where this same view draws them and they see something.
+    let point = |view: &PlannedView, x: u32, y: u32| {
+        let q = land(view, x, y)?;
         let level = match filter {
             Filter::Bilinear => 0.0,
             Filter::Mip => {
-                // The quad neighbours x ^ 1 and y ^ 1 (frame coordinates), where this same view
-                // is drawn and sees something.
-                let neighbour = |nx: u32, ny: u32| {
-                    let drawn = plan.views.iter().rev().find(|v| v.rect.contains(nx, ny));
-                    let n = DVec2::new(nx as f64 - x as f64, ny as f64 - y as f64);
-                    drawn
-                        .is_some_and(|v| std::ptr::eq(v, view))
-                        .then(|| plan.fisheye_pixel(view, p + n))
-                        .flatten()
-                };
+                let neighbour = |nx, ny| draws(view, nx, ny).then(|| land(view, nx, ny)).flatten();
                 lod(q, neighbour(x ^ 1, y), neighbour(x, y ^ 1))
             }
         };
-        Some(pyramid.sample(q, level))
+        Some((q, level))
+    };
+    render_pixels(plan, |view, x, y| {
+        let (q, level) = point(view, x, y)?;
+        if !pyramid.is_420() || !quad_chroma {
+            return Some(pyramid.sample(q, level));
+        }
+        // 4:2:0: the chroma this view's pixels of the 2x2 quad share, sampled once at the mean
+        // of where they land, at the largest of their levels of detail (shaders/render.wgsl).
+        let (qx, qy) = (x & !1, y & !1);
+        let group: Vec<(DVec2, f64)> = [(qx, qy), (qx + 1, qy), (qx, qy + 1), (qx + 1, qy + 1)]
+            .into_iter()
+            .filter(|&(gx, gy)| draws(view, gx, gy))
+            .filter_map(|(gx, gy)| point(view, gx, gy))
+            .collect();
+        let centre = group.iter().map(|g| g.0).sum::<DVec2>() / group.len() as f64;
+        let chroma_lod = group.iter().map(|g| g.1).fold(0.0, f64::max);
+        Some(pyramid.sample_420(q, level, centre, chroma_lod))
     })
 }
 

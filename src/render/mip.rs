@@ -129,14 +129,20 @@ impl Pyramid {
         DVec2::new(w as f64, h as f64)
     }
 
+    /// Whether this is a 4:2:0 chain (luma at level 0, chroma from level 1).
+    pub fn is_420(&self) -> bool {
+        matches!(self.base, Base::Luma(_))
+    }
+
     /// Trilinear sample at fisheye pixel `q` (level-0 pixel centres at integers), `lod`
     /// clamped to the chain, as RGB (0..255); edges clamp, as the GPU's sampler does. Below
-    /// level 1 it blends level 0 with level 1 (4:2:0 chroma is level 1's throughout).
+    /// level 1 it blends level 0 with level 1; 4:2:0 chroma is taken at `q` too, at level 1
+    /// below `lod` 1 (see [`Pyramid::sample_420`] for chroma taken elsewhere).
     pub fn sample(&self, q: DVec2, lod: f64) -> DVec3 {
-        let lod = lod.clamp(0.0, self.coarse.len() as f64);
-        let t = lod.min(1.0);
         match &self.base {
             Base::Rgb(img) => {
+                let lod = lod.clamp(0.0, self.coarse.len() as f64);
+                let t = lod.min(1.0);
                 let fine = bilinear(img, q);
                 if t == 0.0 {
                     return fine;
@@ -148,12 +154,28 @@ impl Pyramid {
                     fine.lerp(coarse, t)
                 }
             }
-            Base::Luma(luma) => {
-                let c = self.sample_coarse(q, lod - t);
-                let y = bilinear_luma(luma, q);
-                yuv::yuv_to_rgb(DVec3::new(y + (c.x - y) * t, c.y, c.z))
-            }
+            Base::Luma(_) => self.sample_420(q, lod, q, (lod - 1.0).max(0.0)),
         }
+    }
+
+    /// A 4:2:0 chain's colour (RGB, 0..255): luma at `q` and `lod` as [`Pyramid::sample`]
+    /// takes it, chroma at `chroma_q` and `chroma_lod` counted in the chroma's own chain
+    /// (whose level 0 is the frame's level 1), clamped to it.
+    pub fn sample_420(&self, q: DVec2, lod: f64, chroma_q: DVec2, chroma_lod: f64) -> DVec3 {
+        let Base::Luma(luma) = &self.base else {
+            panic!("sample_420 on an RGB chain");
+        };
+        let lod = lod.clamp(0.0, self.coarse.len() as f64);
+        let t = lod.min(1.0);
+        let y0 = bilinear_luma(luma, q);
+        let y = if t == 0.0 {
+            y0
+        } else {
+            y0 + (self.sample_coarse(q, lod - t).x - y0) * t
+        };
+        let last = (self.coarse.len() - 1) as f64;
+        let c = self.sample_coarse(chroma_q, chroma_lod.clamp(0.0, last));
+        yuv::yuv_to_rgb(DVec3::new(y, c.y, c.z))
     }
 
     /// Trilinear sample of levels 1 and up, `lod` counted from level 1.
