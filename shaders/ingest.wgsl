@@ -74,43 +74,56 @@ fn ingest(@builtin(global_invocation_id) gid: vec3u) {
         return;
     }
     // Luma level 1: 8 texels (2 words) in each of 2 rows; level 2: 4 texels (1 word).
-    var l1: array<u32, 4>;
-    for (var r = 0u; r < 2u; r++) {
-        let top = at(0u, stride, h, y0 + 2u * r, x0);
-        let bottom = at(0u, stride, h, y0 + 2u * r + 1u, x0);
-        for (var i = 0u; i < 2u; i++) {
-            let w = halve(raw[top + 2u * i], raw[top + 2u * i + 1u], raw[bottom + 2u * i], raw[bottom + 2u * i + 1u], 1u);
-            l1[r * 2u + i] = w;
-            put(targets.level1, y0 / 2u + r, x0 / 8u + i, w);
-        }
-    }
-    put(targets.level2, y0 / 4u, x0 / 16u, halve(l1[0], l1[1], l1[2], l1[3], 1u));
+    let t0 = at(0u, stride, h, y0, x0);
+    let t1 = at(0u, stride, h, y0 + 1u, x0);
+    let t2 = at(0u, stride, h, y0 + 2u, x0);
+    let t3 = at(0u, stride, h, y0 + 3u, x0);
+    let a0 = halve(raw[t0], raw[t0 + 1u], raw[t1], raw[t1 + 1u], 1u);
+    let a1 = halve(raw[t0 + 2u], raw[t0 + 3u], raw[t1 + 2u], raw[t1 + 3u], 1u);
+    let b0 = halve(raw[t2], raw[t2 + 1u], raw[t3], raw[t3 + 1u], 1u);
+    let b1 = halve(raw[t2 + 2u], raw[t2 + 3u], raw[t3 + 2u], raw[t3 + 3u], 1u);
+    put(targets.level1, y0 / 2u, x0 / 8u, a0);
+    put(targets.level1, y0 / 2u, x0 / 8u + 1u, a1);
+    put(targets.level1, y0 / 2u + 1u, x0 / 8u, b0);
+    put(targets.level1, y0 / 2u + 1u, x0 / 8u + 1u, b1);
+    put(targets.level2, y0 / 4u, x0 / 16u, halve(a0, a1, b0, b1, 1u));
     // Chroma: rows y0 / 2 and y0 / 2 + 1 of the half-size plane, 8 Cb Cr pairs (4 words)
     // each.
-    let cs = params.input.w;
-    let ch = h / 2u;
     let cy = y0 / 2u;
-    var uv: array<u32, 8>;
-    for (var r = 0u; r < 2u; r++) {
-        if INPUT_FORMAT == FORMAT_I420 {
-            let u = at(params.input_planes.x, cs, ch, cy + r, x0 / 2u);
-            let v = at(params.input_planes.y, cs, ch, cy + r, x0 / 2u);
-            for (var i = 0u; i < 2u; i++) {
-                uv[r * 4u + 2u * i] = weave(raw[u + i], raw[v + i]);
-                uv[r * 4u + 2u * i + 1u] = weave(raw[u + i] >> 16u, raw[v + i] >> 16u);
-            }
-            for (var i = 0u; i < 4u; i++) {
-                put(targets.chroma0, cy + r, x0 / 4u + i, uv[r * 4u + i]);
-            }
-        } else {
-            let a = at(params.input_planes.x, cs, ch, cy + r, x0);
-            for (var i = 0u; i < 4u; i++) {
-                uv[r * 4u + i] = raw[a + i];
-            }
-        }
+    let upper = chroma_row(cy, x0);
+    let lower = chroma_row(cy + 1u, x0);
+    if INPUT_FORMAT == FORMAT_I420 {
+        put4(targets.chroma0, cy, x0 / 4u, upper);
+        put4(targets.chroma0, cy + 1u, x0 / 4u, lower);
     }
-    put(targets.chroma1, cy / 2u, x0 / 8u, halve(uv[0], uv[1], uv[4], uv[5], 2u));
-    put(targets.chroma1, cy / 2u, x0 / 8u + 1u, halve(uv[2], uv[3], uv[6], uv[7], 2u));
+    put(targets.chroma1, cy / 2u, x0 / 8u, halve(upper.x, upper.y, lower.x, lower.y, 2u));
+    put(targets.chroma1, cy / 2u, x0 / 8u + 1u, halve(upper.z, upper.w, lower.z, lower.w, 2u));
+}
+
+// Eight Cb Cr pairs of chroma row `cy` from the frame's column x0 on, as NV12 holds them (woven
+// from I420's two planes).
+fn chroma_row(cy: u32, x0: u32) -> vec4u {
+    let stride = params.input.w;
+    let rows = params.input.y / 2u;
+    if INPUT_FORMAT == FORMAT_I420 {
+        let u = at(params.input_planes.x, stride, rows, cy, x0 / 2u);
+        let v = at(params.input_planes.y, stride, rows, cy, x0 / 2u);
+        let u0 = raw[u];
+        let u1 = raw[u + 1u];
+        let v0 = raw[v];
+        let v1 = raw[v + 1u];
+        return vec4u(weave(u0, v0), weave(u0 >> 16u, v0 >> 16u), weave(u1, v1), weave(u1 >> 16u, v1 >> 16u));
+    }
+    let i = at(params.input_planes.x, stride, rows, cy, x0);
+    return vec4u(raw[i], raw[i + 1u], raw[i + 2u], raw[i + 3u]);
+}
+
+// Four words from word i of row y of a region.
+fn put4(r: Region, y: u32, i: u32, w: vec4u) {
+    put(r, y, i, w.x);
+    put(r, y, i + 1u, w.y);
+    put(r, y, i + 2u, w.z);
+    put(r, y, i + 3u, w.w);
 }
 
 // The Cb Cr pairs of two Cb and two Cr samples (the low half of each word): u0 v0 u1 v1.

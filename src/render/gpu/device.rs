@@ -12,6 +12,10 @@ pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: AdapterInfo,
+    /// The device reads buffers the host maps as fast as its own (a software rasterizer or an
+    /// integrated GPU) and may use them as storage: the renderer then reads uploaded frames
+    /// where they were written, without copying them first.
+    pub shared_memory: bool,
 }
 
 fn rank(t: DeviceType) -> u8 {
@@ -66,8 +70,18 @@ impl Gpu {
         };
         let info = adapter.get_info();
         let limits = adapter.limits();
+        let mappable = wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
+        let shared_memory = matches!(
+            info.device_type,
+            DeviceType::Cpu | DeviceType::IntegratedGpu
+        ) && adapter.features().contains(mappable);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("digiview"),
+            required_features: if shared_memory {
+                mappable
+            } else {
+                wgpu::Features::empty()
+            },
             required_limits: limits,
             ..Default::default()
         }))
@@ -80,6 +94,7 @@ impl Gpu {
             device,
             queue,
             info,
+            shared_memory,
         })
     }
 

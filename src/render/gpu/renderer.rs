@@ -128,11 +128,14 @@ struct Source {
     imaged: ImagedBox,
     levels: u32,
     uploads: Vec<MapSlot>,
-    raw: wgpu::Buffer,
+    /// The frame's bytes where the ingest reads them: a copy of the upload buffer, or none
+    /// where the device reads the upload buffers themselves (`Gpu::shared_memory`).
+    raw: Option<wgpu::Buffer>,
     /// Every plane's levels from 1 on, packed (`planes::SourcePlanes`).
     level_buffer: wgpu::Buffer,
     planes: Vec<Plane>,
-    ingest: wgpu::BindGroup,
+    /// The ingest's bindings: one, or one per upload buffer where it reads them.
+    ingest: Vec<wgpu::BindGroup>,
     /// The mip passes: bind group and dispatch size (words across, rows).
     mips: Vec<(wgpu::BindGroup, (u32, u32))>,
 }
@@ -387,23 +390,31 @@ impl Renderer {
         }
         let device = &self.gpu.device;
         let padded = padded_for_copy(layout);
-        let size = (padded.size as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
-        let uploads = (0..RING)
+        // The ingest may read a word past the last row's end.
+        let size = (padded.size as u64 + 16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let shared = self.gpu.shared_memory;
+        let read = if shared {
+            wgpu::BufferUsages::STORAGE
+        } else {
+            wgpu::BufferUsages::empty()
+        };
+        let uploads: Vec<MapSlot> = (0..RING)
             .map(|i| {
                 MapSlot::new(
                     device,
                     &format!("upload {i}"),
                     size,
-                    wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
+                    wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC | read,
                 )
             })
             .collect();
-        let raw = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("raw input"),
-            // The ingest may read a word past the last row's end.
-            size: size + 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
+        let raw = (!shared).then(|| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("raw input"),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
         });
         let specs = SourcePlanes::new(layout.format, layout.width, layout.height);
         let level_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -468,16 +479,25 @@ impl Renderer {
         let bounds = [columns.start, rows.start, columns.end, rows.end];
         targets.extend_from_slice(bytemuck::cast_slice(&bounds));
         let targets = uniform_init("ingest targets", &targets);
-        let ingest = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ingest"),
-            layout: &self.layouts.ingest,
-            entries: &[
-                bind(0, self.params.as_entire_binding()),
-                bind(1, raw.as_entire_binding()),
-                bind(2, level_buffer.as_entire_binding()),
-                bind(3, targets.as_entire_binding()),
-            ],
-        });
+        let inputs = match &raw {
+            Some(raw) => vec![raw],
+            None => uploads.iter().map(|u| &u.buffer).collect(),
+        };
+        let ingest = inputs
+            .into_iter()
+            .map(|input| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("ingest"),
+                    layout: &self.layouts.ingest,
+                    entries: &[
+                        bind(0, self.params.as_entire_binding()),
+                        bind(1, input.as_entire_binding()),
+                        bind(2, level_buffer.as_entire_binding()),
+                        bind(3, targets.as_entire_binding()),
+                    ],
+                })
+            })
+            .collect();
         let mips = specs
             .mip_steps()
             .into_iter()
@@ -684,7 +704,9 @@ impl Renderer {
     fn encode_upload(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
         let source = self.source.as_ref().unwrap();
         let upload = &source.uploads[slot].buffer;
-        encoder.copy_buffer_to_buffer(upload, 0, &source.raw, 0, None);
+        if let Some(raw) = &source.raw {
+            encoder.copy_buffer_to_buffer(upload, 0, raw, 0, None);
+        }
         // Level 0 of every plane over the imaged box, straight from the upload buffer (woven
         // I420 chroma comes from the level buffer, below).
         let (columns, rows) = &source.imaged;
@@ -720,7 +742,7 @@ impl Renderer {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&self.pipelines[&(INGEST, [format, 0, 0, 0])]);
-            pass.set_bind_group(0, &source.ingest, &[]);
+            pass.set_bind_group(0, &source.ingest[slot.min(source.ingest.len() - 1)], &[]);
             pass.dispatch_workgroups(
                 groups(columns.len().div_ceil(INGEST_BLOCK.0 as usize) as u32),
                 groups(rows.len().div_ceil(INGEST_BLOCK.1 as usize) as u32),
