@@ -23,6 +23,8 @@ const FILTER_MIP: u32 = 0u;
 const FILTER_BILINEAR: u32 = 1u;
 
 override INPUT_FORMAT: u32 = 0u;
+// The view kinds the frame has, a bit per KIND_*: code for the kinds it lacks is left out.
+override VIEW_KINDS: u32 = 0xfu;
 override OUTPUT_FORMAT: u32 = 0u;
 override FILTER: u32 = 0u;
 
@@ -75,7 +77,8 @@ fn view_at(x: u32, y: u32) -> i32 {
 // The fisheye pixel seen at point p of view `vi` (xy) and whether anything is imaged (z):
 // FramePlan::fisheye_pixel. Written without branches on the view's kind: a software
 // rasterizer runs both sides of a branch whenever its lanes disagree, so one lens projection
-// serves the rectified kinds and selects pick the result.
+// serves the rectified kinds and selects pick the result. The code of kinds the frame lacks
+// (VIEW_KINDS) folds away when the pipeline is built.
 fn view_point(v: View, p: vec2f) -> vec3f {
     let m = mat3x3f(v.m0.xyz, v.m1.xyz, v.m2.xyz);
     let k = v.p;
@@ -84,10 +87,14 @@ fn view_point(v: View, p: vec2f) -> vec3f {
     let e = k.y - (p.y - k.w) * k.x;
     let panorama = vec3f(cos(e) * cos(a), cos(e) * sin(a), -sin(e));
     let rectilinear = vec3f(k.x, p.x - k.y, p.y - k.z);
-    let rectified = lens_project(m * select(rectilinear, panorama, kind == KIND_PANORAMA));
+    let panoramas = (VIEW_KINDS & (1u << KIND_PANORAMA)) != 0u;
+    let rectified_kinds = (VIEW_KINDS & ((1u << KIND_RECTILINEAR) | (1u << KIND_PANORAMA))) != 0u;
+    let fisheyes = (VIEW_KINDS & (1u << KIND_FISHEYE)) != 0u;
+    let ray = select(rectilinear, panorama, panoramas && kind == KIND_PANORAMA);
+    let rectified = lens_project(m * ray);
     let q = k.xy + p * k.z - 0.5;
     let fisheye = vec3f(q, select(0.0, 1.0, lens_images(q)));
-    let drawn = select(rectified, fisheye, kind == KIND_FISHEYE);
+    let drawn = select(rectified, fisheye, fisheyes && (kind == KIND_FISHEYE || !rectified_kinds));
     return select(vec3f(0.0), drawn, kind != KIND_BLACK);
 }
 

@@ -205,7 +205,7 @@ pub const FRAME_EDGE_SLACK: f64 = 0.001;
 /// mip level 3.
 pub const IMAGED_MARGIN: f64 = 16.0;
 /// [`Lens::imaged_box`] is rounded out to multiples of this many pixels: whole 4:2:0 blocks,
-/// and whole workgroups of the GPU's ingest (8 blocks of 4 pixels each way).
+/// whole 16x4 blocks of the GPU's ingest and whole words of every plane's first mip levels.
 pub const IMAGED_ALIGN: u32 = 32;
 
 /// A sensor crop: the part of the calibration frame the camera delivers, in calibration pixels.

@@ -13,7 +13,7 @@
 //! renders.
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
-use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
+use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code, view_kinds};
 use super::planes::{PlaneSpec, SourcePlanes, padded_for_copy};
 use super::shaders;
 use super::{Gpu, GpuError};
@@ -169,7 +169,7 @@ pub struct Renderer {
     sampler: wgpu::Sampler,
     layouts: Layouts,
     modules: [wgpu::ShaderModule; 3],
-    pipelines: HashMap<(usize, [u32; 4]), wgpu::ComputePipeline>,
+    pipelines: HashMap<(usize, [u32; 5]), wgpu::ComputePipeline>,
     source: Option<Source>,
     target: Option<Target>,
     draw_group: Option<wgpu::BindGroup>,
@@ -331,7 +331,7 @@ impl Renderer {
         &self.gpu
     }
 
-    fn pipeline(&mut self, pass: usize, constants: [u32; 4]) -> Result<(), GpuError> {
+    fn pipeline(&mut self, pass: usize, constants: [u32; 5]) -> Result<(), GpuError> {
         if self.pipelines.contains_key(&(pass, constants)) {
             return Ok(());
         }
@@ -339,7 +339,13 @@ impl Renderer {
         let names: &[&str] = match pass {
             INGEST => &["INPUT_FORMAT"],
             MIP => &[],
-            _ => &["LENS_MODEL", "OUTPUT_FORMAT", "FILTER", "INPUT_FORMAT"],
+            _ => &[
+                "LENS_MODEL",
+                "OUTPUT_FORMAT",
+                "FILTER",
+                "INPUT_FORMAT",
+                "VIEW_KINDS",
+            ],
         };
         let values: Vec<(&str, f64)> = names
             .iter()
@@ -652,8 +658,8 @@ impl Renderer {
                 input.height,
             ));
         }
-        self.pipeline(INGEST, [input.format.shader_code(), 0, 0, 0])?;
-        self.pipeline(MIP, [0; 4])?;
+        self.pipeline(INGEST, [input.format.shader_code(), 0, 0, 0, 0])?;
+        self.pipeline(MIP, [0; 5])?;
         let draw = self.draw_constants(plan, input.format);
         self.pipeline(DRAW, draw)?;
         self.pipeline(DRAW_MIXED, draw)?;
@@ -675,12 +681,13 @@ impl Renderer {
     }
 
     /// The draw pipeline's override constants for a plan and an input format.
-    fn draw_constants(&self, plan: &FramePlan, input: PixelFormat) -> [u32; 4] {
+    fn draw_constants(&self, plan: &FramePlan, input: PixelFormat) -> [u32; 5] {
         [
             model_code(&plan.lens.radial.model),
             self.output_format.shader_code(),
             self.filter.shader_code(),
             input.shader_code(),
+            view_kinds(plan),
         ]
     }
 
@@ -741,14 +748,14 @@ impl Renderer {
                 label: Some("ingest and mip chain"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipelines[&(INGEST, [format, 0, 0, 0])]);
+            pass.set_pipeline(&self.pipelines[&(INGEST, [format, 0, 0, 0, 0])]);
             pass.set_bind_group(0, &source.ingest[slot.min(source.ingest.len() - 1)], &[]);
             pass.dispatch_workgroups(
                 groups(columns.len().div_ceil(INGEST_BLOCK.0 as usize) as u32),
                 groups(rows.len().div_ceil(INGEST_BLOCK.1 as usize) as u32),
                 1,
             );
-            pass.set_pipeline(&self.pipelines[&(MIP, [0; 4])]);
+            pass.set_pipeline(&self.pipelines[&(MIP, [0; 5])]);
             for (group, (w, h)) in &source.mips {
                 pass.set_bind_group(0, group, &[]);
                 pass.dispatch_workgroups(groups(*w), groups(*h), 1);
