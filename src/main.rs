@@ -9,6 +9,10 @@ fn main() -> std::process::ExitCode {
         )
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        // With the log's reader gone (`digiview serve 2>&1 | head`, a closed terminal), a
+        // failed write must cost the line, not panic the thread that logged it: that thread
+        // may be the one that stops the server on SIGTERM.
+        .log_internal_errors(false)
         .init();
     match digiview::cli::run(digiview::cli::Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,

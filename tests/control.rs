@@ -1212,3 +1212,19 @@ fn ctl_says_when_no_server_answers() {
         text(&o.stderr)
     );
 }
+
+#[test]
+fn sigterm_stops_the_server_even_when_nobody_reads_its_log() {
+    // `digiview serve 2>&1 | head -1`, or a terminal closed under it: its log lines go
+    // nowhere, and it must still stop on SIGTERM (it used to keep running).
+    let mut serve = Serve::start_unread(&[]);
+    // A client connecting is logged at info level: a write into the dead pipe before the
+    // signal.
+    let status = serve.tcp().get(ParamType::SystemStatus.zeroed());
+    assert_eq!(status.param_type(), ParamType::SystemStatus);
+    serve.terminate();
+    let exit = serve
+        .wait_exit(Duration::from_secs(10))
+        .expect("serve exits on SIGTERM with nobody reading its log");
+    assert!(exit.success(), "{exit:?}");
+}

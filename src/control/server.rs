@@ -235,16 +235,22 @@ pub async fn stop_on_signals(shutdown: Shutdown) {
                 return;
             }
         };
-        tokio::select! {
-            _ = ctrl_c => info!("SIGINT: stopping"),
-            _ = term.recv() => info!("SIGTERM: stopping"),
-            _ = shutdown.wait() => {}
-        }
+        let signal = tokio::select! {
+            _ = ctrl_c => "SIGINT",
+            _ = term.recv() => "SIGTERM",
+            _ = shutdown.wait() => return,
+        };
+        // Stop first: nothing the log does may keep the server running.
+        shutdown.trigger();
+        info!("{signal}: stopping");
     }
     #[cfg(not(unix))]
-    tokio::select! {
-        _ = ctrl_c => info!("SIGINT: stopping"),
-        _ = shutdown.wait() => {}
+    {
+        tokio::select! {
+            _ = ctrl_c => {}
+            _ = shutdown.wait() => return,
+        }
+        shutdown.trigger();
+        info!("SIGINT: stopping");
     }
-    shutdown.trigger();
 }

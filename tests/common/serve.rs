@@ -25,7 +25,20 @@ impl Serve {
         Serve::spawn(&["--rtsp-port", "0"], extra)
     }
 
+    /// As [`Serve::start`], logging at info level into a pipe whose reader is gone (as under
+    /// `digiview serve 2>&1 | head -1`).
+    pub fn start_unread(extra: &[&str]) -> Serve {
+        let mut serve = Serve::launch(&["--no-video"], extra, Some("info"));
+        drop(serve.child.stderr.take());
+        serve
+    }
+
     fn spawn(mode: &[&str], extra: &[&str]) -> Serve {
+        Serve::launch(mode, extra, None)
+    }
+
+    /// `log`: a RUST_LOG level for a piped stderr, else the test's choice (see below).
+    fn launch(mode: &[&str], extra: &[&str], log: Option<&str>) -> Serve {
         let cal = Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["serve", "--control", "127.0.0.1:0"])
@@ -35,10 +48,14 @@ impl Serve {
             // DIGIVIEW_TEST_LOG=info shows the server's log while debugging a test.
             .env(
                 "RUST_LOG",
-                std::env::var("DIGIVIEW_TEST_LOG").unwrap_or_else(|_| "warn".into()),
+                log.map(String::from).unwrap_or_else(|| {
+                    std::env::var("DIGIVIEW_TEST_LOG").unwrap_or_else(|_| "warn".into())
+                }),
             )
             .stdout(Stdio::piped())
-            .stderr(if std::env::var_os("DIGIVIEW_TEST_LOG").is_some() {
+            .stderr(if log.is_some() {
+                Stdio::piped()
+            } else if std::env::var_os("DIGIVIEW_TEST_LOG").is_some() {
                 Stdio::inherit()
             } else {
                 Stdio::null()
