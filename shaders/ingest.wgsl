@@ -15,6 +15,8 @@
 // origin); the level buffer keeps its black around it.
 
 override INPUT_FORMAT: u32 = 0u;
+// False where only level 0 is sampled (bilinear filtering): then only I420's chroma is woven.
+override MAKE_LEVELS: bool = true;
 
 // The regions the ingest writes.
 struct Targets {
@@ -73,7 +75,29 @@ fn ingest(@builtin(global_invocation_id) gid: vec3u) {
         }
         return;
     }
-    // Luma level 1: 8 texels (2 words) in each of 2 rows; level 2: 4 texels (1 word).
+    if MAKE_LEVELS {
+        luma_levels(x0, y0);
+    }
+    // Chroma: rows y0 / 2 and y0 / 2 + 1 of the half-size plane, 8 Cb Cr pairs (4 words)
+    // each.
+    let cy = y0 / 2u;
+    let upper = chroma_row(cy, x0);
+    let lower = chroma_row(cy + 1u, x0);
+    if INPUT_FORMAT == FORMAT_I420 {
+        put4(targets.chroma0, cy, x0 / 4u, upper);
+        put4(targets.chroma0, cy + 1u, x0 / 4u, lower);
+    }
+    if MAKE_LEVELS {
+        put(targets.chroma1, cy / 2u, x0 / 8u, halve(upper.x, upper.y, lower.x, lower.y, 2u));
+        put(targets.chroma1, cy / 2u, x0 / 8u + 1u, halve(upper.z, upper.w, lower.z, lower.w, 2u));
+    }
+}
+
+// Luma levels 1 (8 texels, 2 words, in each of 2 rows) and 2 (4 texels, 1 word) of the 16x4
+// block at (x0, y0).
+fn luma_levels(x0: u32, y0: u32) {
+    let h = params.input.y;
+    let stride = params.input.z;
     let t0 = at(0u, stride, h, y0, x0);
     let t1 = at(0u, stride, h, y0 + 1u, x0);
     let t2 = at(0u, stride, h, y0 + 2u, x0);
@@ -87,17 +111,6 @@ fn ingest(@builtin(global_invocation_id) gid: vec3u) {
     put(targets.level1, y0 / 2u + 1u, x0 / 8u, b0);
     put(targets.level1, y0 / 2u + 1u, x0 / 8u + 1u, b1);
     put(targets.level2, y0 / 4u, x0 / 16u, halve(a0, a1, b0, b1, 1u));
-    // Chroma: rows y0 / 2 and y0 / 2 + 1 of the half-size plane, 8 Cb Cr pairs (4 words)
-    // each.
-    let cy = y0 / 2u;
-    let upper = chroma_row(cy, x0);
-    let lower = chroma_row(cy + 1u, x0);
-    if INPUT_FORMAT == FORMAT_I420 {
-        put4(targets.chroma0, cy, x0 / 4u, upper);
-        put4(targets.chroma0, cy + 1u, x0 / 4u, lower);
-    }
-    put(targets.chroma1, cy / 2u, x0 / 8u, halve(upper.x, upper.y, lower.x, lower.y, 2u));
-    put(targets.chroma1, cy / 2u, x0 / 8u + 1u, halve(upper.z, upper.w, lower.z, lower.w, 2u));
 }
 
 // Eight Cb Cr pairs of chroma row `cy` from the frame's column x0 on, as NV12 holds them (woven

@@ -197,6 +197,34 @@ fn nv12_and_i420_input_give_the_picture_of_rgba_input_and_of_the_cpu_reference()
 }
 
 #[test]
+fn bilinear_filtering_matches_the_cpu_reference_from_every_input_format() {
+    // Bilinear filtering samples level 0 alone, so the GPU makes no mip chain for it (and
+    // for I420 only weaves the chroma): what it does make must still be the right picture.
+    let state = base_state();
+    let lens = small_lens("CIL216").for_frame(1002, 566, None);
+    let fish = fisheye(&GridWorld::default(), &lens, &state);
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    for output in [PixelFormat::Rgba, PixelFormat::I420] {
+        let mut r = renderer(output, Filter::Bilinear);
+        for format in [PixelFormat::Rgba, PixelFormat::Nv12, PixelFormat::I420] {
+            let (data, layout) = as_format(&fish, format);
+            let frame = r.render(&data, &layout, &plan).unwrap();
+            let cpu = cpu::render_frame(&plan, &data, &layout, Filter::Bilinear, output).unwrap();
+            // The CPU's picture through the same output format (4:2:0 keeps a quad's mean
+            // chroma).
+            let want = yuv::decode(&yuv::encode(&cpu, &frame.layout), &frame.layout).unwrap();
+            let got = frame.to_rgb();
+            let db = psnr(&got, &want, whole(&got));
+            eprintln!("bilinear, {format} in, {output} out: {db:.1} dB vs the CPU");
+            assert!(
+                db >= 45.0,
+                "bilinear, {format} in, {output} out: {db:.2} dB"
+            );
+        }
+    }
+}
+
+#[test]
 fn i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range() {
     let lens = small_lens("CIL216");
     let mut state = base_state();

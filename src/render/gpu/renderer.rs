@@ -337,7 +337,7 @@ impl Renderer {
         }
         let device = &self.gpu.device;
         let names: &[&str] = match pass {
-            INGEST => &["INPUT_FORMAT"],
+            INGEST => &["INPUT_FORMAT", "MAKE_LEVELS"],
             MIP => &[],
             _ => &[
                 "LENS_MODEL",
@@ -658,7 +658,7 @@ impl Renderer {
                 input.height,
             ));
         }
-        self.pipeline(INGEST, [input.format.shader_code(), 0, 0, 0, 0])?;
+        self.pipeline(INGEST, self.ingest_constants_for(input.format))?;
         self.pipeline(MIP, [0; 5])?;
         let draw = self.draw_constants(plan, input.format);
         self.pipeline(DRAW, draw)?;
@@ -678,6 +678,18 @@ impl Renderer {
             queue.write_buffer(&self.views, 0, bytemuck::cast_slice(&views));
         }
         Ok(())
+    }
+
+    /// The ingest pipeline's override constants for an input format: the format, and
+    /// whether it makes the mip chain (the mip filter) or only weaves I420's chroma.
+    fn ingest_constants_for(&self, input: PixelFormat) -> [u32; 5] {
+        let chain = (self.filter == Filter::Mip) as u32;
+        [input.shader_code(), chain, 0, 0, 0]
+    }
+
+    /// The same for the current source.
+    fn ingest_constants(&self) -> [u32; 5] {
+        self.ingest_constants_for(self.source.as_ref().unwrap().layout.format)
     }
 
     /// The draw pipeline's override constants for a plan and an input format.
@@ -742,13 +754,16 @@ impl Renderer {
                 extent(columns.len() as u32 / scale, rows.len() as u32 / scale),
             );
         }
-        let format = source.layout.format.shader_code();
-        {
+        // Bilinear filtering samples level 0 alone: no chain to make (but I420's chroma to
+        // weave).
+        let chain = self.filter == Filter::Mip;
+        let woven = source.planes.iter().any(|p| p.spec.woven.is_some());
+        if chain || woven {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("ingest and mip chain"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipelines[&(INGEST, [format, 0, 0, 0, 0])]);
+            pass.set_pipeline(&self.pipelines[&(INGEST, self.ingest_constants())]);
             pass.set_bind_group(0, &source.ingest[slot.min(source.ingest.len() - 1)], &[]);
             pass.dispatch_workgroups(
                 groups(columns.len().div_ceil(INGEST_BLOCK.0 as usize) as u32),
@@ -756,7 +771,7 @@ impl Renderer {
                 1,
             );
             pass.set_pipeline(&self.pipelines[&(MIP, [0; 5])]);
-            for (group, (w, h)) in &source.mips {
+            for (group, (w, h)) in source.mips.iter().filter(|_| chain) {
                 pass.set_bind_group(0, group, &[]);
                 pass.dispatch_workgroups(groups(*w), groups(*h), 1);
             }
@@ -769,7 +784,8 @@ impl Renderer {
                 .regions
                 .iter()
                 .enumerate()
-                .map(|(k, r)| (k + 1, r));
+                .map(|(k, r)| (k + 1, r))
+                .filter(|_| chain);
             for (k, r) in woven.chain(levels) {
                 encoder.copy_buffer_to_texture(
                     wgpu::TexelCopyBufferInfo {
