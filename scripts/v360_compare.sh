@@ -26,5 +26,10 @@ echo "== FFmpeg $(ffmpeg -version | head -1 | cut -d' ' -f3), $frames frames, $(
 run "v360 one 960x540 view" "[0]$(view 0 -45)"
 run "v360 four 960x540 views, split + xstack" \
   "[0]split=4[a][b][c][d];[a]$(view 0 0)[A];[b]$(view 90 -45)[B];[c]$(view 180 -45)[C];[d]$(view -90 -90)[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
-echo "== digiview bench, same input size, new attitude every frame"
+echo "== digiview bench, same input size, new attitude every frame (mip filter, the default)"
 "$bin" bench --frames "$frames" --input-format i420 --output-format i420 2>/dev/null
+# v360 interpolates bilinearly from the full-size frame and filters nothing: the same as
+# DigiView's --filter bilinear.
+echo "== digiview bench, as above with --filter bilinear (v360's own interpolation)"
+"$bin" bench --frames "$frames" --input-format i420 --output-format i420 --filter bilinear \
+  2>/dev/null
