@@ -266,7 +266,7 @@ mod tests {
         assert_eq!(p.sample(DVec2::new(0.0, 0.0), 9.0).x, 100.0, "lod clamps");
     }
 
-    /// A 4:2:0 frame whose left half is grey and right half red, as I420 bytes.
+    /// An 8x4 frame whose left half is grey and right half red, as bytes of `format`.
     fn grey_and_red(format: PixelFormat) -> (Vec<u8>, PlaneLayout) {
         let img = RgbImage::from_fn(8, 4, |x, _| {
             image::Rgb(if x < 4 { [128, 128, 128] } else { [255, 0, 0] })

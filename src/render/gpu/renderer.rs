@@ -3,10 +3,12 @@
 //! only the small parameter and view buffers rewritten.
 //!
 //! A frame's path: its bytes are copied into a mapped upload buffer (one of a ring, so the
-//! copy never waits for a fresh allocation; rows padded as texture copies need), from there
-//! into the level-0 texture (RGBA, or the luma plane of 4:2:0 input: no conversion at full
-//! size) and into a raw buffer, which the ingest pass turns into mip levels 1 and 2 (over the
-//! lens's imaged box only) and the mip passes into the rest of the chain; the draw pass writes the output frame (RGBA, I420 or NV12) into a
+//! copy never waits for a fresh allocation; rows padded as texture copies need). Each plane's
+//! level 0 (RGBA, or the luma and NV12's chroma, `planes`) is copied from there into its
+//! texture over the lens's imaged box. The ingest pass reads the frame (in the upload buffer
+//! itself where the device shares host memory, else in a copy of it) and writes every plane's
+//! levels 1 and 2 into a level buffer, the mip passes the rest, and those levels are copied
+//! into the textures. The draw pass writes the output frame (RGBA, I420 or NV12) into a
 //! storage buffer, which is copied into a readback buffer of the ring. The draw pass is two
 //! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
 //! rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N
@@ -23,11 +25,10 @@ use crate::render::plan::FramePlan;
 use crate::render::yuv;
 use image::RgbImage;
 use std::collections::{HashMap, VecDeque};
-use wgpu::util::DeviceExt;
-
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::{Duration, Instant};
+use wgpu::util::DeviceExt;
 
 /// Frames in flight: frame N renders while frame N-1 is read back.
 pub const RING: usize = 2;
