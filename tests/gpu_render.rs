@@ -409,3 +409,33 @@ fn a_frame_of_the_wrong_size_is_refused_and_the_renderer_goes_on() {
     let ok = render_image(&mut r, &fish, &plan).unwrap();
     assert_eq!(ok.layout.width, 480);
 }
+
+#[test]
+fn tiny_and_odd_sized_frames_render_as_the_cpu_does_and_too_small_ones_are_refused() {
+    // Frames smaller than one ingest block (16x4) and RGBA with odd sizes: every plane and
+    // level still lands where the CPU reference puts it.
+    let state = base_state();
+    let world = GridWorld::default();
+    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    for (format, w, h) in [
+        (PixelFormat::Rgba, 5, 5),
+        (PixelFormat::Rgba, 37, 21),
+        (PixelFormat::Nv12, 4, 4),
+        (PixelFormat::I420, 6, 4),
+        (PixelFormat::I420, 34, 18),
+    ] {
+        let lens = small_lens("CIL216").for_frame(w, h, None);
+        let plan = FramePlan::new(&state, &lens).unwrap();
+        let (data, layout) = as_format(&fisheye(&world, &lens, &state), format);
+        let got = r.render(&data, &layout, &plan).unwrap().to_rgb();
+        let want =
+            cpu::render_frame(&plan, &data, &layout, Filter::Mip, PixelFormat::Rgba).unwrap();
+        let db = psnr(&got, &want, whole(&got));
+        assert!(db >= 45.0, "{w}x{h} {format}: {db:.2} dB vs the CPU");
+    }
+    let lens = small_lens("CIL216").for_frame(2, 2, None);
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    let layout = PlaneLayout::tight(PixelFormat::I420, 2, 2).unwrap();
+    let err = r.render(&[16; 6], &layout, &plan).unwrap_err();
+    assert!(err.to_string().contains("at least 4x4"), "{err}");
+}
