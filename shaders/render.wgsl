@@ -4,7 +4,8 @@
 // in one view (or none) with that view, named by the block table (src/render/gpu/blocks.rs);
 // `draw_mixed` draws the listed blocks that straddle a view's or the frame's edge, finding
 // each pixel's view. Per frame only `params` and `views` change (`blocks` when the rectangles
-// do); the input and output formats and the filter are overrides fixed with the pipeline.
+// do); the input and output formats, the filter and the view kinds present are overrides
+// fixed with the pipeline.
 //
 // Filtering, as src/render/cpu.rs and src/render/mip.rs do it: a trilinear sample whose level
 // of detail is log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1,
