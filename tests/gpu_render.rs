@@ -1,7 +1,8 @@
 //! The GPU renderer on lavapipe (or whatever adapter the machine has; none is a failure)
 //! against the CPU reference of the same math and against ground truth from the synthetic
 //! world: every layout, crop mode and lens model; camera-native NV12 and I420 input;
-//! encoder-ready I420 and NV12 output; filtering of minified views; the frame ring.
+//! encoder-ready I420 and NV12 output; filtering of minified views (mip and bilinear); tiny
+//! frames; uploads read in place and copied; the frame ring.
 //!
 //! Tolerances: GPU vs CPU reference PSNR ≥ 45 dB per frame; GPU vs truth within 0.5 dB of
 //! what the CPU reference scores; 4:2:0 input vs RGBA input ≥ 40 dB.
@@ -438,4 +439,36 @@ fn tiny_and_odd_sized_frames_render_as_the_cpu_does_and_too_small_ones_are_refus
     let layout = PlaneLayout::tight(PixelFormat::I420, 2, 2).unwrap();
     let err = r.render(&[16; 6], &layout, &plan).unwrap_err();
     assert!(err.to_string().contains("at least 4x4"), "{err}");
+}
+
+#[test]
+fn frames_read_in_place_and_frames_copied_first_render_alike() {
+    // Where the device shares host memory (lavapipe, integrated GPUs) the ingest reads the
+    // upload buffer itself; a discrete GPU reads a copy. Both paths, here on one device.
+    let shared = gpu();
+    assert!(
+        shared.shared_memory || !shared.is_software(),
+        "lavapipe reads uploads in place"
+    );
+    let mut copied = shared.clone();
+    copied.shared_memory = false;
+    let state = base_state();
+    let lens = small_lens("CIL216").for_frame(1002, 566, None);
+    let fish = fisheye(&GridWorld::default(), &lens, &state);
+    let plan = FramePlan::new(&state, &lens).unwrap();
+    for format in [PixelFormat::Rgba, PixelFormat::Nv12, PixelFormat::I420] {
+        let (data, layout) = as_format(&fish, format);
+        let mut a = Renderer::new(&shared, PixelFormat::I420, Filter::Mip).unwrap();
+        let mut b = Renderer::new(&copied, PixelFormat::I420, Filter::Mip).unwrap();
+        let in_place = a.render(&data, &layout, &plan).unwrap();
+        let copy = b.render(&data, &layout, &plan).unwrap();
+        assert!(in_place.data == copy.data, "{format}: the two paths differ");
+        // And the picture is there, not black.
+        let rgb = copy.to_rgb();
+        let black = RgbImage::new(rgb.width(), rgb.height());
+        assert!(
+            psnr(&rgb, &black, whole(&rgb)) < 20.0,
+            "{format}: a black frame"
+        );
+    }
 }
