@@ -58,6 +58,16 @@ pub enum FrameError {
     },
 }
 
+/// One plane's rows in a frame's buffer, in bytes: where the first starts, how far apart they
+/// are, how many bytes of picture each holds (the rest is padding), and how many there are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlaneRows {
+    pub offset: u32,
+    pub stride: u32,
+    pub bytes: u32,
+    pub rows: u32,
+}
+
 /// Where the planes of one frame sit in its buffer. Strides and offsets in bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PlaneLayout {
@@ -124,6 +134,29 @@ impl PlaneLayout {
         })
     }
 
+    /// Every plane's rows, in order: RGBA; or Y, then UV (NV12) or U and V (I420).
+    pub fn planes(&self) -> Vec<PlaneRows> {
+        let (w, h) = (self.width, self.height);
+        let plane = |offset, stride, bytes, rows| PlaneRows {
+            offset,
+            stride,
+            bytes,
+            rows,
+        };
+        match self.format {
+            PixelFormat::Rgba => vec![plane(0, self.stride, 4 * w, h)],
+            PixelFormat::Nv12 => vec![
+                plane(0, self.stride, w, h),
+                plane(self.chroma[0], self.chroma_stride, w, h / 2),
+            ],
+            PixelFormat::I420 => vec![
+                plane(0, self.stride, w, h),
+                plane(self.chroma[0], self.chroma_stride, w / 2, h / 2),
+                plane(self.chroma[1], self.chroma_stride, w / 2, h / 2),
+            ],
+        }
+    }
+
     /// Byte offsets of the U and V samples of 2x2 block (bx, by) of a 4:2:0 layout.
     pub fn chroma_at(&self, bx: u32, by: u32) -> (usize, usize) {
         let row = by * self.chroma_stride;
@@ -174,6 +207,26 @@ mod tests {
         assert_eq!((l.stride, l.chroma_stride), (1368, 684));
         assert_eq!(l.chroma[0] % 4, 0);
         assert_eq!(l.chroma[1] % 4, 0);
+    }
+
+    #[test]
+    fn planes_list_each_plane_rows_with_their_padding() {
+        let l = PlaneLayout::aligned(PixelFormat::I420, 1366, 768, 8).unwrap();
+        let p = l.planes();
+        assert_eq!(p.len(), 3);
+        assert_eq!((p[0].stride, p[0].bytes, p[0].rows), (1368, 1366, 768));
+        assert_eq!(
+            (p[2].offset, p[2].stride, p[2].bytes, p[2].rows),
+            (l.chroma[1], 684, 683, 384)
+        );
+        let nv12 = PlaneLayout::tight(PixelFormat::Nv12, 6, 4)
+            .unwrap()
+            .planes();
+        assert_eq!((nv12[1].offset, nv12[1].bytes, nv12[1].rows), (24, 6, 2));
+        let rgba = PlaneLayout::tight(PixelFormat::Rgba, 3, 2)
+            .unwrap()
+            .planes();
+        assert_eq!((rgba[0].bytes, rgba[0].rows), (12, 2));
     }
 
     #[test]

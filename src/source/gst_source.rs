@@ -227,36 +227,13 @@ fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, Str
     let video = gst_video::VideoFrameRef::from_buffer_ref_readable(buffer, &info)
         .map_err(|e| e.to_string())?;
     let mut data = vec![0u8; layout.size as usize];
-    let planes: Vec<(usize, usize, usize)> = match format {
-        // (offset, row bytes, rows)
-        PixelFormat::Rgba => vec![(0, layout.stride as usize, info.height() as usize)],
-        PixelFormat::Nv12 => vec![
-            (0, layout.stride as usize, info.height() as usize),
-            (
-                layout.chroma[0] as usize,
-                layout.chroma_stride as usize,
-                info.height() as usize / 2,
-            ),
-        ],
-        PixelFormat::I420 => vec![
-            (0, layout.stride as usize, info.height() as usize),
-            (
-                layout.chroma[0] as usize,
-                layout.chroma_stride as usize,
-                info.height() as usize / 2,
-            ),
-            (
-                layout.chroma[1] as usize,
-                layout.chroma_stride as usize,
-                info.height() as usize / 2,
-            ),
-        ],
-    };
-    for (k, (offset, row, rows)) in planes.into_iter().enumerate() {
+    for (k, plane) in layout.planes().into_iter().enumerate() {
         let src = video.plane_data(k as u32).map_err(|e| e.to_string())?;
         let stride = video.plane_stride()[k] as usize;
-        for y in 0..rows {
-            data[offset + y * row..offset + (y + 1) * row]
+        let (offset, row) = (plane.offset as usize, plane.bytes as usize);
+        let dst_stride = plane.stride as usize;
+        for y in 0..plane.rows as usize {
+            data[offset + y * dst_stride..offset + y * dst_stride + row]
                 .copy_from_slice(&src[y * stride..y * stride + row]);
         }
     }

@@ -974,28 +974,12 @@ fn restride(data: &[u8], from: &PlaneLayout, mut out: wgpu::WriteOnly<[u8]>, to:
         out.slice(..data.len()).copy_from_slice(data);
         return;
     }
-    let mut rows = |(src, src_stride), (dst, dst_stride), bytes, count| {
-        for r in 0..count {
-            let s = (src + r * src_stride) as usize;
-            let d = (dst + r * dst_stride) as usize;
-            let n = bytes as usize;
+    for (a, b) in from.planes().iter().zip(to.planes()) {
+        let n = a.bytes as usize;
+        for r in 0..a.rows {
+            let s = (a.offset + r * a.stride) as usize;
+            let d = (b.offset + r * b.stride) as usize;
             out.slice(d..d + n).copy_from_slice(&data[s..s + n]);
-        }
-    };
-    let (w, h) = (from.width, from.height);
-    match from.format {
-        PixelFormat::Rgba => rows((0, from.stride), (0, to.stride), 4 * w, h),
-        format => {
-            rows((0, from.stride), (0, to.stride), w, h);
-            let (planes, bytes) = if format == PixelFormat::I420 {
-                (2, w / 2)
-            } else {
-                (1, w)
-            };
-            for p in 0..planes {
-                let src = (from.chroma[p], from.chroma_stride);
-                rows(src, (to.chroma[p], to.chroma_stride), bytes, h / 2);
-            }
         }
     }
 }
