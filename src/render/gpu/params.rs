@@ -131,23 +131,6 @@ fn columns(m: DMat3) -> [[f32; 4]; 3] {
     [m.x_axis, m.y_axis, m.z_axis].map(|c| [c.x as f32, c.y as f32, c.z as f32, 0.0])
 }
 
-/// The view kinds a plan has, one bit per `KIND_*` code (the draw pipeline leaves out the
-/// code of kinds a frame lacks).
-pub fn view_kinds(plan: &FramePlan) -> u32 {
-    plan.views
-        .iter()
-        .map(|v| match v.map {
-            ViewMap::Rays {
-                projection: Projection::Rectilinear { .. },
-                ..
-            } => KIND_RECTILINEAR,
-            ViewMap::Rays { .. } => KIND_PANORAMA,
-            ViewMap::Fisheye { .. } => KIND_FISHEYE,
-            ViewMap::Black => KIND_BLACK,
-        })
-        .fold(0, |kinds, k| kinds | 1 << k)
-}
-
 pub fn gpu_view(plan: &FramePlan, view: &PlannedView) -> GpuView {
     let r = view.rect;
     let (kind, m, p) = match view.map {

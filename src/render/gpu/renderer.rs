@@ -15,7 +15,7 @@
 //! renders.
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
-use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code, view_kinds};
+use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
 use super::planes::{PlaneSpec, SourcePlanes, padded_for_copy};
 use super::shaders;
 use super::{Gpu, GpuError};
@@ -176,6 +176,8 @@ pub struct Renderer {
     draw_group: Option<wgpu::BindGroup>,
     /// The block map of the last frame's rectangles and the buffer holding it.
     blocks: Option<(BlockMap, wgpu::Buffer)>,
+    /// The draw pipelines' override constants for the frame last prepared.
+    draw_constants: [u32; 5],
     next_id: u64,
     in_flight: VecDeque<InFlight>,
 }
@@ -319,6 +321,7 @@ impl Renderer {
             target: None,
             draw_group: None,
             blocks: None,
+            draw_constants: [0; 5],
             next_id: 0,
             in_flight: VecDeque::new(),
         })
@@ -661,9 +664,6 @@ impl Renderer {
         }
         self.pipeline(INGEST, self.ingest_constants_for(input.format))?;
         self.pipeline(MIP, [0; 5])?;
-        let draw = self.draw_constants(plan, input.format);
-        self.pipeline(DRAW, draw)?;
-        self.pipeline(DRAW_MIXED, draw)?;
         self.ensure_source(input, plan.lens.imaged_box());
         self.ensure_target(plan.layout.width, plan.layout.height)?;
         self.ensure_blocks(plan);
@@ -673,6 +673,18 @@ impl Renderer {
         let mixed = self.mixed_blocks();
         let (params, views) =
             frame_params(plan, &source.padded, &target.layout, source.levels, mixed)?;
+        // The draw pipeline leaves out the code of view kinds the frame lacks.
+        let kinds = views.iter().fold(0, |kinds, v| kinds | 1 << v.kind[0]);
+        let draw = [
+            model_code(&plan.lens.radial.model),
+            self.output_format.shader_code(),
+            self.filter.shader_code(),
+            input.format.shader_code(),
+            kinds,
+        ];
+        self.pipeline(DRAW, draw)?;
+        self.pipeline(DRAW_MIXED, draw)?;
+        self.draw_constants = draw;
         let queue = &self.gpu.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         if !views.is_empty() {
@@ -691,17 +703,6 @@ impl Renderer {
     /// The same for the current source.
     fn ingest_constants(&self) -> [u32; 5] {
         self.ingest_constants_for(self.source.as_ref().unwrap().layout.format)
-    }
-
-    /// The draw pipeline's override constants for a plan and an input format.
-    fn draw_constants(&self, plan: &FramePlan, input: PixelFormat) -> [u32; 5] {
-        [
-            model_code(&plan.lens.radial.model),
-            self.output_format.shader_code(),
-            self.filter.shader_code(),
-            input.shader_code(),
-            view_kinds(plan),
-        ]
     }
 
     /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free), rows
@@ -811,10 +812,9 @@ impl Renderer {
             .map_or(0, |(m, _)| m.mixed.len() as u32)
     }
 
-    fn encode_draw(&self, encoder: &mut wgpu::CommandEncoder, plan: &FramePlan) {
+    fn encode_draw(&self, encoder: &mut wgpu::CommandEncoder) {
         let target = self.target.as_ref().unwrap();
-        let input = self.source.as_ref().unwrap().layout.format;
-        let constants = self.draw_constants(plan, input);
+        let constants = self.draw_constants;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("draw"),
             timestamp_writes: None,
@@ -863,7 +863,7 @@ impl Renderer {
         self.fill_upload(slot, data)?;
         let mut encoder = self.encoder();
         self.encode_upload(&mut encoder, slot);
-        self.encode_draw(&mut encoder, plan);
+        self.encode_draw(&mut encoder);
         self.encode_readback(&mut encoder, slot);
         self.submit(encoder);
         self.next_id += 1;
@@ -940,7 +940,7 @@ impl Renderer {
         self.source.as_ref().unwrap().uploads[slot].request(wgpu::MapMode::Write);
         let t1 = Instant::now();
         let mut encoder = self.encoder();
-        self.encode_draw(&mut encoder, plan);
+        self.encode_draw(&mut encoder);
         wait(self.submit(encoder))?;
         let t2 = Instant::now();
         let mut encoder = self.encoder();
