@@ -8,7 +8,6 @@ use super::frame::{FrameError, PixelFormat, PlaneLayout};
 use super::mip::{Filter, Pyramid, lod};
 use super::plan::{FramePlan, PlannedView};
 use crate::image_ops::{sample_offsets, to_rgb8};
-use crate::lens::Lens;
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use rayon::prelude::*;
@@ -22,7 +21,7 @@ pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage 
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    let pyramid = Pyramid::new(&imaged_only(fisheye, &plan.lens));
+    let pyramid = Pyramid::kept(fisheye, &plan.lens.imaged_box());
     render_from(plan, &pyramid, filter, false)
 }
 
@@ -90,18 +89,6 @@ fn render_from(plan: &FramePlan, pyramid: &Pyramid, filter: Filter, quad_chroma:
         let chroma_lod = group.iter().map(|g| g.1).fold(0.0, f64::max);
         Some(pyramid.sample_420(q, level, centre, chroma_lod))
     })
-}
-
-/// The fisheye with every pixel outside the lens's imaged box black, as the GPU sees it.
-fn imaged_only(fisheye: &RgbImage, lens: &Lens) -> RgbImage {
-    let (columns, rows) = lens.imaged_box();
-    let mut out = RgbImage::new(fisheye.width(), fisheye.height());
-    for y in rows {
-        for x in columns.clone() {
-            out.put_pixel(x, y, *fisheye.get_pixel(x, y));
-        }
-    }
-    out
 }
 
 /// Renders every view of a plan with `colour(view, point)` averaged over the plan's

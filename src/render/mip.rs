@@ -73,6 +73,19 @@ impl Pyramid {
         }
     }
 
+    /// The chain of an RGB frame with every pixel outside `keep` (columns, rows) black, as
+    /// the GPU holds it.
+    pub fn kept(base: &RgbImage, keep: &ImagedBox) -> Pyramid {
+        let (columns, rows) = keep;
+        let mut kept = RgbImage::new(base.width(), base.height());
+        for y in rows.clone() {
+            for x in columns.clone() {
+                kept.put_pixel(x, y, *base.get_pixel(x, y));
+            }
+        }
+        Pyramid::new(&kept)
+    }
+
     /// The chain of a frame's bytes with every pixel outside `keep` (columns, rows) black, as
     /// the GPU holds it. For 4:2:0, `keep` must start on even columns and rows.
     pub fn from_frame(data: &[u8], layout: &PlaneLayout, keep: &ImagedBox) -> Pyramid {
@@ -80,14 +93,7 @@ impl Pyramid {
         let inside = |x: u32, y: u32| columns.contains(&x) && rows.contains(&y);
         if !layout.format.is_yuv() {
             let rgb = yuv::decode(data, layout).expect("a frame of its layout");
-            let kept = RgbImage::from_fn(layout.width, layout.height, |x, y| {
-                if inside(x, y) {
-                    *rgb.get_pixel(x, y)
-                } else {
-                    image::Rgb([0; 3])
-                }
-            });
-            return Pyramid::new(&kept);
+            return Pyramid::kept(&rgb, keep);
         }
         let luma = GrayImage::from_fn(layout.width, layout.height, |x, y| {
             image::Luma([if inside(x, y) {
