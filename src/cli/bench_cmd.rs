@@ -205,6 +205,7 @@ fn bench_gpu(
 ) -> Result<Measured> {
     let gpu = Gpu::new()?;
     let mut renderer = Renderer::new(&gpu, args.output_format, args.filter)?;
+    renderer.fixed_view_kinds();
     let (warm, timed) = plans.split_at(args.warmup as usize);
     for plan in warm {
         renderer.render(input, input_layout, plan)?;

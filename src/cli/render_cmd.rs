@@ -133,6 +133,7 @@ pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
         Backend::Gpu => {
             let gpu = Gpu::new()?;
             let mut renderer = Renderer::new(&gpu, PixelFormat::Rgba, args.filter)?;
+            renderer.fixed_view_kinds();
             render_image(&mut renderer, &input, &plan)?.to_rgb()
         }
     };

@@ -164,6 +164,7 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     };
     let gpu = Gpu::new()?;
     let mut renderer = Renderer::new(&gpu, out_format, job.filter)?;
+    renderer.fixed_view_kinds();
     let bar = indicatif::ProgressBar::new(duration.map_or(0, |d| d.as_millis() as u64));
     bar.set_style(
         indicatif::ProgressStyle::with_template(

@@ -13,6 +13,10 @@
 //! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
 //! rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N
 //! renders.
+//!
+//! The draw pipelines leave out the code of view kinds a frame lacks. A frame with new kinds
+//! never waits for a build: generic pipelines, made with the first frame, draw it
+//! (`draw_pipelines`).
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
 use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
@@ -25,8 +29,8 @@ use crate::render::plan::FramePlan;
 use crate::render::yuv;
 use image::RgbImage;
 use std::collections::{HashMap, VecDeque};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
 
@@ -155,6 +159,11 @@ struct InFlight {
     started: Instant,
 }
 
+type DrawBuild = (
+    [u32; 5],
+    mpsc::Receiver<Result<[wgpu::ComputePipeline; 2], GpuError>>,
+);
+
 struct Layouts {
     ingest: wgpu::BindGroupLayout,
     mip: wgpu::BindGroupLayout,
@@ -176,10 +185,79 @@ pub struct Renderer {
     draw_group: Option<wgpu::BindGroup>,
     /// The block map of the last frame's rectangles and the buffer holding it.
     blocks: Option<(BlockMap, wgpu::Buffer)>,
-    /// The draw pipelines' override constants for the frame last prepared.
+    /// The override constants of the draw pipelines drawing the frame last prepared, and that
+    /// frame's own view kinds (`DRAW_KINDS`; they differ while it is drawn generically).
     draw_constants: [u32; 5],
+    frame_kinds: u32,
+    /// Specialised draw pipelines being built on another thread: their constants, and where
+    /// the pair arrives.
+    building: Option<DrawBuild>,
+    /// See [`Renderer::build_in_background`].
+    build_in_background: bool,
+    /// Whether a frame's view kinds may differ from the last one's (see
+    /// [`Renderer::fixed_view_kinds`]).
+    kinds_change: bool,
+    /// Generic draw pipelines just built, to be dispatched once with the next frame so a
+    /// device that compiles at dispatch has them compiled before they are needed.
+    warm_up: Option<[u32; 5]>,
     next_id: u64,
     in_flight: VecDeque<InFlight>,
+}
+
+/// What building one pass's pipeline needs (all cheap clones of device objects).
+struct Builder {
+    device: wgpu::Device,
+    module: wgpu::ShaderModule,
+    bindings: wgpu::BindGroupLayout,
+}
+
+/// Pass `pass`'s pipeline with override constants `constants` (named per pass below).
+fn build_pipeline(
+    builder: &Builder,
+    pass: usize,
+    constants: [u32; 5],
+) -> Result<wgpu::ComputePipeline, GpuError> {
+    let device = &builder.device;
+    let names: &[&str] = match pass {
+        INGEST => &["INPUT_FORMAT", "MAKE_LEVELS"],
+        MIP => &[],
+        _ => &[
+            "LENS_MODEL",
+            "OUTPUT_FORMAT",
+            "FILTER",
+            "INPUT_FORMAT",
+            "VIEW_KINDS",
+        ],
+    };
+    let values: Vec<(&str, f64)> = names
+        .iter()
+        .zip(constants)
+        .map(|(n, v)| (*n, v as f64))
+        .collect();
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(ENTRY_POINTS[pass]),
+        bind_group_layouts: &[Some(&builder.bindings)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(ENTRY_POINTS[pass]),
+        layout: Some(&layout),
+        module: &builder.module,
+        entry_point: Some(ENTRY_POINTS[pass]),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants: &values,
+            zero_initialize_workgroup_memory: false,
+        },
+        cache: None,
+    });
+    match pollster::block_on(scope.pop()) {
+        Some(e) => Err(GpuError::Failed(format!(
+            "building the {} pipeline: {e}",
+            ENTRY_POINTS[pass]
+        ))),
+        None => Ok(pipeline),
+    }
 }
 
 fn entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
@@ -225,6 +303,10 @@ const DRAW: usize = 2;
 /// The draw pass's per-pixel dispatch, from the draw module.
 const DRAW_MIXED: usize = 3;
 const ENTRY_POINTS: [&str; 4] = ["ingest", "downsample", "draw", "draw_mixed"];
+/// The draw pipelines' VIEW_KINDS constant (a bit per view kind the frame has), and its
+/// value for the generic pipelines, which draw every kind.
+const DRAW_KINDS: usize = 4;
+const ALL_KINDS: u32 = 0xf;
 /// The frame pixels (across, down) one ingest invocation takes (shaders/ingest.wgsl).
 const INGEST_BLOCK: (u32, u32) = (16, 4);
 /// Invocations in a `draw_mixed` workgroup, one block each.
@@ -322,6 +404,11 @@ impl Renderer {
             draw_group: None,
             blocks: None,
             draw_constants: [0; 5],
+            frame_kinds: 0,
+            building: None,
+            build_in_background: !gpu.is_software(),
+            kinds_change: true,
+            warm_up: None,
             next_id: 0,
             in_flight: VecDeque::new(),
         })
@@ -336,56 +423,123 @@ impl Renderer {
     }
 
     fn pipeline(&mut self, pass: usize, constants: [u32; 5]) -> Result<(), GpuError> {
-        if self.pipelines.contains_key(&(pass, constants)) {
-            return Ok(());
+        if !self.pipelines.contains_key(&(pass, constants)) {
+            let pipeline = build_pipeline(&self.builder(pass), pass, constants)?;
+            self.pipelines.insert((pass, constants), pipeline);
         }
-        let device = &self.gpu.device;
-        let names: &[&str] = match pass {
-            INGEST => &["INPUT_FORMAT", "MAKE_LEVELS"],
-            MIP => &[],
-            _ => &[
-                "LENS_MODEL",
-                "OUTPUT_FORMAT",
-                "FILTER",
-                "INPUT_FORMAT",
-                "VIEW_KINDS",
-            ],
-        };
-        let values: Vec<(&str, f64)> = names
-            .iter()
-            .zip(constants)
-            .map(|(n, v)| (*n, v as f64))
-            .collect();
-        let bind_layout = match pass {
-            INGEST => &self.layouts.ingest,
-            MIP => &self.layouts.mip,
-            _ => &self.layouts.draw,
-        };
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(ENTRY_POINTS[pass]),
-            bind_group_layouts: &[Some(bind_layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(ENTRY_POINTS[pass]),
-            layout: Some(&layout),
-            module: &self.modules[pass.min(DRAW)],
-            entry_point: Some(ENTRY_POINTS[pass]),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &values,
-                zero_initialize_workgroup_memory: false,
-            },
-            cache: None,
-        });
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(GpuError::Failed(format!(
-                "building the {} pipeline: {e}",
-                ENTRY_POINTS[pass]
-            )));
-        }
-        self.pipelines.insert((pass, constants), pipeline);
         Ok(())
+    }
+
+    /// What building a pass's pipeline takes, cloned so another thread can do it.
+    fn builder(&self, pass: usize) -> Builder {
+        Builder {
+            device: self.gpu.device.clone(),
+            module: self.modules[pass.min(DRAW)].clone(),
+            bindings: match pass {
+                INGEST => self.layouts.ingest.clone(),
+                MIP => self.layouts.mip.clone(),
+                _ => self.layouts.draw.clone(),
+            },
+        }
+    }
+
+    /// The draw pipelines a frame of view kinds `wanted` (draw override constants) is drawn
+    /// with. The first frame of an input format, lens model and filter builds the pipelines
+    /// specialised for its kinds and (unless the kinds are fixed, `fixed_view_kinds`) the
+    /// generic ones, which draw any kinds, and dispatches both. A frame whose kinds are new is drawn at once with the generic ones; the
+    /// specialised ones are built on another thread and used from the frame after they are
+    /// ready. Software rasterizers compile a pipeline when it is first dispatched, on the
+    /// queue's one thread, so there the frame stream would wait anyway (1.2 s on lavapipe
+    /// with a cold shader cache): they keep drawing new kinds with the generic ones.
+    fn draw_pipelines(&mut self, wanted: [u32; 5]) -> Result<[u32; 5], GpuError> {
+        self.collect_built(false);
+        if self.pipelines.contains_key(&(DRAW, wanted)) {
+            return Ok(wanted);
+        }
+        let mut generic = wanted;
+        generic[DRAW_KINDS] = ALL_KINDS;
+        if !self.kinds_change || !self.pipelines.contains_key(&(DRAW, generic)) {
+            self.pipeline(DRAW, wanted)?;
+            self.pipeline(DRAW_MIXED, wanted)?;
+            if self.kinds_change {
+                self.pipeline(DRAW, generic)?;
+                self.pipeline(DRAW_MIXED, generic)?;
+                self.warm_up = Some(generic);
+            }
+            return Ok(wanted);
+        }
+        if self.build_in_background && self.building.is_none() {
+            let builders = [self.builder(DRAW), self.builder(DRAW_MIXED)];
+            let (done, built) = mpsc::channel();
+            std::thread::spawn(move || {
+                let [draw, mixed] = builders;
+                let pair = build_pipeline(&draw, DRAW, wanted)
+                    .and_then(|d| Ok([d, build_pipeline(&mixed, DRAW_MIXED, wanted)?]));
+                // The renderer may be gone; then nobody needs the pipelines.
+                let _ = done.send(pair);
+            });
+            self.building = Some((wanted, built));
+        }
+        Ok(generic)
+    }
+
+    /// Keeps the specialised draw pipelines built on another thread once they are ready
+    /// (`wait`: waiting until they are).
+    fn collect_built(&mut self, wait: bool) {
+        let Some((constants, built)) = self.building.take() else {
+            return;
+        };
+        let result = if wait {
+            built.recv().ok()
+        } else {
+            match built.try_recv() {
+                Err(mpsc::TryRecvError::Empty) => {
+                    self.building = Some((constants, built));
+                    return;
+                }
+                result => result.ok(),
+            }
+        };
+        match result {
+            Some(Ok([draw, mixed])) => {
+                self.pipelines.insert((DRAW, constants), draw);
+                self.pipelines.insert((DRAW_MIXED, constants), mixed);
+            }
+            // The generic pipelines go on drawing; building is not tried again.
+            Some(Err(e)) => {
+                tracing::warn!("drawing with generic pipelines: {e}");
+                self.build_in_background = false;
+            }
+            None => self.build_in_background = false,
+        }
+    }
+
+    /// Says the frames' view kinds will not change (an offline render of one state), so no
+    /// generic draw pipelines are made with the first frame (lavapipe: 0.1 s with a warm
+    /// shader cache, 1.2 s cold). Should the kinds change anyway, that frame waits for its
+    /// pipelines.
+    pub fn fixed_view_kinds(&mut self) {
+        self.kinds_change = false;
+    }
+
+    /// Whether draw pipelines specialised for a frame's view kinds are built on another thread
+    /// when the kinds change (see `draw_pipelines`). On by default where the device compiles
+    /// pipelines when they are built (GPUs), off where it compiles them when they are first
+    /// dispatched (software rasterizers).
+    pub fn build_in_background(&mut self, on: bool) {
+        self.build_in_background = on;
+    }
+
+    /// Waits until the draw pipelines being built on another thread, if any, are ready.
+    pub fn wait_for_builds(&mut self) {
+        self.collect_built(true);
+    }
+
+    /// Whether the last frame prepared was drawn by pipelines specialised for its view kinds
+    /// (else by the generic ones, while the specialised ones are built or on a software
+    /// rasterizer).
+    pub fn drew_specialised(&self) -> bool {
+        self.draw_constants[DRAW_KINDS] == self.frame_kinds
     }
 
     /// Makes the input-side resources match `layout` and the lens's imaged box (kept while
@@ -682,9 +836,8 @@ impl Renderer {
             input.format.shader_code(),
             kinds,
         ];
-        self.pipeline(DRAW, draw)?;
-        self.pipeline(DRAW_MIXED, draw)?;
-        self.draw_constants = draw;
+        self.draw_constants = self.draw_pipelines(draw)?;
+        self.frame_kinds = kinds;
         let queue = &self.gpu.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         if !views.is_empty() {
@@ -812,15 +965,24 @@ impl Renderer {
             .map_or(0, |(m, _)| m.mixed.len() as u32)
     }
 
-    fn encode_draw(&self, encoder: &mut wgpu::CommandEncoder) {
+    fn encode_draw(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        let warm_up = self.warm_up.take();
         let target = self.target.as_ref().unwrap();
         let constants = self.draw_constants;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("draw"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipelines[&(DRAW, constants)]);
         pass.set_bind_group(0, self.draw_group.as_ref().unwrap(), &[]);
+        // One workgroup of each generic pipeline, drawing what the full dispatch then draws
+        // again, so they are compiled now rather than when a frame first needs them.
+        if let Some(generic) = warm_up {
+            for pipeline in [DRAW, DRAW_MIXED] {
+                pass.set_pipeline(&self.pipelines[&(pipeline, generic)]);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
+        }
+        pass.set_pipeline(&self.pipelines[&(DRAW, constants)]);
         let (w, h) = (target.layout.width, target.layout.height);
         pass.dispatch_workgroups(groups(w.div_ceil(BLOCK_W)), groups(h.div_ceil(BLOCK_H)), 1);
         let mixed = self.mixed_blocks();
