@@ -474,7 +474,7 @@ fn frames_read_in_place_and_frames_copied_first_render_alike() {
 }
 
 #[test]
-fn new_view_kinds_are_drawn_at_once_by_the_generic_pipelines_with_the_same_picture() {
+fn new_view_kinds_and_lens_models_are_drawn_at_once_by_generic_pipelines_alike() {
     // Switching a view to a panorama or the debug view mid-stream must not wait for a
     // pipeline build (lavapipe compiles one in 1.2 s, cold): the generic draw pipelines draw
     // those kinds at once. Specialised ones, built on another thread on a GPU (forced on here
@@ -530,4 +530,26 @@ fn new_view_kinds_are_drawn_at_once_by_the_generic_pipelines_with_the_same_pictu
     );
     let db = psnr(&later, &alone(&panorama), whole(&later));
     assert!(db >= 60.0, "background-built vs built first: {db:.1} dB");
+
+    // A lens of another model mid-stream: drawn by the generic pipelines for that model (one
+    // pair to build instead of two), then by specialised ones.
+    let kb = small_lens("LN007");
+    let kb_fish = fisheye(&GridWorld::default(), &kb, &rectilinear);
+    let kb_plan = FramePlan::new(&rectilinear, &kb).unwrap();
+    let first = render_image(&mut r, &kb_fish, &kb_plan).unwrap().to_rgb();
+    assert!(
+        !r.drew_specialised(),
+        "a new lens model is drawn generically first"
+    );
+    r.wait_for_builds();
+    let later = render_image(&mut r, &kb_fish, &kb_plan).unwrap().to_rgb();
+    assert!(r.drew_specialised());
+    let mut fresh = renderer(PixelFormat::I420, Filter::Mip);
+    let want = render_image(&mut fresh, &kb_fish, &kb_plan)
+        .unwrap()
+        .to_rgb();
+    for (label, got) in [("generic", &first), ("specialised", &later)] {
+        let db = psnr(got, &want, whole(got));
+        assert!(db >= 60.0, "new lens model, {label}: {db:.1} dB");
+    }
 }

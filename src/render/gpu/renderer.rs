@@ -444,13 +444,14 @@ impl Renderer {
     }
 
     /// The draw pipelines a frame of view kinds `wanted` (draw override constants) is drawn
-    /// with. The first frame of an input format, lens model and filter builds the pipelines
-    /// specialised for its kinds and (unless the kinds are fixed, `fixed_view_kinds`) the
-    /// generic ones, which draw any kinds, and dispatches both. A frame whose kinds are new is drawn at once with the generic ones; the
-    /// specialised ones are built on another thread and used from the frame after they are
-    /// ready. Software rasterizers compile a pipeline when it is first dispatched, on the
-    /// queue's one thread, so there the frame stream would wait anyway (1.2 s on lavapipe
-    /// with a cold shader cache): they keep drawing new kinds with the generic ones.
+    /// with. The renderer's first frame builds the pipelines specialised for its kinds and
+    /// (unless the kinds are fixed, `fixed_view_kinds`) the generic ones, which draw any
+    /// kinds, and dispatches both. A later frame whose kinds are new, or whose lens model or
+    /// format is, is drawn at once by the generic ones (built first for a new model or
+    /// format); the specialised ones are built on another thread and used from the frame
+    /// after they are ready. Software rasterizers compile a pipeline when it is first
+    /// dispatched, on the queue's one thread, so there the frame stream would wait anyway
+    /// (1.2 s on lavapipe with a cold shader cache): they keep drawing with the generic ones.
     fn draw_pipelines(&mut self, wanted: [u32; 5]) -> Result<[u32; 5], GpuError> {
         self.collect_built(false);
         if self.pipelines.contains_key(&(DRAW, wanted)) {
@@ -458,7 +459,8 @@ impl Renderer {
         }
         let mut generic = wanted;
         generic[DRAW_KINDS] = ALL_KINDS;
-        if !self.kinds_change || !self.pipelines.contains_key(&(DRAW, generic)) {
+        let first = !self.pipelines.keys().any(|&(pass, _)| pass == DRAW);
+        if !self.kinds_change || first {
             self.pipeline(DRAW, wanted)?;
             self.pipeline(DRAW_MIXED, wanted)?;
             if self.kinds_change {
@@ -468,7 +470,11 @@ impl Renderer {
             }
             return Ok(wanted);
         }
-        if self.build_in_background && self.building.is_none() {
+        // A new lens model or format while frames flow: the generic pair alone is built
+        // (and compiled as it draws this frame), halving the wait.
+        self.pipeline(DRAW, generic)?;
+        self.pipeline(DRAW_MIXED, generic)?;
+        if self.build_in_background && self.building.is_none() && wanted != generic {
             let builders = [self.builder(DRAW), self.builder(DRAW_MIXED)];
             let (done, built) = mpsc::channel();
             std::thread::spawn(move || {
