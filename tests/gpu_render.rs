@@ -479,75 +479,75 @@ fn new_view_kinds_and_lens_models_are_drawn_at_once_by_generic_pipelines_alike()
     // pipeline build (lavapipe compiles one in 1.2 s, cold): the generic draw pipelines draw
     // those kinds at once. Specialised ones, built on another thread on a GPU (forced on here
     // so that path runs too), take over once ready, and the picture does not change.
-    let lens = small_lens("CIL216");
     let rectilinear = base_state();
     let mut mixed = rectilinear.clone();
     mixed.cameras[1].crop = 2;
     mixed.cameras[2].crop = 4;
     let mut panorama = rectilinear.clone();
     panorama.cameras[3].crop = 2;
-    let fish = fisheye(&GridWorld::default(), &lens, &rectilinear);
-    let draw = |r: &mut Renderer, state: &State| {
-        let plan = FramePlan::new(state, &lens).unwrap();
-        render_image(r, &fish, &plan).unwrap().to_rgb()
+    // A lens and what it sees.
+    let seen = |name: &str| {
+        let lens = small_lens(name);
+        let fish = fisheye(&GridWorld::default(), &lens, &rectilinear);
+        (lens, fish)
     };
-    // What pipelines made for those kinds draw: each a fresh renderer's first frame.
-    let alone = |state: &State| {
+    let cil = seen("CIL216");
+    let draw = |r: &mut Renderer, (lens, fish): &(Lens, RgbImage), state: &State| {
+        let plan = FramePlan::new(state, lens).unwrap();
+        render_image(r, fish, &plan).unwrap().to_rgb()
+    };
+    // What pipelines made for those kinds and that lens draw: a fresh renderer's first frame.
+    let alone = |seen: &(Lens, RgbImage), state: &State| {
         let mut r = renderer(PixelFormat::I420, Filter::Mip);
-        let img = draw(&mut r, state);
+        let img = draw(&mut r, seen, state);
         assert!(r.drew_specialised());
         img
     };
     let mut r = renderer(PixelFormat::I420, Filter::Mip);
-    draw(&mut r, &rectilinear);
+    draw(&mut r, &cil, &rectilinear);
     assert!(
         r.drew_specialised(),
         "the first frame's kinds are built for"
     );
-    let generic = draw(&mut r, &mixed);
+    let generic = draw(&mut r, &cil, &mixed);
     assert!(
         !r.drew_specialised(),
         "new kinds are drawn generically first"
     );
-    let db = psnr(&generic, &alone(&mixed), whole(&generic));
+    let db = psnr(&generic, &alone(&cil, &mixed), whole(&generic));
     eprintln!("generic vs specialised pipelines: {db:.1} dB");
     assert!(db >= 60.0, "generic vs specialised pipelines: {db:.1} dB");
     // Back to kinds already built for: specialised again.
-    draw(&mut r, &rectilinear);
+    draw(&mut r, &cil, &rectilinear);
     assert!(r.drew_specialised());
 
     // The GPU's path: built on another thread, then used.
     r.build_in_background(true);
-    let first = draw(&mut r, &panorama);
+    let first = draw(&mut r, &cil, &panorama);
     assert!(!r.drew_specialised());
     r.wait_for_builds();
-    let later = draw(&mut r, &panorama);
+    let later = draw(&mut r, &cil, &panorama);
     assert!(r.drew_specialised(), "the built pipelines take over");
     let db = psnr(&later, &first, whole(&later));
     assert!(
         db >= 60.0,
         "the picture changed as the pipelines did: {db:.1} dB"
     );
-    let db = psnr(&later, &alone(&panorama), whole(&later));
+    let db = psnr(&later, &alone(&cil, &panorama), whole(&later));
     assert!(db >= 60.0, "background-built vs built first: {db:.1} dB");
 
     // A lens of another model mid-stream: drawn by the generic pipelines for that model (one
     // pair to build instead of two), then by specialised ones.
-    let kb = small_lens("LN007");
-    let kb_fish = fisheye(&GridWorld::default(), &kb, &rectilinear);
-    let kb_plan = FramePlan::new(&rectilinear, &kb).unwrap();
-    let first = render_image(&mut r, &kb_fish, &kb_plan).unwrap().to_rgb();
+    let kb = seen("LN007");
+    let first = draw(&mut r, &kb, &rectilinear);
     assert!(
         !r.drew_specialised(),
         "a new lens model is drawn generically first"
     );
     r.wait_for_builds();
-    let later = render_image(&mut r, &kb_fish, &kb_plan).unwrap().to_rgb();
+    let later = draw(&mut r, &kb, &rectilinear);
     assert!(r.drew_specialised());
-    let mut fresh = renderer(PixelFormat::I420, Filter::Mip);
-    let want = render_image(&mut fresh, &kb_fish, &kb_plan)
-        .unwrap()
-        .to_rgb();
+    let want = alone(&kb, &rectilinear);
     for (label, got) in [("generic", &first), ("specialised", &later)] {
         let db = psnr(got, &want, whole(got));
         assert!(db >= 60.0, "new lens model, {label}: {db:.1} dB");

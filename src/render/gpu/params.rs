@@ -180,8 +180,8 @@ pub fn gpu_view(plan: &FramePlan, view: &PlannedView) -> GpuView {
     }
 }
 
-/// The frame's parameters and views: `levels` in the source's mip chain, `mixed_blocks` in the block map's list for the draw pass's
-/// per-pixel dispatch.
+/// The frame's parameters and views: `levels` in the source's mip chain, `mixed_blocks` in
+/// the block map's list for the draw pass's per-pixel dispatch.
 pub fn frame_params(
     plan: &FramePlan,
     input: &PlaneLayout,
