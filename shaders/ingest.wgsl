@@ -1,8 +1,8 @@
-// Upload, second half: mip levels 1 and 2 of the frame's planes from its raw bytes (RGBA8,
-// I420 or NV12, as one array of words), written as packed rows into the level buffer that the
-// renderer then copies into the planes' textures. Level 0 of each plane is copied straight
-// from the frame (src/render/gpu/renderer.rs), so nothing here is done per input pixel; only
-// I420's chroma is woven here into the Cb Cr pairs NV12 has.
+// Upload, second half, for the mip filter: mip levels 1 and 2 of the frame's planes from its
+// raw bytes (RGBA8 or NV12, as one array of words; I420 arrives woven into NV12 by the copy
+// into the upload buffer), written as packed rows into the level buffer that the renderer then
+// copies into the planes' textures. Level 0 of each plane is copied straight from the frame
+// (src/render/gpu/renderer.rs), so nothing here is done per input pixel.
 //
 // The planes (src/render/gpu/planes.rs; src/render/mip.rs is the twin): RGBA, or for 4:2:0
 // input the luma and the half-size chroma. Each plane's level k + 1 averages 2x2 texels of
@@ -10,21 +10,18 @@
 //
 // One invocation per 16x4 block of the frame: it reads whole words (rows are padded to 256
 // bytes and the imaged box starts on a multiple of 32) and writes the words the block makes:
-// for 4:2:0, 4 words of luma level 1, 1 of luma level 2 and 2 of chroma level 1 (and 8 of
-// woven chroma for I420). Only the lens's imaged box is done (dispatched over it, from its
-// origin); the level buffer keeps its black around it.
+// for 4:2:0, 4 words of luma level 1, 1 of luma level 2 and 2 of chroma level 1. Only the
+// lens's imaged box is done (dispatched over it, from its origin); the level buffer keeps its
+// black around it.
 
 override INPUT_FORMAT: u32 = 0u;
-// False where only level 0 is sampled (bilinear filtering): then only I420's chroma is woven.
-override MAKE_LEVELS: bool = true;
 
 // The regions the ingest writes.
 struct Targets {
     // RGBA, or luma: levels 1 and 2.
     level1: Region,
     level2: Region,
-    // Chroma: level 0 (woven from I420's planes), level 1.
-    chroma0: Region,
+    // Chroma: level 1.
     chroma1: Region,
     // The lens's imaged box: first column and row, and past the last (Lens::imaged_box).
     imaged: vec4u,
@@ -75,22 +72,14 @@ fn ingest(@builtin(global_invocation_id) gid: vec3u) {
         }
         return;
     }
-    if MAKE_LEVELS {
-        luma_levels(x0, y0);
-    }
+    luma_levels(x0, y0);
     // Chroma: rows y0 / 2 and y0 / 2 + 1 of the half-size plane, 8 Cb Cr pairs (4 words)
     // each.
     let cy = y0 / 2u;
     let upper = chroma_row(cy, x0);
     let lower = chroma_row(cy + 1u, x0);
-    if INPUT_FORMAT == FORMAT_I420 {
-        put4(targets.chroma0, cy, x0 / 4u, upper);
-        put4(targets.chroma0, cy + 1u, x0 / 4u, lower);
-    }
-    if MAKE_LEVELS {
-        put(targets.chroma1, cy / 2u, x0 / 8u, halve(upper.x, upper.y, lower.x, lower.y, 2u));
-        put(targets.chroma1, cy / 2u, x0 / 8u + 1u, halve(upper.z, upper.w, lower.z, lower.w, 2u));
-    }
+    put(targets.chroma1, cy / 2u, x0 / 8u, halve(upper.x, upper.y, lower.x, lower.y, 2u));
+    put(targets.chroma1, cy / 2u, x0 / 8u + 1u, halve(upper.z, upper.w, lower.z, lower.w, 2u));
 }
 
 // Luma levels 1 (8 texels, 2 words, in each of 2 rows) and 2 (4 texels, 1 word) of the 16x4
@@ -113,33 +102,8 @@ fn luma_levels(x0: u32, y0: u32) {
     put(targets.level2, y0 / 4u, x0 / 16u, halve(a0, a1, b0, b1, 1u));
 }
 
-// Eight Cb Cr pairs of chroma row `cy` from the frame's column x0 on, as NV12 holds them (woven
-// from I420's two planes).
+// Eight Cb Cr pairs of chroma row `cy` from the frame's column x0 on.
 fn chroma_row(cy: u32, x0: u32) -> vec4u {
-    let stride = params.input.w;
-    let rows = params.input.y / 2u;
-    if INPUT_FORMAT == FORMAT_I420 {
-        let u = at(params.input_planes.x, stride, rows, cy, x0 / 2u);
-        let v = at(params.input_planes.y, stride, rows, cy, x0 / 2u);
-        let u0 = raw[u];
-        let u1 = raw[u + 1u];
-        let v0 = raw[v];
-        let v1 = raw[v + 1u];
-        return vec4u(weave(u0, v0), weave(u0 >> 16u, v0 >> 16u), weave(u1, v1), weave(u1 >> 16u, v1 >> 16u));
-    }
-    let i = at(params.input_planes.x, stride, rows, cy, x0);
+    let i = at(params.input_planes.x, params.input.w, params.input.y / 2u, cy, x0);
     return vec4u(raw[i], raw[i + 1u], raw[i + 2u], raw[i + 3u]);
-}
-
-// Four words from word i of row y of a region.
-fn put4(r: Region, y: u32, i: u32, w: vec4u) {
-    put(r, y, i, w.x);
-    put(r, y, i + 1u, w.y);
-    put(r, y, i + 2u, w.z);
-    put(r, y, i + 3u, w.w);
-}
-
-// The Cb Cr pairs of two Cb and two Cr samples (the low half of each word): u0 v0 u1 v1.
-fn weave(u: u32, v: u32) -> u32 {
-    return (u & 0xffu) | ((v & 0xffu) << 8u) | ((u & 0xff00u) << 8u) | ((v & 0xff00u) << 16u);
 }

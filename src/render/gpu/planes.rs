@@ -1,10 +1,11 @@
-//! How the GPU holds a source frame: one texture with its own mip chain per plane (RGBA; or
-//! the luma and the half-size chroma of 4:2:0 input, Cb and Cr interleaved as NV12 has them,
-//! into which the ingest weaves I420's two planes), and where each plane's levels lie in the
-//! level buffer that the ingest and mip passes write and the textures are copied from. Pure arithmetic, kept apart from the
-//! wgpu calls (src/render/gpu/renderer.rs) so it can be checked on its own.
+//! How the GPU holds a source frame: the layout frames take in the upload buffers (I420's two
+//! chroma planes woven there into NV12's Cb Cr pairs), one texture with its own mip chain per
+//! plane (RGBA; or the luma and the half-size chroma pairs of 4:2:0 input), and where each
+//! plane's levels lie in the level buffer that the ingest and mip passes write and the
+//! textures are copied from. Pure arithmetic and byte copies, kept apart from the wgpu calls
+//! (src/render/gpu/renderer.rs) so it can be checked on its own.
 
-use crate::render::frame::{PixelFormat, PlaneLayout};
+use crate::render::frame::{PixelFormat, PlaneLayout, PlaneRows};
 use crate::render::mip::levels_for;
 use bytemuck::{Pod, Zeroable};
 
@@ -32,11 +33,9 @@ pub struct PlaneSpec {
     pub height: u32,
     /// Levels in the plane's chain, level 0 included.
     pub levels: u32,
-    /// Levels 1, 2, … in the level buffer (index 0 is level 1).
+    /// Levels 1, 2, … in the level buffer (index 0 is level 1); level 0 is copied from the
+    /// frame.
     pub regions: Vec<Region>,
-    /// Level 0 in the level buffer, where the ingest makes it (I420's woven chroma); else it
-    /// is copied from the frame.
-    pub woven: Option<Region>,
     /// The plane's code value for black.
     pub black: u8,
     /// Levels (from 1) the ingest writes; the mip passes make the rest.
@@ -51,17 +50,18 @@ pub struct SourcePlanes {
 }
 
 impl SourcePlanes {
-    /// The planes of a `width` × `height` frame of `format` (even sizes for 4:2:0), whose
-    /// full-size chain has `levels_for(width, height)` levels.
+    /// The planes of a `width` × `height` frame of `format` (even sizes for 4:2:0; I420 and
+    /// NV12 alike, since the upload weaves I420), whose full-size chain has
+    /// `levels_for(width, height)` levels.
     pub fn new(format: PixelFormat, width: u32, height: u32) -> SourcePlanes {
         let levels = levels_for(width, height);
         let (w2, h2) = ((width / 2).max(1), (height / 2).max(1));
-        // Bytes per texel, size, levels, black, levels the ingest writes, woven level 0.
+        // Bytes per texel, size, levels, black, levels the ingest writes.
         let specs = match format {
-            PixelFormat::Rgba => vec![(4, width, height, levels, 0, 2, false)],
+            PixelFormat::Rgba => vec![(4, width, height, levels, 0, 2)],
             _ => vec![
-                (1, width, height, levels, 16, 2, false),
-                (2, w2, h2, levels - 1, 128, 1, format == PixelFormat::I420),
+                (1, width, height, levels, 16, 2),
+                (2, w2, h2, levels - 1, 128, 1),
             ],
         };
         let mut offset = 0;
@@ -78,24 +78,20 @@ impl SourcePlanes {
         };
         let planes = specs
             .into_iter()
-            .map(
-                |(channels, width, height, levels, black, ingested, woven)| {
-                    let woven = woven.then(|| region((width, height), channels));
-                    let regions = (1..levels)
-                        .map(|k| region(((width >> k).max(1), (height >> k).max(1)), channels))
-                        .collect();
-                    PlaneSpec {
-                        channels,
-                        width,
-                        height,
-                        levels,
-                        regions,
-                        woven,
-                        black,
-                        ingested,
-                    }
-                },
-            )
+            .map(|(channels, width, height, levels, black, ingested)| {
+                let regions = (1..levels)
+                    .map(|k| region(((width >> k).max(1), (height >> k).max(1)), channels))
+                    .collect();
+                PlaneSpec {
+                    channels,
+                    width,
+                    height,
+                    levels,
+                    regions,
+                    black,
+                    ingested,
+                }
+            })
             .collect();
         SourcePlanes {
             planes,
@@ -108,7 +104,7 @@ impl SourcePlanes {
     pub fn black_levels(&self) -> Vec<u8> {
         let mut out = vec![0u8; self.buffer_size as usize];
         for plane in &self.planes {
-            for r in plane.woven.iter().chain(&plane.regions) {
+            for r in &plane.regions {
                 let (a, b) = (r.offset as usize, (r.offset + r.stride * r.height) as usize);
                 out[a..b].fill(plane.black);
             }
@@ -129,15 +125,59 @@ impl SourcePlanes {
     }
 }
 
-/// `layout` with rows padded as copies into textures need: the planes copied (RGBA, luma,
-/// NV12 chroma) with rows a multiple of [`COPY_ALIGN`] bytes.
-pub fn padded_for_copy(layout: &PlaneLayout) -> PlaneLayout {
-    let pixels = match layout.format {
-        PixelFormat::Rgba => COPY_ALIGN / 4,
-        _ => COPY_ALIGN,
+/// The layout a frame laid out as `layout` takes in the upload buffers: RGBA, or NV12 for
+/// 4:2:0 (I420's chroma planes woven into Cb Cr pairs by [`copy_for_upload`], which costs the
+/// copy next to nothing and spares the GPU a pass), with every plane's rows a multiple of
+/// [`COPY_ALIGN`] bytes as copies into textures need.
+pub fn upload_layout(layout: &PlaneLayout) -> PlaneLayout {
+    let (format, pixels) = match layout.format {
+        PixelFormat::Rgba => (PixelFormat::Rgba, COPY_ALIGN / 4),
+        _ => (PixelFormat::Nv12, COPY_ALIGN),
     };
-    PlaneLayout::aligned(layout.format, layout.width, layout.height, pixels)
+    PlaneLayout::aligned(format, layout.width, layout.height, pixels)
         .expect("a layout that exists already")
+}
+
+/// Copies frame `data`, laid out as `from`, into an upload buffer laid out as `to` (its
+/// [`upload_layout`]), handing `put` each run of bytes and where in the buffer it goes.
+pub fn copy_for_upload(
+    data: &[u8],
+    from: &PlaneLayout,
+    to: &PlaneLayout,
+    mut put: impl FnMut(usize, &[u8]),
+) {
+    if from == to {
+        put(0, data);
+        return;
+    }
+    let (ours, theirs) = (from.planes(), to.planes());
+    // RGBA, luma and NV12's chroma: row by row as they come.
+    let as_they_come = if from.format == to.format {
+        ours.len()
+    } else {
+        1
+    };
+    for (a, b) in ours.iter().zip(&theirs).take(as_they_come) {
+        let n = a.bytes as usize;
+        for r in 0..a.rows {
+            let s = (a.offset + r * a.stride) as usize;
+            put((b.offset + r * b.stride) as usize, &data[s..s + n]);
+        }
+    }
+    if let ([_, u, v], [_, uv]) = (&ours[..], &theirs[..]) {
+        let mut pairs = vec![0u8; 2 * u.bytes as usize];
+        for r in 0..u.rows {
+            let row = |p: &PlaneRows| {
+                let s = (p.offset + r * p.stride) as usize;
+                &data[s..s + p.bytes as usize]
+            };
+            for ((pair, cb), cr) in pairs.chunks_exact_mut(2).zip(row(u)).zip(row(v)) {
+                pair[0] = *cb;
+                pair[1] = *cr;
+            }
+            put((uv.offset + r * uv.stride) as usize, &pairs);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -145,8 +185,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_4k_i420_frame_has_luma_and_woven_chroma_whose_levels_tile_the_buffer() {
-        let s = SourcePlanes::new(PixelFormat::I420, 3840, 2160);
+    fn a_4k_4_2_0_frame_has_luma_and_chroma_pairs_whose_levels_tile_the_buffer() {
+        let s = SourcePlanes::new(PixelFormat::Nv12, 3840, 2160);
         assert_eq!(s.planes.len(), 2);
         let luma = &s.planes[0];
         assert_eq!((luma.levels, luma.regions.len()), (8, 7));
@@ -162,19 +202,13 @@ mod tests {
         let chroma = &s.planes[1];
         assert_eq!((chroma.width, chroma.channels, chroma.levels), (1920, 2, 7));
         assert_eq!(chroma.black, 128);
-        // Level 0 woven from U and V: 1920 pairs a row, 3840 bytes.
-        assert_eq!(chroma.woven.unwrap().stride, 3840);
         // Chroma level 1 is the frame's level 2: 960x540 pairs, rows padded to 2048 bytes.
         assert_eq!(
             (chroma.regions[0].width, chroma.regions[0].stride),
             (960, 2048)
         );
         // Regions follow each other, each on a copy boundary.
-        let all: Vec<&Region> = s
-            .planes
-            .iter()
-            .flat_map(|p| p.woven.iter().chain(&p.regions))
-            .collect();
+        let all: Vec<&Region> = s.planes.iter().flat_map(|p| &p.regions).collect();
         for pair in all.windows(2) {
             assert_eq!(
                 pair[1].offset,
@@ -186,17 +220,14 @@ mod tests {
                 .all(|r| r.offset % COPY_ALIGN == 0 && r.stride % COPY_ALIGN == 0)
         );
         assert_eq!(s.mip_steps().len(), 5 + 5);
+        assert_eq!(SourcePlanes::new(PixelFormat::I420, 3840, 2160), s);
     }
 
     #[test]
-    fn nv12_chroma_is_one_plane_as_it_comes_and_rgba_is_one_plane() {
+    fn nv12_chroma_is_one_plane_of_pairs_and_rgba_is_one_plane() {
         let nv12 = SourcePlanes::new(PixelFormat::Nv12, 1280, 720);
         assert_eq!(nv12.planes.len(), 2);
         assert_eq!(nv12.planes[1].channels, 2);
-        assert_eq!(
-            nv12.planes[1].woven, None,
-            "NV12's chroma is copied as it comes"
-        );
         // Chroma level 1: 320x180 texel pairs, 640 bytes a row padded to 768.
         assert_eq!(nv12.planes[1].regions[0].stride, 768);
         let rgba = SourcePlanes::new(PixelFormat::Rgba, 1001, 7);
@@ -216,20 +247,78 @@ mod tests {
     }
 
     #[test]
-    fn padded_rows_suit_texture_copies_in_every_plane_copied() {
+    fn upload_rows_suit_texture_copies_in_every_plane_and_4_2_0_arrives_as_nv12() {
         for format in [PixelFormat::Rgba, PixelFormat::I420, PixelFormat::Nv12] {
-            let l = padded_for_copy(&PlaneLayout::tight(format, 1002, 566).unwrap());
+            let l = upload_layout(&PlaneLayout::tight(format, 1002, 566).unwrap());
             assert_eq!(l.stride % COPY_ALIGN, 0, "{format}");
+            let want = match format {
+                PixelFormat::Rgba => PixelFormat::Rgba,
+                _ => PixelFormat::Nv12,
+            };
+            assert_eq!(l.format, want);
+            if want == PixelFormat::Nv12 {
+                assert_eq!(l.chroma_stride % COPY_ALIGN, 0);
+            }
         }
-        let nv12 = padded_for_copy(&PlaneLayout::tight(PixelFormat::Nv12, 1002, 566).unwrap());
-        assert_eq!(nv12.chroma_stride % COPY_ALIGN, 0);
-        for format in [PixelFormat::I420, PixelFormat::Nv12] {
-            let tight = PlaneLayout::tight(format, 3840, 2160).unwrap();
-            assert_eq!(
-                padded_for_copy(&tight),
-                tight,
-                "4K {format} needs no padding"
-            );
+        let tight = PlaneLayout::tight(PixelFormat::Nv12, 3840, 2160).unwrap();
+        assert_eq!(upload_layout(&tight), tight, "4K NV12 needs no padding");
+    }
+
+    /// `data` copied for upload into a buffer laid out as its upload layout.
+    fn uploaded(data: &[u8], from: &PlaneLayout) -> (Vec<u8>, PlaneLayout) {
+        let to = upload_layout(from);
+        let mut buffer = vec![0xee; to.size as usize];
+        copy_for_upload(data, from, &to, |at, bytes| {
+            buffer[at..at + bytes.len()].copy_from_slice(bytes)
+        });
+        (buffer, to)
+    }
+
+    #[test]
+    fn i420_arrives_woven_into_nv12_pairs_with_every_sample_where_it_belongs() {
+        // Every sample distinct in its plane: luma from its position, Cb and Cr apart.
+        let from = PlaneLayout::tight(PixelFormat::I420, 36, 10).unwrap();
+        let mut data = vec![0u8; from.size as usize];
+        for y in 0..10 {
+            for x in 0..36 {
+                data[(y * 36 + x) as usize] = (y * 36 + x) as u8;
+            }
         }
+        for by in 0..5 {
+            for bx in 0..18 {
+                let (u, v) = from.chroma_at(bx, by);
+                data[u] = (by * 18 + bx) as u8;
+                data[v] = 100 + (by * 18 + bx) as u8;
+            }
+        }
+        let (buffer, to) = uploaded(&data, &from);
+        assert_eq!(to.format, PixelFormat::Nv12);
+        for y in 0..10 {
+            for x in 0..36 {
+                let at = (y * to.stride + x) as usize;
+                assert_eq!(buffer[at], (y * 36 + x) as u8, "luma ({x}, {y})");
+            }
+        }
+        for by in 0..5 {
+            for bx in 0..18 {
+                let (cb, cr) = to.chroma_at(bx, by);
+                let want = (by * 18 + bx) as u8;
+                assert_eq!((buffer[cb], buffer[cr]), (want, 100 + want), "({bx}, {by})");
+            }
+        }
+        // Row padding is left as it was: only picture bytes are written.
+        assert_eq!(buffer[36], 0xee);
+    }
+
+    #[test]
+    fn frames_already_in_their_upload_layout_are_copied_whole_and_others_row_by_row() {
+        let nv12 = PlaneLayout::tight(PixelFormat::Nv12, 3840, 2160).unwrap();
+        let data: Vec<u8> = (0..nv12.size).map(|i| (i % 251) as u8).collect();
+        assert_eq!(uploaded(&data, &nv12).0, data);
+        let rgba = PlaneLayout::tight(PixelFormat::Rgba, 3, 2).unwrap();
+        let (buffer, to) = uploaded(&(1..=24).collect::<Vec<u8>>(), &rgba);
+        assert_eq!(to.stride, 256);
+        assert_eq!(&buffer[..12], &(1..=12).collect::<Vec<u8>>()[..]);
+        assert_eq!(&buffer[256..268], &(13..=24).collect::<Vec<u8>>()[..]);
     }
 }

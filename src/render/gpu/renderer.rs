@@ -3,12 +3,12 @@
 //! only the small parameter and view buffers rewritten.
 //!
 //! A frame's path: its bytes are copied into a mapped upload buffer (one of a ring, so the
-//! copy never waits for a fresh allocation; rows padded as texture copies need). Each plane's
-//! level 0 (RGBA, or the luma and NV12's chroma, `planes`) is copied from there into its
-//! texture over the lens's imaged box. The ingest pass reads the frame (in the upload buffer
-//! itself where the device shares host memory, else in a copy of it) and writes every plane's
-//! levels 1 and 2 into a level buffer, the mip passes the rest, and those levels are copied
-//! into the textures. The draw pass writes the output frame (RGBA, I420 or NV12) into a
+//! copy never waits for a fresh allocation; rows padded as texture copies need, and I420's
+//! chroma woven into NV12's pairs). Each plane's level 0 (RGBA, or the luma and the chroma
+//! pairs, `planes`) is copied from there into its texture over the lens's imaged box. For the
+//! mip filter, the ingest pass reads the frame (in the upload buffer itself where the device
+//! shares host memory, else in a copy of it) and writes every plane's levels 1 and 2 into a
+//! level buffer, the mip passes the rest, and those levels are copied into the textures. The draw pass writes the output frame (RGBA, I420 or NV12) into a
 //! storage buffer, which is copied into a readback buffer of the ring. The draw pass is two
 //! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
 //! rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N
@@ -20,7 +20,7 @@
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
 use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
-use super::planes::{PlaneSpec, SourcePlanes, padded_for_copy};
+use super::planes::{PlaneSpec, SourcePlanes, copy_for_upload, upload_layout};
 use super::shaders;
 use super::{Gpu, GpuError};
 use crate::render::frame::{PixelFormat, PlaneLayout};
@@ -219,7 +219,7 @@ fn build_pipeline(
 ) -> Result<wgpu::ComputePipeline, GpuError> {
     let device = &builder.device;
     let names: &[&str] = match pass {
-        INGEST => &["INPUT_FORMAT", "MAKE_LEVELS"],
+        INGEST => &["INPUT_FORMAT"],
         MIP => &[],
         _ => &[
             "LENS_MODEL",
@@ -559,7 +559,7 @@ impl Renderer {
             return;
         }
         let device = &self.gpu.device;
-        let padded = padded_for_copy(layout);
+        let padded = upload_layout(layout);
         // The ingest may read a word past the last row's end.
         let size = (padded.size as u64 + 16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
         let shared = self.gpu.shared_memory;
@@ -586,7 +586,7 @@ impl Renderer {
                 mapped_at_creation: false,
             })
         });
-        let specs = SourcePlanes::new(layout.format, layout.width, layout.height);
+        let specs = SourcePlanes::new(padded.format, layout.width, layout.height);
         let level_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("source levels"),
             contents: &specs.black_levels(),
@@ -638,12 +638,7 @@ impl Renderer {
                 .copied()
                 .unwrap_or_default()
         };
-        let woven = specs
-            .planes
-            .get(1)
-            .and_then(|p| p.woven)
-            .unwrap_or_default();
-        let regions = [region(0, 0), region(0, 1), woven, region(1, 0)];
+        let regions = [region(0, 0), region(0, 1), region(1, 0)];
         let mut targets = bytemuck::cast_slice(&regions).to_vec();
         let (columns, rows) = &imaged;
         let bounds = [columns.start, rows.start, columns.end, rows.end];
@@ -822,8 +817,12 @@ impl Renderer {
                 input.height,
             ));
         }
-        self.pipeline(INGEST, self.ingest_constants_for(input.format))?;
-        self.pipeline(MIP, [0; 5])?;
+        // Frames arrive in the upload buffers as RGBA or NV12 (I420 woven on the way).
+        let upload = upload_layout(input).format;
+        if self.filter == Filter::Mip {
+            self.pipeline(INGEST, ingest_constants(upload))?;
+            self.pipeline(MIP, [0; 5])?;
+        }
         self.ensure_source(input, plan.lens.imaged_box());
         self.ensure_target(plan.layout.width, plan.layout.height)?;
         self.ensure_blocks(plan);
@@ -839,7 +838,7 @@ impl Renderer {
             model_code(&plan.lens.radial.model),
             self.output_format.shader_code(),
             self.filter.shader_code(),
-            input.format.shader_code(),
+            upload.shader_code(),
             kinds,
         ];
         self.draw_constants = self.draw_pipelines(draw)?;
@@ -852,16 +851,10 @@ impl Renderer {
         Ok(())
     }
 
-    /// The ingest pipeline's override constants for an input format: the format, and
-    /// whether it makes the mip chain (the mip filter) or only weaves I420's chroma.
-    fn ingest_constants_for(&self, input: PixelFormat) -> [u32; 5] {
-        let chain = (self.filter == Filter::Mip) as u32;
-        [input.shader_code(), chain, 0, 0, 0]
-    }
-
-    /// The same for the current source.
+    /// The ingest pipeline's override constants for the current source: the format its
+    /// frames take in the upload buffers.
     fn ingest_constants(&self) -> [u32; 5] {
-        self.ingest_constants_for(self.source.as_ref().unwrap().layout.format)
+        ingest_constants(self.source.as_ref().unwrap().padded.format)
     }
 
     /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free), rows
@@ -875,7 +868,9 @@ impl Renderer {
                 .buffer
                 .get_mapped_range_mut(..)
                 .map_err(|e| GpuError::Failed(e.to_string()))?;
-            restride(data, &source.layout, view.slice(..), &source.padded);
+            copy_for_upload(data, &source.layout, &source.padded, |at, bytes| {
+                view.slice(at..at + bytes.len()).copy_from_slice(bytes)
+            });
         }
         upload.buffer.unmap();
         Ok(())
@@ -884,17 +879,14 @@ impl Renderer {
     fn encode_upload(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
         let source = self.source.as_ref().unwrap();
         let upload = &source.uploads[slot].buffer;
-        if let Some(raw) = &source.raw {
+        // The ingest reads the frame's bytes, for the mip filter's chain alone.
+        if let Some(raw) = source.raw.as_ref().filter(|_| self.filter == Filter::Mip) {
             encoder.copy_buffer_to_buffer(upload, 0, raw, 0, None);
         }
-        // Level 0 of every plane over the imaged box, straight from the upload buffer (woven
-        // I420 chroma comes from the level buffer, below).
+        // Level 0 of every plane over the imaged box, straight from the upload buffer.
         let (columns, rows) = &source.imaged;
         let padded = &source.padded;
         for (i, plane) in source.planes.iter().enumerate() {
-            if plane.spec.woven.is_some() {
-                continue;
-            }
             // Chroma planes are half size, starting at their plane's offset.
             let (scale, start, stride) = match i {
                 0 => (1, 0, padded.stride),
@@ -915,39 +907,30 @@ impl Renderer {
                 extent(columns.len() as u32 / scale, rows.len() as u32 / scale),
             );
         }
-        // Bilinear filtering samples level 0 alone: no chain to make (but I420's chroma to
-        // weave).
-        let chain = self.filter == Filter::Mip;
-        let woven = source.planes.iter().any(|p| p.spec.woven.is_some());
-        if chain || woven {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("ingest and mip chain"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipelines[&(INGEST, self.ingest_constants())]);
-            pass.set_bind_group(0, &source.ingest[slot.min(source.ingest.len() - 1)], &[]);
-            pass.dispatch_workgroups(
-                groups(columns.len().div_ceil(INGEST_BLOCK.0 as usize) as u32),
-                groups(rows.len().div_ceil(INGEST_BLOCK.1 as usize) as u32),
-                1,
-            );
-            pass.set_pipeline(&self.pipelines[&(MIP, [0; 5])]);
-            for (group, (w, h)) in source.mips.iter().filter(|_| chain) {
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(groups(*w), groups(*h), 1);
-            }
+        // Bilinear filtering samples level 0 alone: no chain to make.
+        if self.filter != Filter::Mip {
+            return;
         }
-        // Levels 1 and up of every plane (and woven level 0), whole, from the level buffer.
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("ingest and mip chain"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipelines[&(INGEST, self.ingest_constants())]);
+        pass.set_bind_group(0, &source.ingest[slot.min(source.ingest.len() - 1)], &[]);
+        pass.dispatch_workgroups(
+            groups(columns.len().div_ceil(INGEST_BLOCK.0 as usize) as u32),
+            groups(rows.len().div_ceil(INGEST_BLOCK.1 as usize) as u32),
+            1,
+        );
+        pass.set_pipeline(&self.pipelines[&(MIP, [0; 5])]);
+        for (group, (w, h)) in &source.mips {
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(groups(*w), groups(*h), 1);
+        }
+        drop(pass);
+        // Levels 1 and up of every plane, whole, from the level buffer.
         for plane in &source.planes {
-            let woven = plane.spec.woven.iter().map(|r| (0, r));
-            let levels = plane
-                .spec
-                .regions
-                .iter()
-                .enumerate()
-                .map(|(k, r)| (k + 1, r))
-                .filter(|_| chain);
-            for (k, r) in woven.chain(levels) {
+            for (k, r) in plane.spec.regions.iter().enumerate() {
                 encoder.copy_buffer_to_texture(
                     wgpu::TexelCopyBufferInfo {
                         buffer: &source.level_buffer,
@@ -957,7 +940,7 @@ impl Renderer {
                             rows_per_image: None,
                         },
                     },
-                    texture_level(&plane.texture, k as u32, (0, 0)),
+                    texture_level(&plane.texture, k as u32 + 1, (0, 0)),
                     extent(r.width, r.height),
                 );
             }
@@ -1137,19 +1120,10 @@ impl Renderer {
 
 /// Copies every plane's rows of a frame laid out as `from` into `to`'s places in `out`
 /// (one copy when the layouts agree); padding is left as it is.
-fn restride(data: &[u8], from: &PlaneLayout, mut out: wgpu::WriteOnly<[u8]>, to: &PlaneLayout) {
-    if from == to {
-        out.slice(..data.len()).copy_from_slice(data);
-        return;
-    }
-    for (a, b) in from.planes().iter().zip(to.planes()) {
-        let n = a.bytes as usize;
-        for r in 0..a.rows {
-            let s = (a.offset + r * a.stride) as usize;
-            let d = (b.offset + r * b.stride) as usize;
-            out.slice(d..d + n).copy_from_slice(&data[s..s + n]);
-        }
-    }
+/// The ingest pipeline's override constants for frames that are `upload` in the upload
+/// buffers (RGBA or NV12).
+fn ingest_constants(upload: PixelFormat) -> [u32; 5] {
+    [upload.shader_code(), 0, 0, 0, 0]
 }
 
 /// Fills level 0 of a fresh plane texture with the plane's black (fresh textures are zero,
