@@ -21,15 +21,40 @@ for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 
-if ((${#missing[@]})); then
-  echo "setup: installing ${missing[*]}"
-  as_root=()
-  if [ "$(id -u)" != 0 ]; then
-    command -v sudo >/dev/null || { echo "setup: run as root (or install sudo) to install: ${missing[*]}" >&2; exit 1; }
-    as_root=(sudo)
+# On Debian 12 (bookworm), lavapipe comes from bookworm-backports: Mesa 25 rather than 22.3,
+# whose mip-chain passes take about a third longer (docs/performance.md, "Mesa 25").
+backports=()
+if [ -r /etc/os-release ] && [ "$(. /etc/os-release; echo "${VERSION_CODENAME:-}")" = bookworm ]; then
+  mesa=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)
+  if [ -z "$mesa" ] || dpkg --compare-versions "$mesa" lt 25; then
+    backports=(mesa-vulkan-drivers)
+    for i in "${!missing[@]}"; do
+      [ "${missing[$i]}" = mesa-vulkan-drivers ] && unset "missing[$i]"
+    done
   fi
+fi
+
+as_root=()
+if ((${#missing[@]} + ${#backports[@]})) && [ "$(id -u)" != 0 ]; then
+  command -v sudo >/dev/null || { echo "setup: run as root (or install sudo) to install: ${missing[*]} ${backports[*]}" >&2; exit 1; }
+  as_root=(sudo)
+fi
+if ((${#backports[@]})) && ! grep -rqs '^[^#]*bookworm-backports' /etc/apt/sources.list /etc/apt/sources.list.d; then
+  echo "setup: adding Debian's bookworm-backports to apt's sources"
+  echo "deb http://deb.debian.org/debian bookworm-backports main" |
+    "${as_root[@]}" tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
+fi
+if ((${#missing[@]} + ${#backports[@]})); then
+  echo "setup: installing ${missing[*]} ${backports[*]}"
   "${as_root[@]}" apt-get update -qq
+fi
+if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive "${as_root[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+if ((${#backports[@]})); then
+  # Its dependencies (libdrm, the other Mesa packages present) come along from there too.
+  DEBIAN_FRONTEND=noninteractive "${as_root[@]}" apt-get install -y -qq --no-install-recommends \
+    -t bookworm-backports "${backports[@]}"
 fi
 
 if ! command -v cargo >/dev/null; then
