@@ -84,11 +84,13 @@ fn ocam_poly(which: u32, x: f32) -> f32 {
     return acc;
 }
 
+// The direct polynomial's derivative (0 for no coefficients: a lens of another model, read
+// as OCam when its pipelines are warmed up, must not loop 2^32 times).
 fn ocam_dpoly(x: f32) -> f32 {
     let n = params.lens.counts.x;
     var acc = 0.0;
-    for (var i = n - 1u; i > 0u; i--) {
-        acc = acc * x + f32(i) * coefficient(0u, i);
+    for (var i = n; i > 1u; i--) {
+        acc = acc * x + f32(i - 1u) * coefficient(0u, i - 1u);
     }
     return acc;
 }

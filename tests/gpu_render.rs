@@ -480,6 +480,28 @@ fn frames_read_in_place_and_frames_copied_first_render_alike() {
     }
 }
 
+/// A lens of lens.cal (at 1280x720) and what it sees of the grid world from `state`.
+fn seen(name: &str, state: &State) -> (Lens, RgbImage) {
+    let lens = small_lens(name);
+    let fish = fisheye(&GridWorld::default(), &lens, state);
+    (lens, fish)
+}
+
+/// `state` drawn by `r` from what a lens sees.
+fn draw(r: &mut Renderer, (lens, fish): &(Lens, RgbImage), state: &State) -> RgbImage {
+    let plan = FramePlan::new(state, lens).unwrap();
+    render_image(r, fish, &plan).unwrap().to_rgb()
+}
+
+/// What pipelines made for the state's kinds and the lens draw: a fresh renderer's first
+/// frame.
+fn alone(seen: &(Lens, RgbImage), state: &State) -> RgbImage {
+    let mut r = renderer(PixelFormat::I420, Filter::Mip);
+    let img = draw(&mut r, seen, state);
+    assert!(r.drew_specialised());
+    img
+}
+
 #[test]
 fn new_view_kinds_and_lens_models_are_drawn_at_once_by_generic_pipelines_alike() {
     // Switching a view to a panorama or the debug view mid-stream must not wait for a
@@ -492,24 +514,7 @@ fn new_view_kinds_and_lens_models_are_drawn_at_once_by_generic_pipelines_alike()
     mixed.cameras[2].crop = 4;
     let mut panorama = rectilinear.clone();
     panorama.cameras[3].crop = 2;
-    // A lens and what it sees.
-    let seen = |name: &str| {
-        let lens = small_lens(name);
-        let fish = fisheye(&GridWorld::default(), &lens, &rectilinear);
-        (lens, fish)
-    };
-    let cil = seen("CIL216");
-    let draw = |r: &mut Renderer, (lens, fish): &(Lens, RgbImage), state: &State| {
-        let plan = FramePlan::new(state, lens).unwrap();
-        render_image(r, fish, &plan).unwrap().to_rgb()
-    };
-    // What pipelines made for those kinds and that lens draw: a fresh renderer's first frame.
-    let alone = |seen: &(Lens, RgbImage), state: &State| {
-        let mut r = renderer(PixelFormat::I420, Filter::Mip);
-        let img = draw(&mut r, seen, state);
-        assert!(r.drew_specialised());
-        img
-    };
+    let cil = seen("CIL216", &rectilinear);
     let mut r = renderer(PixelFormat::I420, Filter::Mip);
     draw(&mut r, &cil, &rectilinear);
     assert!(
@@ -545,7 +550,7 @@ fn new_view_kinds_and_lens_models_are_drawn_at_once_by_generic_pipelines_alike()
 
     // A lens of another model mid-stream: drawn by the generic pipelines for that model (one
     // pair to build instead of two), then by specialised ones.
-    let kb = seen("LN007");
+    let kb = seen("LN007", &rectilinear);
     let first = draw(&mut r, &kb, &rectilinear);
     assert!(
         !r.drew_specialised(),
@@ -559,4 +564,35 @@ fn new_view_kinds_and_lens_models_are_drawn_at_once_by_generic_pipelines_alike()
         let db = psnr(got, &want, whole(got));
         assert!(db >= 60.0, "new lens model, {label}: {db:.1} dB");
     }
+}
+
+#[test]
+fn lens_models_named_ahead_are_drawn_from_the_first_frame_without_a_build() {
+    // The live stream names lens.cal's models: its first frame makes their generic draw
+    // pipelines, so a LENS SET to a lens of another model builds (and, on lavapipe, compiles)
+    // nothing on the stream's path.
+    let state = base_state();
+    let lenses: Vec<_> = ["CIL216", "CIL018", "LN007"]
+        .into_iter()
+        .map(|name| (name, seen(name, &state)))
+        .collect();
+    let mut r = renderer(PixelFormat::I420, Filter::Mip);
+    r.expect_lens_models(lenses.iter().map(|(_, (lens, _))| &lens.radial.model));
+    draw(&mut r, &lenses[0].1, &state);
+    let built = r.pipelines();
+    for (name, other) in &lenses[1..] {
+        let got = draw(&mut r, other, &state);
+        assert_eq!(r.pipelines(), built, "{name}: pipelines built mid-stream");
+        let db = psnr(&got, &alone(other, &state), whole(&got));
+        assert!(
+            db >= 60.0,
+            "{name}, drawn by pipelines warmed up: {db:.1} dB"
+        );
+    }
+    // Unnamed, a lens of another model does need a build.
+    let mut r = renderer(PixelFormat::I420, Filter::Mip);
+    draw(&mut r, &lenses[0].1, &state);
+    let built = r.pipelines();
+    draw(&mut r, &lenses[2].1, &state);
+    assert!(r.pipelines() > built);
 }

@@ -130,6 +130,11 @@ impl Live {
         Ok(out)
     }
 
+    /// The lens model of every lens of lens.cal.
+    pub fn lens_models(&self) -> impl Iterator<Item = &crate::lens::Model> {
+        self.lenses.iter().map(|(_, lens)| &lens.radial.model)
+    }
+
     pub fn has_lens(&self, id: u8) -> bool {
         self.lenses.iter().any(|(i, _)| *i == id)
     }

@@ -274,10 +274,17 @@ impl Head {
         })
     }
 
+    /// The stream's renderer: I420 out, mip filtering, ready from its first frame for a
+    /// LENS SET to any lens of lens.cal.
+    fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
+        let mut renderer = Renderer::new(gpu, PixelFormat::I420, Filter::Mip)?;
+        renderer.expect_lens_models(self.live.lens_models());
+        Ok(renderer)
+    }
+
     fn frame_loop(self: &Arc<Head>) -> Result<(), String> {
         let gpu = Gpu::new().map_err(|e| e.to_string())?;
-        let mut renderer =
-            Renderer::new(&gpu, PixelFormat::I420, Filter::Mip).map_err(|e| e.to_string())?;
+        let mut renderer = self.renderer(&gpu).map_err(|e| e.to_string())?;
         let mut encoder = self.encoder(self.live.snapshot().output.fps)?;
         let start = Instant::now();
         let mut last_frame: Option<Frame> = None;
@@ -355,8 +362,7 @@ impl Head {
                     self.live.set_failure(Failure::Gpu);
                     healthy = Some(false);
                     std::thread::sleep(Duration::from_secs(1));
-                    match Gpu::new().and_then(|g| Renderer::new(&g, PixelFormat::I420, Filter::Mip))
-                    {
+                    match Gpu::new().and_then(|g| self.renderer(&g)) {
                         Ok(r) => renderer = r,
                         Err(e) => error!("GPU: {e}"),
                     }

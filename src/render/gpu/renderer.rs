@@ -23,6 +23,7 @@ use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
 use super::planes::{PlaneSpec, SourcePlanes, copy_for_upload, upload_layout};
 use super::shaders;
 use super::{Gpu, GpuError};
+use crate::lens::Model;
 use crate::render::frame::{PixelFormat, PlaneLayout};
 use crate::render::mip::{Filter, ImagedBox, levels_for};
 use crate::render::plan::FramePlan;
@@ -199,7 +200,10 @@ pub struct Renderer {
     kinds_change: bool,
     /// Generic draw pipelines just built, to be dispatched once with the next frame so a
     /// device that compiles at dispatch has them compiled before they are needed.
-    warm_up: Option<[u32; 5]>,
+    warm_up: Vec<[u32; 5]>,
+    /// Lens models (`model_code`) whose generic draw pipelines the first frame also makes
+    /// (see [`Renderer::expect_lens_models`]).
+    expected_models: Vec<u32>,
     next_id: u64,
     in_flight: VecDeque<InFlight>,
 }
@@ -408,7 +412,8 @@ impl Renderer {
             building: None,
             build_in_background: !gpu.is_software(),
             kinds_change: true,
-            warm_up: None,
+            warm_up: Vec::new(),
+            expected_models: Vec::new(),
             next_id: 0,
             in_flight: VecDeque::new(),
         })
@@ -446,9 +451,10 @@ impl Renderer {
     /// The draw pipelines a frame of view kinds `wanted` (draw override constants) is drawn
     /// with. The renderer's first frame builds the pipelines specialised for its kinds and
     /// (unless the kinds are fixed, `fixed_view_kinds`) the generic ones, which draw any
-    /// kinds, and dispatches both. A later frame whose kinds are new, or whose lens model or
-    /// format is, is drawn at once by the generic ones (built first for a new model or
-    /// format); the specialised ones are built on another thread and used from the frame
+    /// kinds, and dispatches both (and the generic ones of the lens models named by
+    /// `expect_lens_models`). A later frame whose kinds are new, or whose lens model or
+    /// format is, is drawn at once by the generic ones (built first for a model not named or
+    /// a new format); the specialised ones are built on another thread and used from the frame
     /// after they are ready. Software rasterizers compile a pipeline when it is first
     /// dispatched, on the queue's one thread, so there the frame stream would wait anyway
     /// (1.2 s on lavapipe with a cold shader cache): they keep drawing with the generic ones.
@@ -464,9 +470,20 @@ impl Renderer {
             self.pipeline(DRAW, wanted)?;
             self.pipeline(DRAW_MIXED, wanted)?;
             if self.kinds_change {
-                self.pipeline(DRAW, generic)?;
-                self.pipeline(DRAW_MIXED, generic)?;
-                self.warm_up = Some(generic);
+                // This frame's lens model, then the others the stream may switch to.
+                let models = std::iter::once(wanted[0]).chain(
+                    self.expected_models
+                        .iter()
+                        .copied()
+                        .filter(|&m| m != wanted[0]),
+                );
+                for model in models.collect::<Vec<_>>() {
+                    let mut generic = generic;
+                    generic[0] = model;
+                    self.pipeline(DRAW, generic)?;
+                    self.pipeline(DRAW_MIXED, generic)?;
+                    self.warm_up.push(generic);
+                }
             }
             return Ok(wanted);
         }
@@ -518,6 +535,26 @@ impl Renderer {
             }
             None => self.build_in_background = false,
         }
+    }
+
+    /// Names the lens models the frames may switch to later (those of lens.cal, for a live
+    /// stream where LENS SET can choose any of them): the first frame then makes and compiles
+    /// their generic draw pipelines too, so a switch to one of them is drawn at once instead
+    /// of waiting for a compilation (lavapipe: a second or two with a cold shader cache).
+    /// Ignored with [`Renderer::fixed_view_kinds`].
+    pub fn expect_lens_models<'a>(&mut self, models: impl IntoIterator<Item = &'a Model>) {
+        self.expected_models.clear();
+        for code in models.into_iter().map(model_code) {
+            if !self.expected_models.contains(&code) {
+                self.expected_models.push(code);
+            }
+        }
+    }
+
+    /// How many pipelines the renderer holds (every pass, every set of override constants
+    /// built so far).
+    pub fn pipelines(&self) -> usize {
+        self.pipelines.len()
     }
 
     /// Says the frames' view kinds will not change (an offline render of one state), so no
@@ -955,7 +992,7 @@ impl Renderer {
     }
 
     fn encode_draw(&mut self, encoder: &mut wgpu::CommandEncoder) {
-        let warm_up = self.warm_up.take();
+        let warm_up = std::mem::take(&mut self.warm_up);
         let target = self.target.as_ref().unwrap();
         let constants = self.draw_constants;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -964,8 +1001,10 @@ impl Renderer {
         });
         pass.set_bind_group(0, self.draw_group.as_ref().unwrap(), &[]);
         // One workgroup of each generic pipeline, drawing what the full dispatch then draws
-        // again, so they are compiled now rather than when a frame first needs them.
-        if let Some(generic) = warm_up {
+        // again, so they are compiled now rather than when a frame first needs them (a pair
+        // for another lens model reads this frame's lens as one of its own: what it draws is
+        // nonsense, drawn over the same way).
+        for generic in warm_up {
             for pipeline in [DRAW, DRAW_MIXED] {
                 pass.set_pipeline(&self.pipelines[&(pipeline, generic)]);
                 pass.dispatch_workgroups(1, 1, 1);
