@@ -41,6 +41,14 @@ echo "== FFmpeg $(ffmpeg -version | head -1 | cut -d' ' -f3), $frames frames, $(
 run "v360 one 960x540 view, I420 in" yuv420p "$one"
 run "v360 four 960x540 views, split + xstack, I420 in" yuv420p "$four"
 run "v360 four 960x540 views, split + xstack, NV12 in" nv12 "$four"
+# The views `bench` draws (its default state, layout 4): four 540x540 squares, 90° each way,
+# yaw 0, 90, 180 and 270°, 30° down, 2x2 (DigiView also fills the rest of its 1920x1080 frame
+# with background and detection tiles). The issue's 960x540 views above have 1.8 times the
+# pixels.
+square="input=fisheye:ih_fov=283.9:iv_fov=159.7:output=flat:h_fov=90:v_fov=90:w=540:h=540"
+same="[0]split=4[a][b][c][d];[a]v360=$square:yaw=0:pitch=-30[A];[b]v360=$square:yaw=90:pitch=-30[B];[c]v360=$square:yaw=180:pitch=-30[C];[d]v360=$square:yaw=-90:pitch=-30[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
+run "v360 bench's four 540x540 views, I420 in" yuv420p "$same"
+run "v360 bench's four 540x540 views, NV12 in" nv12 "$same"
 # What DigiView does every frame: every view re-aimed. v360 takes new angles as commands
 # (sendcmd, one per frame at the input's 25 fps) and rebuilds its map for each; 30 frames
 # are plenty at this speed.
