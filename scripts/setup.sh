@@ -53,8 +53,14 @@ if ((${#missing[@]})); then
 fi
 if ((${#backports[@]})); then
   # Its dependencies (libdrm, the other Mesa packages present) come along from there too.
+  # Where backports cannot be had, Debian 12's own Mesa does the same work, more slowly.
   DEBIAN_FRONTEND=noninteractive "${as_root[@]}" apt-get install -y -qq --no-install-recommends \
-    -t bookworm-backports "${backports[@]}"
+    -t bookworm-backports "${backports[@]}" ||
+    {
+      echo "setup: no Mesa from bookworm-backports; installing Debian 12's (slower)" >&2
+      DEBIAN_FRONTEND=noninteractive "${as_root[@]}" apt-get install -y -qq \
+        --no-install-recommends "${backports[@]}"
+    }
 fi
 
 if ! command -v cargo >/dev/null; then
