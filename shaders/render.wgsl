@@ -128,18 +128,19 @@ fn uv_of(q: vec2f) -> vec2f {
 }
 
 // 4:2:0 input's chroma (Cb Cr, 0..1) at fisheye point q, level of detail `lod` counted in
-// the chroma's own chain (whose level 0 is the frame's level 1).
-fn chroma_at(q: vec2f, lod: f32) -> vec2f {
-    return textureSampleLevel(plane1, trilinear, uv_of(q), lod).rg;
+// the chroma's own chain (whose level 0 is the frame's level 1). Not sampled where nothing
+// `seen` is there: such pixels are black whatever their chroma (`colour`).
+fn chroma_at(q: vec2f, lod: f32, seen: bool) -> vec2f {
+    var cbcr = vec2f(0.5);
+    if seen {
+        cbcr = textureSampleLevel(plane1, trilinear, uv_of(q), lod).rg;
+    }
+    return cbcr;
 }
 
 // A pixel's own chroma, for RGBA output: at the pixel, one level up.
 fn pixel_chroma(q: vec3f, lod: f32) -> vec2f {
-    var cbcr = vec2f(0.5);
-    if q.z > 0.0 {
-        cbcr = chroma_at(q.xy, max(lod - 1.0, 0.0));
-    }
-    return cbcr;
+    return chroma_at(q.xy, max(lod - 1.0, 0.0), q.z > 0.0);
 }
 
 // For 4:2:0 output, the chroma a group of a quad's pixels share (4:2:0 output keeps one per
@@ -166,12 +167,7 @@ fn group_chroma(
         max(select(0.0, la, ia), select(0.0, lb, ib)),
         max(select(0.0, lc, ic), select(0.0, ld, id)),
     );
-    // A group that sees nothing is black whatever its chroma (`colour`): no sample.
-    var cbcr = vec2f(0.5);
-    if n > 0.0 {
-        cbcr = chroma_at(sum / n, lod);
-    }
-    return cbcr;
+    return chroma_at(sum / max(n, 1.0), lod, n > 0.0);
 }
 
 // The colour of a pixel that lands at `q` with level of detail `lod`: RGBA, or luma at the

@@ -8,8 +8,9 @@
 //! pairs, `planes`) is copied from there into its texture over the lens's imaged box. For the
 //! mip filter, the ingest pass reads the frame (in the upload buffer itself where the device
 //! shares host memory, else in a copy of it) and writes every plane's levels 1 and 2 into a
-//! level buffer, the mip passes the rest, and those levels are copied into the textures. The draw pass writes the output frame (RGBA, I420 or NV12) into a
-//! storage buffer, which is copied into a readback buffer of the ring. The draw pass is two
+//! level buffer, the mip passes the rest, and those levels are copied into the textures. The
+//! draw pass writes the output frame (RGBA, I420 or NV12) into a storage buffer, which is
+//! copied into a readback buffer of the ring. The draw pass is two
 //! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
 //! rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N
 //! renders.
@@ -854,13 +855,13 @@ impl Renderer {
                 input.height,
             ));
         }
+        self.ensure_source(input, plan.lens.imaged_box());
         // Frames arrive in the upload buffers as RGBA or NV12 (I420 woven on the way).
-        let upload = upload_layout(input).format;
+        let upload = self.source.as_ref().unwrap().padded.format;
         if self.filter == Filter::Mip {
             self.pipeline(INGEST, ingest_constants(upload))?;
             self.pipeline(MIP, [0; 5])?;
         }
-        self.ensure_source(input, plan.lens.imaged_box());
         self.ensure_target(plan.layout.width, plan.layout.height)?;
         self.ensure_blocks(plan);
         self.ensure_draw_group();
@@ -886,12 +887,6 @@ impl Renderer {
             queue.write_buffer(&self.views, 0, bytemuck::cast_slice(&views));
         }
         Ok(())
-    }
-
-    /// The ingest pipeline's override constants for the current source: the format its
-    /// frames take in the upload buffers.
-    fn ingest_constants(&self) -> [u32; 5] {
-        ingest_constants(self.source.as_ref().unwrap().padded.format)
     }
 
     /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free), rows
@@ -952,7 +947,7 @@ impl Renderer {
             label: Some("ingest and mip chain"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipelines[&(INGEST, self.ingest_constants())]);
+        pass.set_pipeline(&self.pipelines[&(INGEST, ingest_constants(source.padded.format))]);
         pass.set_bind_group(0, &source.ingest[slot.min(source.ingest.len() - 1)], &[]);
         pass.dispatch_workgroups(
             groups(columns.len().div_ceil(INGEST_BLOCK.0 as usize) as u32),
@@ -1157,8 +1152,6 @@ impl Renderer {
     }
 }
 
-/// Copies every plane's rows of a frame laid out as `from` into `to`'s places in `out`
-/// (one copy when the layouts agree); padding is left as it is.
 /// The ingest pipeline's override constants for frames that are `upload` in the upload
 /// buffers (RGBA or NV12).
 fn ingest_constants(upload: PixelFormat) -> [u32; 5] {
