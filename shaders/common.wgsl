@@ -29,18 +29,18 @@ const KG: f32 = 0.7152;
 // chroma 16..240).
 fn rgb_to_yuv(c: vec3f) -> vec3f {
     let y = dot(c, vec3f(KR, KG, KB));
-    let cb = 0.5 * (c.b - y) / (1.0 - KB);
-    let cr = 0.5 * (c.r - y) / (1.0 - KR);
-    return vec3f(16.0 + 219.0 * y, 128.0 + 224.0 * cb, 128.0 + 224.0 * cr) / 255.0;
+    let cb = (c.b - y) * (0.5 / (1.0 - KB));
+    let cr = (c.r - y) * (0.5 / (1.0 - KR));
+    return vec3f(16.0 + 219.0 * y, 128.0 + 224.0 * cb, 128.0 + 224.0 * cr) * (1.0 / 255.0);
 }
 
 // 8-bit code values (0..255) → RGB in [0, 1].
 fn yuv_to_rgb(y8: f32, u8: f32, v8: f32) -> vec3f {
-    let y = (y8 - 16.0) / 219.0;
-    let cb = (u8 - 128.0) / 224.0;
-    let cr = (v8 - 128.0) / 224.0;
+    let y = (y8 - 16.0) * (1.0 / 219.0);
+    let cb = (u8 - 128.0) * (1.0 / 224.0);
+    let cr = (v8 - 128.0) * (1.0 / 224.0);
     let r = y + 2.0 * (1.0 - KR) * cr;
     let b = y + 2.0 * (1.0 - KB) * cb;
-    let g = (y - KR * r - KB * b) / KG;
+    let g = (y - KR * r - KB * b) * (1.0 / KG);
     return clamp(vec3f(r, g, b), vec3f(0.0), vec3f(1.0));
 }

@@ -163,7 +163,7 @@ fn lens_project(ray: vec3f) -> vec3f {
     }
     var dir = vec2f(0.0);
     if rho > 0.0 {
-        dir = ray.xy / rho;
+        dir = ray.xy * (1.0 / rho);
     }
     let m = dir * r;
     let q = vec2f(

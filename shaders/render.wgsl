@@ -11,9 +11,9 @@
 // of detail is log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1,
 // y ^ 1), the derivatives a fragment shader would take. Each plane of the source has its own
 // texture and chain (src/render/gpu/planes.rs): RGBA; or luma, and Cb Cr pairs from half size,
-// filtered in Y Cb Cr and converted afterwards. For 4:2:0 output, 4:2:0 chroma is sampled once
-// per 2x2 quad of the output (per view in a quad that straddles views), as the output keeps
-// it; for RGBA output, once per pixel.
+// filtered in Y Cb Cr and converted afterwards (for 4:2:0 output, not at all: `yuv_through`).
+// For 4:2:0 output, 4:2:0 chroma is sampled once per 2x2 quad of the output (per view in a
+// quad that straddles views), as the output keeps it; for RGBA output, once per pixel.
 
 const KIND_BLACK: u32 = 0u;
 const KIND_RECTILINEAR: u32 = 1u;
@@ -122,9 +122,10 @@ fn lod_of(q: vec3f, qx: vec3f, x_same: bool, qy: vec3f, y_same: bool) -> f32 {
     return clamp(log2(max(max(sx, sy), 1.0)), 0.0, f32(params.input_planes.z - 1u));
 }
 
-// Fisheye pixel coordinates → texture coordinates.
+// Fisheye pixel coordinates → texture coordinates. Divisions are dear on a CPU; the one
+// reciprocal here is worked out once per invocation, however many samples it serves.
 fn uv_of(q: vec2f) -> vec2f {
-    return (q + 0.5) / params.lens.offset_frame.zw;
+    return (q + 0.5) * (1.0 / params.lens.offset_frame.zw);
 }
 
 // 4:2:0 input's chroma (Cb Cr, 0..1) at fisheye point q, level of detail `lod` counted in
@@ -167,11 +168,26 @@ fn group_chroma(
         max(select(0.0, la, ia), select(0.0, lb, ib)),
         max(select(0.0, lc, ic), select(0.0, ld, id)),
     );
-    return chroma_at(sum / max(n, 1.0), lod, n > 0.0);
+    return chroma_at(sum * (1.0 / max(n, 1.0)), lod, n > 0.0);
+}
+
+// Whether 4:2:0 input reaches 4:2:0 output as it is: the pixels' colours are then Y Cb Cr
+// code values (0..1), never RGB. A round trip through RGB would cost a conversion each way
+// per pixel and clip the camera's colours that RGB cannot hold.
+fn yuv_through() -> bool {
+    return INPUT_FORMAT != FORMAT_RGBA && OUTPUT_FORMAT != FORMAT_RGBA;
+}
+
+// Black as Y Cb Cr code values, what `rgb_to_yuv` makes of RGB black.
+const BLACK_YUV: vec3f = vec3f(16.0, 128.0, 128.0) / 255.0;
+
+// Black in the colours pixels are drawn in.
+fn black() -> vec3f {
+    return select(vec3f(0.0), BLACK_YUV, yuv_through());
 }
 
 // The colour of a pixel that lands at `q` with level of detail `lod`: RGBA, or luma at the
-// pixel with its group's chroma `cbcr` for 4:2:0 input.
+// pixel with its group's chroma `cbcr` for 4:2:0 input (as Y Cb Cr where `yuv_through`).
 fn colour(q: vec3f, lod: f32, cbcr: vec2f) -> vec3f {
     // Outside the image circle nothing is sampled. A branch that no lane of a SIMD group
     // takes costs nothing on Mesa 25's llvmpipe (on 22.3 both sides always ran), and views
@@ -179,6 +195,9 @@ fn colour(q: vec3f, lod: f32, cbcr: vec2f) -> vec3f {
     var first = vec4f(0.0);
     if q.z > 0.0 {
         first = textureSampleLevel(plane0, trilinear, uv_of(q.xy), lod);
+    }
+    if yuv_through() {
+        return select(black(), vec3f(first.r, cbcr), q.z > 0.0);
     }
     var c = first.rgb;
     if INPUT_FORMAT != FORMAT_RGBA {
@@ -257,16 +276,33 @@ fn draw_quad_in(v: View, x0: u32, y0: u32) -> Quad {
 }
 
 fn luma(c: vec3f) -> f32 {
+    if yuv_through() {
+        return c.x;
+    }
     return rgb_to_yuv(c).x;
 }
 
+// A quad's mean colour's chroma (the conversion is affine: the mean of the pixels' chroma).
 fn chroma(q: Quad) -> vec2f {
-    return rgb_to_yuv((q.c0 + q.c1 + q.c2 + q.c3) * 0.25).yz;
+    let mean = (q.c0 + q.c1 + q.c2 + q.c3) * 0.25;
+    if yuv_through() {
+        return mean.yz;
+    }
+    return rgb_to_yuv(mean).yz;
+}
+
+// pack4x8unorm written out, the same value for every number: llvmpipe converts the builtin's
+// floats to integers lane by lane (a fifth of the draw's instructions went there), these
+// stay in vectors. n + 2^23 holds the integer n in its low mantissa bits.
+fn pack_unorm(v: vec4f) -> u32 {
+    let n = floor(clamp(v, vec4f(0.0), vec4f(1.0)) * 255.0 + 0.5);
+    let b = bitcast<vec4u>(n + 8388608.0) & vec4u(0xffu);
+    return b.x | (b.y << 8u) | (b.z << 16u) | (b.w << 24u);
 }
 
 fn store_rgba(x: u32, y: u32, c: vec3f) {
     if x < params.output.x && y < params.output.y {
-        out[(y * params.output.w) / 4u + x] = pack4x8unorm(vec4f(c, 1.0));
+        out[(y * params.output.w) / 4u + x] = pack_unorm(vec4f(c, 1.0));
     }
 }
 
@@ -297,8 +333,9 @@ fn draw(@builtin(global_invocation_id) gid: vec3u) {
     // A block in no view is black; skipping its projection costs nothing where the SIMD
     // group's blocks agree (Mesa 25's llvmpipe branches; 22.3 ran both sides anyway).
     if vi == NO_VIEW {
-        let black = Quad(vec3f(0.0), vec3f(0.0), vec3f(0.0), vec3f(0.0));
-        store_block(bx, by, black, black, black, black);
+        let k = black();
+        let empty = Quad(k, k, k, k);
+        store_block(bx, by, empty, empty, empty, empty);
         return;
     }
     // One view for the whole block, fetched once.
@@ -344,10 +381,10 @@ fn store_block(bx: u32, by: u32, a: Quad, b: Quad, c: Quad, d: Quad) {
     let stride = params.output.w;
     let top = (by * stride + bx) / 4u;
     let bottom = ((by + 1u) * stride + bx) / 4u;
-    out[top] = pack4x8unorm(vec4f(luma(a.c0), luma(a.c1), luma(b.c0), luma(b.c1)));
-    out[top + 1u] = pack4x8unorm(vec4f(luma(c.c0), luma(c.c1), luma(d.c0), luma(d.c1)));
-    out[bottom] = pack4x8unorm(vec4f(luma(a.c2), luma(a.c3), luma(b.c2), luma(b.c3)));
-    out[bottom + 1u] = pack4x8unorm(vec4f(luma(c.c2), luma(c.c3), luma(d.c2), luma(d.c3)));
+    out[top] = pack_unorm(vec4f(luma(a.c0), luma(a.c1), luma(b.c0), luma(b.c1)));
+    out[top + 1u] = pack_unorm(vec4f(luma(c.c0), luma(c.c1), luma(d.c0), luma(d.c1)));
+    out[bottom] = pack_unorm(vec4f(luma(a.c2), luma(a.c3), luma(b.c2), luma(b.c3)));
+    out[bottom + 1u] = pack_unorm(vec4f(luma(c.c2), luma(c.c3), luma(d.c2), luma(d.c3)));
     // Chroma: each quad's mean colour.
     let ua = chroma(a);
     let ub = chroma(b);
@@ -356,11 +393,11 @@ fn store_block(bx: u32, by: u32, a: Quad, b: Quad, c: Quad, d: Quad) {
     let row = params.output_planes.x + (by / 2u) * params.output_planes.z;
     if OUTPUT_FORMAT == FORMAT_I420 {
         let v_row = params.output_planes.y + (by / 2u) * params.output_planes.z;
-        out[(row + bx / 2u) / 4u] = pack4x8unorm(vec4f(ua.x, ub.x, uc.x, ud.x));
-        out[(v_row + bx / 2u) / 4u] = pack4x8unorm(vec4f(ua.y, ub.y, uc.y, ud.y));
+        out[(row + bx / 2u) / 4u] = pack_unorm(vec4f(ua.x, ub.x, uc.x, ud.x));
+        out[(v_row + bx / 2u) / 4u] = pack_unorm(vec4f(ua.y, ub.y, uc.y, ud.y));
     } else {
         let w = (row + bx) / 4u;
-        out[w] = pack4x8unorm(vec4f(ua, ub));
-        out[w + 1u] = pack4x8unorm(vec4f(uc, ud));
+        out[w] = pack_unorm(vec4f(ua, ub));
+        out[w + 1u] = pack_unorm(vec4f(uc, ud));
     }
 }

@@ -262,6 +262,65 @@ fn i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range() {
     }
 }
 
+/// Of the values that are not `black`, the most frequent and the share of them it has.
+fn dominant<T: Copy + Ord>(values: impl Iterator<Item = T>, black: T) -> (T, f64) {
+    let mut counts = std::collections::BTreeMap::new();
+    for v in values.filter(|&v| v != black) {
+        *counts.entry(v).or_insert(0usize) += 1;
+    }
+    let total: usize = counts.values().sum();
+    let (&value, &n) = counts
+        .iter()
+        .max_by_key(|(_, n)| **n)
+        .expect("something is drawn");
+    (value, n as f64 / total as f64)
+}
+
+#[test]
+fn camera_colours_rgb_cannot_hold_go_from_4_2_0_input_to_4_2_0_output_unclipped() {
+    // Y 60, Cb 60, Cr 220: a dark, saturated red whose blue is below RGB's 0. Through RGB and
+    // back it would come out clipped (Y 66); 4:2:0 in and out, the camera's values go out as
+    // they came, wherever a view sees the image.
+    let lens = small_lens("CIL216");
+    let plan = FramePlan::new(&base_state(), &lens).unwrap();
+    for input in [PixelFormat::I420, PixelFormat::Nv12] {
+        let layout = PlaneLayout::tight(input, lens.width, lens.height).unwrap();
+        let mut data = vec![60u8; layout.size as usize];
+        for by in 0..lens.height / 2 {
+            for bx in 0..lens.width / 2 {
+                let (u, v) = layout.chroma_at(bx, by);
+                (data[u], data[v]) = (60, 220);
+            }
+        }
+        for output in [PixelFormat::I420, PixelFormat::Nv12] {
+            for filter in [Filter::Mip, Filter::Bilinear] {
+                let label = format!("{input} in, {output} out, {filter:?}");
+                let frame = renderer(output, filter)
+                    .render(&data, &layout, &plan)
+                    .unwrap();
+                let (out, bytes) = (&frame.layout, &frame.data);
+                let luma = (0..out.height).flat_map(|y| {
+                    (0..out.width).map(move |x| bytes[(y * out.stride + x) as usize])
+                });
+                // Pixels on the image circle's rim blend with the black outside it.
+                let (y, share) = dominant(luma, 16);
+                assert!(y == 60 && share > 0.9, "{label}: luma {y} ({share:.3})");
+                let chroma = (0..out.height / 2).flat_map(|by| {
+                    (0..out.width / 2).map(move |bx| {
+                        let (u, v) = out.chroma_at(bx, by);
+                        (bytes[u], bytes[v])
+                    })
+                });
+                let (c, share) = dominant(chroma, (128, 128));
+                assert!(
+                    c == (60, 220) && share > 0.9,
+                    "{label}: chroma {c:?} ({share:.3})"
+                );
+            }
+        }
+    }
+}
+
 /// Mean squared deviation from the mean (AC energy) over a rectangle, per channel.
 fn ac_energy(img: &RgbImage, r: Rect) -> f64 {
     let n = r.area() as f64;

@@ -384,11 +384,16 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        // Bilinear filtering samples level 0 alone: a sampler and views (`ensure_source`) that
+        // say so let a software rasterizer leave out the per-pixel choice of levels.
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("trilinear"),
             mag_filter: wgpu::FilterMode::Linear,
             min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            mipmap_filter: match filter {
+                Filter::Mip => wgpu::MipmapFilterMode::Linear,
+                Filter::Bilinear => wgpu::MipmapFilterMode::Nearest,
+            },
             ..Default::default()
         });
         if let Some(e) = pollster::block_on(scope.pop()) {
@@ -656,7 +661,10 @@ impl Renderer {
                 fill_level0(&self.gpu.queue, &texture, spec);
                 Plane {
                     spec: spec.clone(),
-                    view: texture.create_view(&wgpu::TextureViewDescriptor::default()),
+                    view: texture.create_view(&wgpu::TextureViewDescriptor {
+                        mip_level_count: (self.filter == Filter::Bilinear).then_some(1),
+                        ..Default::default()
+                    }),
                     texture,
                 }
             })
