@@ -250,12 +250,59 @@ fn draw_quad(x0: u32, y0: u32) -> Quad {
 }
 
 // A quad that lies in view `v`.
-fn draw_quad_in(v: View, x0: u32, y0: u32) -> Quad {
-    let p = view_xy(v, x0, y0);
-    let q0 = view_point(v, p);
-    let q1 = view_point(v, p + vec2f(1.0, 0.0));
-    let q2 = view_point(v, p + vec2f(0.0, 1.0));
-    let q3 = view_point(v, p + vec2f(1.0, 1.0));
+// Where one row of a block lands, pixel by pixel (columns 0 to 7).
+struct Run {
+    c0: vec3f,
+    c1: vec3f,
+    c2: vec3f,
+    c3: vec3f,
+    c4: vec3f,
+    c5: vec3f,
+    c6: vec3f,
+    c7: vec3f,
+}
+
+// Point x of the parabola through `a`, `b` and `c` at columns 0, 4 and 7.
+fn through(a: vec3f, b: vec3f, c: vec3f, x: f32) -> vec2f {
+    return a.xy * ((x - 4.0) * (x - 7.0) / 28.0) + b.xy * (x * (x - 7.0) / -12.0)
+        + c.xy * (x * (x - 4.0) / 21.0);
+}
+
+// The farthest column 2 of a run may land from the parabola through columns 0, 4 and 7 for
+// the run's other pixels to be put on it, in fisheye pixels.
+const RUN_TOLERANCE: f32 = 0.005;
+
+// Where the row of 8 pixels from `p` in view `v` lands: projected at columns 0, 2, 4 and 7
+// and, where all four are imaged and column 2 lies within RUN_TOLERANCE of the parabola
+// through the others, columns 1, 3, 5 and 6 put on that parabola; else every pixel
+// projected. Eight of a block's 16 projections go, and with them about a tenth of the draw's
+// time on lavapipe; measured against the exact projection over every lens model, crop mode
+// and fields of view up to 300°, no pixel put on a parabola lands more than 0.005 fisheye
+// pixels from where it projects (tests/gpu_render.rs, docs/decisions.md).
+fn run_of(v: View, p: vec2f) -> Run {
+    let c0 = view_point(v, p);
+    let c2 = view_point(v, p + vec2f(2.0, 0.0));
+    let c4 = view_point(v, p + vec2f(4.0, 0.0));
+    let c7 = view_point(v, p + vec2f(7.0, 0.0));
+    var r = Run(c0, c0, c2, c2, c4, c4, c4, c7);
+    let imaged = min(min(c0.z, c2.z), min(c4.z, c7.z)) > 0.0;
+    if imaged && distance(through(c0, c4, c7, 2.0), c2.xy) <= RUN_TOLERANCE {
+        r.c1 = vec3f(through(c0, c4, c7, 1.0), 1.0);
+        r.c3 = vec3f(through(c0, c4, c7, 3.0), 1.0);
+        r.c5 = vec3f(through(c0, c4, c7, 5.0), 1.0);
+        r.c6 = vec3f(through(c0, c4, c7, 6.0), 1.0);
+    } else {
+        r.c1 = view_point(v, p + vec2f(1.0, 0.0));
+        r.c3 = view_point(v, p + vec2f(3.0, 0.0));
+        r.c5 = view_point(v, p + vec2f(5.0, 0.0));
+        r.c6 = view_point(v, p + vec2f(6.0, 0.0));
+    }
+    return r;
+}
+
+// A quad that lies in one view, its pixels landing at q0 (x0, y0), q1 (x0+1, y0), q2 (x0,
+// y0+1) and q3 (x0+1, y0+1).
+fn quad_of(q0: vec3f, q1: vec3f, q2: vec3f, q3: vec3f) -> Quad {
     let l0 = lod_of(q0, q1, true, q2, true);
     let l1 = lod_of(q1, q0, true, q3, true);
     let l2 = lod_of(q2, q3, true, q0, true);
@@ -340,13 +387,16 @@ fn draw(@builtin(global_invocation_id) gid: vec3u) {
     }
     // One view for the whole block, fetched once.
     let v = views[vi];
+    let p = view_xy(v, bx, by);
+    let a = run_of(v, p);
+    let b = run_of(v, p + vec2f(0.0, 1.0));
     store_block(
         bx,
         by,
-        draw_quad_in(v, bx, by),
-        draw_quad_in(v, bx + 2u, by),
-        draw_quad_in(v, bx + 4u, by),
-        draw_quad_in(v, bx + 6u, by),
+        quad_of(a.c0, a.c1, b.c0, b.c1),
+        quad_of(a.c2, a.c3, b.c2, b.c3),
+        quad_of(a.c4, a.c5, b.c4, b.c5),
+        quad_of(a.c6, a.c7, b.c6, b.c7),
     );
 }
 

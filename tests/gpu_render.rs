@@ -19,6 +19,7 @@ use digiview::render::{Filter, FramePlan, PixelFormat, PlaneLayout, cpu, yuv};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;
+use glam::DVec2;
 use image::RgbImage;
 use std::sync::OnceLock;
 
@@ -260,6 +261,87 @@ fn i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range() {
         assert_eq!(frame.data[0], 16, "{format}: black luma");
         assert_eq!(frame.data[frame.layout.chroma[0] as usize], 128);
     }
+}
+
+/// Where pixel `k` of an 8-pixel run lies on the parabola through the run's columns 0, 4 and
+/// 7 (`a`, `b`, `c`): shaders/render.wgsl's `through`.
+fn on_parabola(a: DVec2, b: DVec2, c: DVec2, k: f64) -> DVec2 {
+    a * ((k - 4.0) * (k - 7.0) / 28.0) + b * (k * (k - 7.0) / -12.0) + c * (k * (k - 4.0) / 21.0)
+}
+
+/// Of the 8-pixel runs of `plan`'s views that the draw pass gives to one view, those it puts
+/// on parabolas (shaders/render.wgsl, `run_of`: columns 0, 2, 4 and 7 imaged, column 2 within
+/// RUN_TOLERANCE of the parabola through the others), and the farthest that one of their
+/// pixels lands from where it projects (f64).
+fn parabola_runs(plan: &FramePlan) -> (usize, usize, f64) {
+    const RUN_TOLERANCE: f64 = 0.005;
+    let (mut all, mut fitted, mut worst) = (0, 0, 0.0f64);
+    for view in &plan.views {
+        let r = view.rect;
+        for y in r.y..r.bottom() {
+            // Blocks are 8 columns from a multiple of 8.
+            for bx in (r.x.next_multiple_of(8)..r.right().saturating_sub(7)).step_by(8) {
+                all += 1;
+                let p = DVec2::new((bx - r.x) as f64 + 0.5, (y - r.y) as f64 + 0.5);
+                let at = |k: f64| plan.fisheye_pixel(view, p + DVec2::new(k, 0.0));
+                let (Some(a), Some(d), Some(b), Some(c)) = (at(0.0), at(2.0), at(4.0), at(7.0))
+                else {
+                    continue;
+                };
+                if (on_parabola(a, b, c, 2.0) - d).length() > RUN_TOLERANCE {
+                    continue;
+                }
+                fitted += 1;
+                for k in [1.0, 3.0, 5.0, 6.0] {
+                    // The draw counts such a pixel imaged: it must be.
+                    let exact = at(k).unwrap_or(DVec2::INFINITY);
+                    worst = worst.max((on_parabola(a, b, c, k) - exact).length());
+                }
+            }
+        }
+    }
+    (all, fitted, worst)
+}
+
+/// Every lens model, crop mode and a spread of fields of view, at a small output (more bend
+/// per run than at 1080p): no pixel the draw pass puts on a parabola lands as much as a
+/// hundredth of a fisheye pixel from where it projects; and in the benchmark's frame most
+/// runs are put on parabolas.
+#[test]
+fn pixels_put_on_parabolas_land_within_a_hundredth_of_a_pixel_of_their_projection() {
+    let mut lenses = sample_lenses();
+    lenses.extend(["CIL216", "CIL018", "LN007"].map(|n| lens_cal().find(n).unwrap().lens()));
+    let mut worst = (0.0f64, String::new());
+    let (mut runs, mut fitted) = (0, 0);
+    for lens in &lenses {
+        for crop in [1, 2, 4] {
+            for fov in [30.0, 90.0, 120.0, 170.0, 300.0] {
+                let mut state = base_state();
+                (state.output.width, state.output.height) = (640, 360);
+                for cam in &mut state.cameras {
+                    (cam.crop, cam.fov) = (crop, fov * DEG);
+                }
+                let (n, f, w) = parabola_runs(&FramePlan::new(&state, lens).unwrap());
+                (runs, fitted) = (runs + n, fitted + f);
+                if w > worst.0 {
+                    worst = (w, format!("{}, crop {crop}, fov {fov}", lens.name));
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{fitted} of {runs} runs on parabolas: worst {:.5} px ({})",
+        worst.0, worst.1
+    );
+    assert!(fitted > 1_000_000, "only {fitted} runs on parabolas");
+    assert!(worst.0 < 0.01, "{:.4} px off ({})", worst.0, worst.1);
+    // The benchmark's frame: 1920x1080, four 540x540 views of 90°, tiles, CIL216 at 4K.
+    let mut state = base_state();
+    (state.output.width, state.output.height) = (1920, 1080);
+    let lens = lens_cal().find("CIL216").unwrap().lens();
+    let (n, f, w) = parabola_runs(&FramePlan::new(&state, &lens).unwrap());
+    eprintln!("the benchmark's frame: {f} of {n} runs on parabolas, worst {w:.5} px");
+    assert!(f * 2 > n && w < 0.01, "{f} of {n} runs, worst {w:.4} px");
 }
 
 /// Of the values that are not `black`, the most frequent and the share of them it has.
