@@ -4,10 +4,13 @@
 # I420 and from the camera-native NV12 (which v360 cannot read: FFmpeg converts it first).
 # v360's figure is its steady state: the time of a run of 10 + N frames less that of a run of
 # 10, over N, so FFmpeg's start-up and map building (about 0.3 s) are left out, as `bench`
-# leaves out its warm-up.
-# Usage: scripts/v360_compare.sh [frames]   (needs ffmpeg; docs/performance.md explains)
+# leaves out its warm-up. The machine's speed wanders by a third from minute to minute, so
+# every case runs once per round, the rounds one after another, and each line gives the
+# median over the rounds and their range.
+# Usage: scripts/v360_compare.sh [frames] [rounds]   (needs ffmpeg; docs/performance.md)
 set -euo pipefail
 frames=${1:-120}
+rounds=${2:-3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 bin=${DIGIVIEW:-target/release/digiview}
@@ -18,8 +21,20 @@ done
 # CIL216 in lens.cal: f = 775 px/rad, so the 3840x2160 frame spans 283.9 x 159.7 degrees.
 fish="input=fisheye:ih_fov=283.9:iv_fov=159.7:output=flat:h_fov=90:v_fov=58.7:w=960:h=540"
 view() { echo "v360=$fish:yaw=$1:pitch=$2"; }
-one="[0]$(view 0 -45)"
 four="[0]split=4[a][b][c][d];[a]$(view 0 0)[A];[b]$(view 90 -45)[B];[c]$(view 180 -45)[C];[d]$(view -90 -90)[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
+# The views `bench` draws (its default state, layout 4): four 540x540 squares, 90° each way,
+# yaw 0, 90, 180 and 270°, 30° down, 2x2 (DigiView also fills the rest of its 1920x1080 frame
+# with background and detection tiles). The issue's 960x540 views above have 1.8 times the
+# pixels; layouts hold square views, so these are the views DigiView can draw alike.
+square="input=fisheye:ih_fov=283.9:iv_fov=159.7:output=flat:h_fov=90:v_fov=90:w=540:h=540"
+same="[0]split=4[a][b][c][d];[a]v360=$square:yaw=0:pitch=-30[A];[b]v360=$square:yaw=90:pitch=-30[B];[c]v360=$square:yaw=180:pitch=-30[C];[d]v360=$square:yaw=-90:pitch=-30[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
+# What DigiView does every frame: every view re-aimed. v360 takes new angles as commands
+# (sendcmd, one per frame at the input's 25 fps) and rebuilds its map for each.
+awk 'BEGIN { for (i = 0; i < 400; i++) { y = (i * 0.7) % 360 - 180
+  printf "%.2f v360@A yaw %.2f, v360@B yaw %.2f, v360@C yaw %.2f, v360@D yaw %.2f;\n", i / 25, y, y, y, y } }' \
+  >"$work/aim.cmd"
+moving="[0]sendcmd=f=$work/aim.cmd,split=4[a][b][c][d];[a]v360@A=$fish:yaw=0:pitch=0[A];[b]v360@B=$fish:yaw=90:pitch=-45[B];[c]v360@C=$fish:yaw=180:pitch=-45[C];[d]v360@D=$fish:yaw=-90:pitch=-90[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
+
 # Seconds to run `graph` over n frames of the input in pixel format `fmt`.
 seconds() {
   local fmt=$1 n=$2 graph=$3 t0 t1
@@ -29,40 +44,52 @@ seconds() {
   t1=$(date +%s.%N)
   echo "$t1 - $t0" | bc -l
 }
-# Steady-state ms per frame of `graph` on `fmt` input, over n frames (default: frames).
-run() {
-  local label=$1 fmt=$2 graph=$3 n=${4:-$frames} short long
+# Steady-state ms per frame of `graph` on `fmt` input, over n frames, appended to file `key`.
+v360() {
+  local key=$1 fmt=$2 graph=$3 n=${4:-$frames} short long
   short=$(seconds "$fmt" 10 "$graph")
   long=$(seconds "$fmt" $((n + 10)) "$graph")
-  awk -v l="$label" -v n="$n" -v a="$short" -v b="$long" \
-    'BEGIN { ms = (b - a) * 1000 / n; printf "%-52s %6.1f ms/frame %6.1f fps\n", l, ms, 1000 / ms }'
+  echo "($long - $short) * 1000 / $n" | bc -l >>"$work/$key"
 }
-echo "== FFmpeg $(ffmpeg -version | head -1 | cut -d' ' -f3), $frames frames, $(nproc) cores, steady state"
-run "v360 one 960x540 view, I420 in" yuv420p "$one"
-run "v360 four 960x540 views, split + xstack, I420 in" yuv420p "$four"
-run "v360 four 960x540 views, split + xstack, NV12 in" nv12 "$four"
-# The views `bench` draws (its default state, layout 4): four 540x540 squares, 90° each way,
-# yaw 0, 90, 180 and 270°, 30° down, 2x2 (DigiView also fills the rest of its 1920x1080 frame
-# with background and detection tiles). The issue's 960x540 views above have 1.8 times the
-# pixels.
-square="input=fisheye:ih_fov=283.9:iv_fov=159.7:output=flat:h_fov=90:v_fov=90:w=540:h=540"
-same="[0]split=4[a][b][c][d];[a]v360=$square:yaw=0:pitch=-30[A];[b]v360=$square:yaw=90:pitch=-30[B];[c]v360=$square:yaw=180:pitch=-30[C];[d]v360=$square:yaw=-90:pitch=-30[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
-run "v360 bench's four 540x540 views, I420 in" yuv420p "$same"
-run "v360 bench's four 540x540 views, NV12 in" nv12 "$same"
-# What DigiView does every frame: every view re-aimed. v360 takes new angles as commands
-# (sendcmd, one per frame at the input's 25 fps) and rebuilds its map for each; 30 frames
-# are plenty at this speed.
-awk 'BEGIN { for (i = 0; i < 400; i++) { y = (i * 0.7) % 360 - 180
-  printf "%.2f v360@A yaw %.2f, v360@B yaw %.2f, v360@C yaw %.2f, v360@D yaw %.2f;\n", i / 25, y, y, y, y } }' \
-  >"$work/aim.cmd"
-moving="[0]sendcmd=f=$work/aim.cmd,split=4[a][b][c][d];[a]v360@A=$fish:yaw=0:pitch=0[A];[b]v360@B=$fish:yaw=90:pitch=-45[B];[c]v360@C=$fish:yaw=180:pitch=-45[C];[d]v360@D=$fish:yaw=-90:pitch=-90[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
-run "v360 four views re-aimed every frame, I420 in" yuv420p "$moving" 30
+# DigiView's pipelined ms per frame and staged total, appended to file `key`.
+digiview() {
+  local key=$1 input=$2 filter=$3
+  "$bin" bench --frames "$frames" --input-format "$input" --output-format i420 \
+    --filter "$filter" --json 2>/dev/null |
+    python3 -c 'import json, sys; d = json.load(sys.stdin)
+print(1000 / d["pipelined_fps"], d["staged"]["total_ms"])' >>"$work/$key"
+}
+for r in $(seq "$rounds"); do
+  echo "round $r of $rounds" >&2
+  v360 same_i420 yuv420p "$same"
+  digiview dv_i420_bilinear i420 bilinear
+  v360 same_nv12 nv12 "$same"
+  digiview dv_nv12_bilinear nv12 bilinear
+  v360 four_i420 yuv420p "$four"
+  v360 four_nv12 nv12 "$four"
+  digiview dv_i420_mip i420 mip
+  digiview dv_nv12_mip nv12 mip
+done
+v360 moving_i420 yuv420p "$moving" 30
+
+# Median and range of column `col` of file `key`.
+stats() {
+  python3 - "$work/$1" "${2:-1}" <<'EOF'
+import statistics, sys
+v = [float(l.split()[int(sys.argv[2]) - 1]) for l in open(sys.argv[1]) if l.strip()]
+print("%6.1f ms (%.1f to %.1f)" % (statistics.median(v), min(v), max(v)))
+EOF
+}
+echo "== FFmpeg $(ffmpeg -version | head -1 | cut -d' ' -f3) and digiview, $frames frames, $(nproc) cores, $rounds rounds interleaved: medians (range), ms per frame"
+echo "v360, bench's four 540x540 views, fixed angles, I420 in     $(stats same_i420)"
+echo "v360, bench's four 540x540 views, fixed angles, NV12 in     $(stats same_nv12)"
+echo "v360, four 960x540 views, fixed angles, I420 in             $(stats four_i420)"
+echo "v360, four 960x540 views, fixed angles, NV12 in             $(stats four_nv12)"
+echo "v360, four views re-aimed every frame, I420 in (one run)    $(stats moving_i420)"
 for input in i420 nv12; do
-  for filter in mip bilinear; do
+  for filter in bilinear mip; do
     # v360 interpolates bilinearly from the full-size frame and filters nothing: the same
     # as DigiView's --filter bilinear. DigiView's default is the mip filter.
-    echo "== digiview bench, $input in, I420 out, new attitude every frame, --filter $filter"
-    "$bin" bench --frames "$frames" --input-format $input --output-format i420 \
-      --filter $filter 2>/dev/null | grep -E "upload|render|readback|total|pipelined"
+    echo "digiview, new attitude every frame, $input in, $filter: pipelined $(stats dv_${input}_$filter 1), staged $(stats dv_${input}_$filter 2)"
   done
 done
