@@ -1,11 +1,12 @@
 // The frame pass: every view and detection tile of the output frame, from the source's mip
 // chain. One invocation draws an 8x2 block (four 2x2 quads), which is what I420 and NV12 need
 // to write whole words of every plane. `draw` covers the frame and draws each block that lies
-// in one view (or none) with that view, named by the block table (src/render/gpu/blocks.rs);
-// `draw_mixed` draws the listed blocks that straddle a view's or the frame's edge, finding
-// each pixel's view. Per frame only `params` and `views` change (`blocks` when the rectangles
-// do); the input and output formats, the filter and the view kinds present are overrides
-// fixed with the pipeline.
+// in one view (or none) with that view, named by the block table (src/render/gpu/blocks.rs),
+// projecting each of its rows at four pixels where a parabola through them fits the rest
+// (`run_of`); `draw_mixed` draws the listed blocks that straddle a view's or the frame's
+// edge, finding and projecting each pixel's view. Per frame only `params` and `views` change
+// (`blocks` when the rectangles do); the input and output formats, the filter and the view
+// kinds present are overrides fixed with the pipeline.
 //
 // Filtering, as src/render/cpu.rs and src/render/mip.rs do it: a trilinear sample whose level
 // of detail is log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1,
