@@ -2,7 +2,8 @@
 //! against the CPU reference of the same math and against ground truth from the synthetic
 //! world: every layout, crop mode and lens model; camera-native NV12 and I420 input;
 //! encoder-ready I420 and NV12 output; filtering of minified views (mip and bilinear); tiny
-//! frames; uploads read in place and copied; the frame ring.
+//! frames; uploads read in place and copied; the frame ring; 4:2:0 colours passed through;
+//! how far the draw's parabolas between projected pixels stray from the projection.
 //!
 //! Tolerances: GPU vs CPU reference PSNR ≥ 45 dB per frame; GPU vs truth within 0.5 dB of
 //! what the CPU reference scores; 4:2:0 input vs RGBA input ≥ 40 dB.
@@ -305,8 +306,8 @@ fn parabola_runs(plan: &FramePlan) -> (usize, usize, f64) {
 
 /// Every lens model, crop mode and a spread of fields of view, at a small output (more bend
 /// per run than at 1080p): no pixel the draw pass puts on a parabola lands as much as a
-/// hundredth of a fisheye pixel from where it projects; and in the benchmark's frame most
-/// runs are put on parabolas.
+/// hundredth of a fisheye pixel from where it projects; and in a frame like the benchmark's
+/// most runs are put on parabolas.
 #[test]
 fn pixels_put_on_parabolas_land_within_a_hundredth_of_a_pixel_of_their_projection() {
     let mut lenses = sample_lenses();
@@ -335,12 +336,13 @@ fn pixels_put_on_parabolas_land_within_a_hundredth_of_a_pixel_of_their_projectio
     );
     assert!(fitted > 1_000_000, "only {fitted} runs on parabolas");
     assert!(worst.0 < 0.01, "{:.4} px off ({})", worst.0, worst.1);
-    // The benchmark's frame: 1920x1080, four 540x540 views of 90°, tiles, CIL216 at 4K.
+    // A frame like the benchmark's: 1920x1080, four 540x540 views of 90° and tiles, CIL216
+    // at 4K.
     let mut state = base_state();
     (state.output.width, state.output.height) = (1920, 1080);
     let lens = lens_cal().find("CIL216").unwrap().lens();
     let (n, f, w) = parabola_runs(&FramePlan::new(&state, &lens).unwrap());
-    eprintln!("the benchmark's frame: {f} of {n} runs on parabolas, worst {w:.5} px");
+    eprintln!("a 1080p frame of four views: {f} of {n} runs on parabolas, worst {w:.5} px");
     assert!(f * 2 > n && w < 0.01, "{f} of {n} runs, worst {w:.4} px");
 }
 
