@@ -42,10 +42,11 @@ fn description(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, boo
             format!("filesrc name=digiview_src ! decodebin ! {SINK}"),
             true,
         ),
-        SourceSpec::Image(_) => (
+        SourceSpec::Image(p) => (
             format!(
-                "filesrc name=digiview_src ! decodebin ! imagefreeze is-live=true \
-                 ! video/x-raw,framerate={fps}/1 ! {SINK}"
+                "filesrc name=digiview_src ! decodebin ! {} imagefreeze is-live=true \
+                 ! video/x-raw,framerate={fps}/1 ! {SINK}",
+                once_to_nv12(p)
             ),
             true,
         ),
@@ -64,6 +65,19 @@ fn description(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, boo
             )
         }
     })
+}
+
+/// For a still image of even size: its conversion to NV12 (BT.709, limited range, as the
+/// renderer reads it), made once before `imagefreeze` repeats it. A 4K RGBA frame costs the
+/// renderer a 33 MB upload each time; NV12, 12 MB (docs/serve.md: 30 fps out of a 4K PNG
+/// instead of 20). Odd sizes, and files whose size cannot be read here, stay RGBA.
+fn once_to_nv12(path: &std::path::Path) -> &'static str {
+    match image::image_dimensions(path) {
+        Ok((w, h)) if w % 2 == 0 && h % 2 == 0 => {
+            "videoconvert ! video/x-raw,format=NV12,colorimetry=bt709 !"
+        }
+        _ => "",
+    }
 }
 
 /// The pipeline for `spec` (any kind but the demo), its appsink, and whether the sink should
@@ -278,5 +292,46 @@ impl GstSource {
 impl Drop for GstSource {
     fn drop(&mut self) {
         let _ = self.pipeline.set_state(gst::State::Null);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::{PixelFormat, yuv};
+    use image::{Rgb, RgbImage};
+    use std::time::{Duration, Instant};
+
+    /// The first frame an `image:` source hands over for a picture of one colour.
+    fn first_frame(dir: &std::path::Path, (w, h): (u32, u32), rgb: [u8; 3]) -> Frame {
+        let path = dir.join(format!("still_{w}x{h}.png"));
+        RgbImage::from_pixel(w, h, Rgb(rgb)).save(&path).unwrap();
+        let slot = Arc::new(FrameSlot::default());
+        let _source = open(&SourceSpec::Image(path), 10, false, slot.clone()).unwrap();
+        let (frame, _) = slot
+            .take_until(Instant::now() + Duration::from_secs(20))
+            .expect("a frame within 20 s");
+        frame
+    }
+
+    #[test]
+    fn a_still_image_is_converted_once_to_bt709_nv12_and_an_odd_sized_one_stays_rgba() {
+        let dir = tempfile::tempdir().unwrap();
+        // A saturated colour: BT.601 would give it another luma (Y 101 rather than 92).
+        let rgb = [200, 60, 40];
+        let frame = first_frame(dir.path(), (64, 36), rgb);
+        assert_eq!(frame.layout.format, PixelFormat::Nv12);
+        let want = yuv::encode(&RgbImage::from_pixel(64, 36, Rgb(rgb)), &frame.layout);
+        let (cb, cr) = frame.layout.chroma_at(10, 10);
+        for at in [0, 64 * 20 + 30, cb, cr] {
+            let (got, want) = (frame.data[at], want[at]);
+            assert!(
+                got.abs_diff(want) <= 2,
+                "byte {at}: {got}, BT.709 says {want}"
+            );
+        }
+        let frame = first_frame(dir.path(), (63, 35), rgb);
+        assert_eq!(frame.layout.format, PixelFormat::Rgba);
+        assert_eq!(&frame.data[..3], &rgb);
     }
 }
