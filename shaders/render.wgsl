@@ -250,7 +250,6 @@ fn draw_quad(x0: u32, y0: u32) -> Quad {
     return Quad(colour(q0, l0, c0), colour(q1, l1, c1), colour(q2, l2, c2), colour(q3, l3, c3));
 }
 
-// A quad that lies in view `v`.
 // Where one row of a block lands, pixel by pixel (columns 0 to 7).
 struct Run {
     c0: vec3f,

@@ -441,6 +441,12 @@ impl Renderer {
         Ok(())
     }
 
+    /// The pair of draw pipelines (`draw`, `draw_mixed`) with override constants `constants`.
+    fn draw_pair(&mut self, constants: [u32; 5]) -> Result<(), GpuError> {
+        self.pipeline(DRAW, constants)?;
+        self.pipeline(DRAW_MIXED, constants)
+    }
+
     /// What building a pass's pipeline takes, cloned so another thread can do it.
     fn builder(&self, pass: usize) -> Builder {
         Builder {
@@ -473,8 +479,7 @@ impl Renderer {
         generic[DRAW_KINDS] = ALL_KINDS;
         let first = !self.pipelines.keys().any(|&(pass, _)| pass == DRAW);
         if !self.kinds_change || first {
-            self.pipeline(DRAW, wanted)?;
-            self.pipeline(DRAW_MIXED, wanted)?;
+            self.draw_pair(wanted)?;
             if self.kinds_change {
                 // This frame's lens model, then the others the stream may switch to.
                 let models = std::iter::once(wanted[0]).chain(
@@ -486,8 +491,7 @@ impl Renderer {
                 for model in models.collect::<Vec<_>>() {
                     let mut generic = generic;
                     generic[0] = model;
-                    self.pipeline(DRAW, generic)?;
-                    self.pipeline(DRAW_MIXED, generic)?;
+                    self.draw_pair(generic)?;
                     self.warm_up.push(generic);
                 }
             }
@@ -495,8 +499,7 @@ impl Renderer {
         }
         // A new lens model or format while frames flow: the generic pair alone is built
         // (and compiled as it draws this frame), halving the wait.
-        self.pipeline(DRAW, generic)?;
-        self.pipeline(DRAW_MIXED, generic)?;
+        self.draw_pair(generic)?;
         if self.build_in_background && self.building.is_none() && wanted != generic {
             let builders = [self.builder(DRAW), self.builder(DRAW_MIXED)];
             let (done, built) = mpsc::channel();
