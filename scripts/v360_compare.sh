@@ -2,9 +2,8 @@
 # Side by side: FFmpeg's v360 filter and `digiview bench` on the same 3840x2160 fisheye
 # (the CIL216 lens, equidistant, as FFmpeg's `fisheye` input assumes), on this machine, from
 # I420 and from the camera-native NV12 (which v360 cannot read: FFmpeg converts it first).
-# v360's figure is its steady state: the time of a run of 10 + N frames less that of a run of
-# 10, over N, so FFmpeg's start-up and map building (about 0.3 s) are left out, as `bench`
-# leaves out its warm-up. The machine's speed wanders by a third from minute to minute, so
+# v360's figure is its steady state, from FFmpeg's progress reports past its 10th frame, so its
+# start-up and map building (about 0.3 s) are left out, as `bench` leaves out its warm-up. The machine's speed wanders by a third from minute to minute, so
 # every case runs once per round, the rounds one after another, and each line gives the
 # median over the rounds and their range.
 # Usage: scripts/v360_compare.sh [frames] [rounds]   (needs ffmpeg; docs/performance.md)
@@ -35,21 +34,24 @@ awk 'BEGIN { for (i = 0; i < 400; i++) { y = (i * 0.7) % 360 - 180
   >"$work/aim.cmd"
 moving="[0]sendcmd=f=$work/aim.cmd,split=4[a][b][c][d];[a]v360@A=$fish:yaw=0:pitch=0[A];[b]v360@B=$fish:yaw=90:pitch=-45[B];[c]v360@C=$fish:yaw=180:pitch=-45[C];[d]v360@D=$fish:yaw=-90:pitch=-90[D];[A][B][C][D]xstack=inputs=4:layout=0_0|w0_0|0_h0|w0_h0"
 
-# Seconds to run `graph` over n frames of the input in pixel format `fmt`.
-seconds() {
-  local fmt=$1 n=$2 graph=$3 t0 t1
-  t0=$(date +%s.%N)
-  ffmpeg -hide_banner -loglevel error -y -f rawvideo -pix_fmt "$fmt" -s 3840x2160 \
-    -stream_loop $((n - 1)) -i "$work/fish.$fmt" -filter_complex "$graph" -f null -
-  t1=$(date +%s.%N)
-  echo "$t1 - $t0" | bc -l
-}
 # Steady-state ms per frame of `graph` on `fmt` input, over n frames, appended to file `key`.
+# FFmpeg reports its progress (frames done) every 0.1 s; each report is stamped as it arrives
+# and the rate is taken from the first report past frame 10 to the last, in one run, so
+# start-up and map building are left out without subtracting two noisy runs.
 v360() {
-  local key=$1 fmt=$2 graph=$3 n=${4:-$frames} short long
-  short=$(seconds "$fmt" 10 "$graph")
-  long=$(seconds "$fmt" $((n + 10)) "$graph")
-  echo "($long - $short) * 1000 / $n" | bc -l >>"$work/$key"
+  local key=$1 fmt=$2 graph=$3 n=${4:-$frames}
+  ffmpeg -hide_banner -loglevel error -nostats -y -f rawvideo -pix_fmt "$fmt" -s 3840x2160 \
+    -stream_loop $((n + 9)) -i "$work/fish.$fmt" -filter_complex "$graph" \
+    -progress pipe:1 -stats_period 0.1 -f null - |
+    python3 -c '
+import sys, time
+marks = []
+for line in sys.stdin:
+    if line.startswith("frame="):
+        marks.append((int(line.split("=")[1]), time.monotonic()))
+marks = [m for m in marks if m[0] >= 10]
+(f0, t0), (f1, t1) = marks[0], marks[-1]
+print((t1 - t0) * 1000 / max(f1 - f0, 1))' >>"$work/$key"
 }
 # DigiView's pipelined ms per frame and staged total, appended to file `key`.
 digiview() {

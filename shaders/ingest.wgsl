@@ -4,6 +4,9 @@
 // copies into the planes' textures. Level 0 of each plane is copied straight from the frame
 // (src/render/gpu/renderer.rs), so nothing here is done per input pixel.
 //
+// On a software rasterizer the host makes the same bytes instead (SourcePlanes::make_levels in
+// src/render/gpu/planes.rs, which tests/gpu_render.rs holds to this pass and shaders/mip.wgsl).
+//
 // The planes (src/render/gpu/planes.rs; src/render/mip.rs is the twin): RGBA, or for 4:2:0
 // input the luma and the half-size chroma. Each plane's level k + 1 averages 2x2 texels of
 // its level k, per channel, in integer code values rounded half up.

@@ -2,7 +2,8 @@
 //! against the CPU reference of the same math and against ground truth from the synthetic
 //! world: every layout, crop mode and lens model; camera-native NV12 and I420 input;
 //! encoder-ready I420 and NV12 output; filtering of minified views (mip and bilinear); tiny
-//! frames; uploads read in place and copied; the frame ring; 4:2:0 colours passed through;
+//! frames; mip levels made by passes reading uploads in place or copied, or on the host; the
+//! frame ring; 4:2:0 colours passed through;
 //! how far the draw's parabolas between projected pixels stray from the projection.
 //!
 //! Tolerances: GPU vs CPU reference PSNR ≥ 45 dB per frame; GPU vs truth within 0.5 dB of
@@ -592,9 +593,12 @@ fn tiny_and_odd_sized_frames_render_as_the_cpu_does_and_too_small_ones_are_refus
 }
 
 #[test]
-fn frames_read_in_place_and_frames_copied_first_render_alike() {
-    // Where the device shares host memory (lavapipe, integrated GPUs) the ingest reads the
-    // upload buffer itself; a discrete GPU reads a copy. Both paths, here on one device.
+fn mip_levels_made_in_place_from_a_copy_or_on_the_host_render_alike() {
+    // The mip filter's levels: made by the ingest and mip passes, which read the upload
+    // buffer itself where the device shares host memory (lavapipe, integrated GPUs) and a
+    // copy of it on a discrete GPU; or made on the host as the frame is uploaded (the
+    // default on software rasterizers). All three paths, here on one device, at a size
+    // whose imaged box ends off the ingest's 16x4 blocks.
     let shared = gpu();
     assert!(
         shared.shared_memory || !shared.is_software(),
@@ -606,13 +610,25 @@ fn frames_read_in_place_and_frames_copied_first_render_alike() {
     let lens = small_lens("CIL216").for_frame(1002, 566, None);
     let fish = fisheye(&GridWorld::default(), &lens, &state);
     let plan = FramePlan::new(&state, &lens).unwrap();
+    let on_gpu = |gpu: &Gpu| {
+        let mut r = Renderer::new(gpu, PixelFormat::I420, Filter::Mip).unwrap();
+        r.make_levels_on_host(false);
+        r
+    };
     for format in [PixelFormat::Rgba, PixelFormat::Nv12, PixelFormat::I420] {
         let (data, layout) = as_format(&fish, format);
-        let mut a = Renderer::new(&shared, PixelFormat::I420, Filter::Mip).unwrap();
-        let mut b = Renderer::new(&copied, PixelFormat::I420, Filter::Mip).unwrap();
-        let in_place = a.render(&data, &layout, &plan).unwrap();
-        let copy = b.render(&data, &layout, &plan).unwrap();
-        assert!(in_place.data == copy.data, "{format}: the two paths differ");
+        let mut host = Renderer::new(&shared, PixelFormat::I420, Filter::Mip).unwrap();
+        host.make_levels_on_host(true);
+        let [in_place, copy, host] = [on_gpu(&shared), on_gpu(&copied), host]
+            .map(|mut r| r.render(&data, &layout, &plan).unwrap());
+        assert!(
+            in_place.data == copy.data,
+            "{format}: in place and copied differ"
+        );
+        assert!(
+            in_place.data == host.data,
+            "{format}: GPU and host levels differ"
+        );
         // And the picture is there, not black.
         let rgb = copy.to_rgb();
         let black = RgbImage::new(rgb.width(), rgb.height());

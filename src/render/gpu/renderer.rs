@@ -8,7 +8,9 @@
 //! pairs, `planes`) is copied from there into its texture over the lens's imaged box. For the
 //! mip filter, the ingest pass reads the frame (in the upload buffer itself where the device
 //! shares host memory, else in a copy of it) and writes every plane's levels 1 and 2 into a
-//! level buffer, the mip passes the rest, and those levels are copied into the textures. The
+//! level buffer, the mip passes the rest, and those levels are copied into the textures; on a
+//! software rasterizer the host makes the same levels instead, into the upload buffer after
+//! the frame (`SourcePlanes::make_levels`). The
 //! draw pass writes the output frame (RGBA, I420 or NV12) into a storage buffer, which is
 //! copied into a readback buffer of the ring. The draw pass is two
 //! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
@@ -21,7 +23,9 @@
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
 use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
-use super::planes::{PlaneSpec, SourcePlanes, copy_for_upload, upload_layout};
+use super::planes::{
+    COPY_ALIGN, INGEST_BLOCK, PlaneSpec, SourcePlanes, copy_for_upload, upload_layout,
+};
 use super::shaders;
 use super::{Gpu, GpuError};
 use crate::lens::Model;
@@ -138,8 +142,13 @@ struct Source {
     /// The frame's bytes where the ingest reads them: a copy of the upload buffer, or none
     /// where the device reads the upload buffers themselves (`Gpu::shared_memory`).
     raw: Option<wgpu::Buffer>,
-    /// Every plane's levels from 1 on, packed (`planes::SourcePlanes`).
-    level_buffer: wgpu::Buffer,
+    /// Every plane's levels from 1 on, packed (`planes::SourcePlanes`), where the passes
+    /// make them.
+    level_buffer: Option<wgpu::Buffer>,
+    /// Where levels made on the host (`Renderer::make_levels_on_host`) lie in each upload
+    /// buffer, after the frame, and the host's copy they are made in.
+    host_levels: Option<(u64, Vec<u8>)>,
+    specs: SourcePlanes,
     planes: Vec<Plane>,
     /// The ingest's bindings: one, or one per upload buffer where it reads them.
     ingest: Vec<wgpu::BindGroup>,
@@ -196,6 +205,8 @@ pub struct Renderer {
     building: Option<DrawBuild>,
     /// See [`Renderer::build_in_background`].
     build_in_background: bool,
+    /// See [`Renderer::make_levels_on_host`].
+    levels_on_host: bool,
     /// Whether a frame's view kinds may differ from the last one's (see
     /// [`Renderer::fixed_view_kinds`]).
     kinds_change: bool,
@@ -312,8 +323,6 @@ const ENTRY_POINTS: [&str; 4] = ["ingest", "downsample", "draw", "draw_mixed"];
 /// value for the generic pipelines, which draw every kind.
 const DRAW_KINDS: usize = 4;
 const ALL_KINDS: u32 = 0xf;
-/// The frame pixels (across, down) one ingest invocation takes (shaders/ingest.wgsl).
-const INGEST_BLOCK: (u32, u32) = (16, 4);
 /// Invocations in a `draw_mixed` workgroup, one block each.
 const MIXED_WORKGROUP: u32 = 64;
 
@@ -417,6 +426,7 @@ impl Renderer {
             frame_kinds: 0,
             building: None,
             build_in_background: !gpu.is_software(),
+            levels_on_host: gpu.is_software(),
             kinds_change: true,
             warm_up: Vec::new(),
             expected_models: Vec::new(),
@@ -582,6 +592,19 @@ impl Renderer {
         self.build_in_background = on;
     }
 
+    /// Whether the mip filter's levels are made on the host, as the frame is copied into its
+    /// upload buffer ([`SourcePlanes::make_levels`]), rather than by the ingest and mip passes.
+    /// The same bytes either way. On by default for software rasterizers, where a pass is CPU
+    /// work too and the passes' storage-buffer loads are checked and branched on lane by
+    /// lane: on lavapipe the passes take several times what the host's vectorised loop does.
+    pub fn make_levels_on_host(&mut self, on: bool) {
+        if on != self.levels_on_host {
+            self.levels_on_host = on;
+            self.source = None;
+            self.draw_group = None;
+        }
+    }
+
     /// Waits until the draw pipelines being built on another thread, if any, are ready.
     pub fn wait_for_builds(&mut self) {
         self.collect_built(true);
@@ -596,18 +619,25 @@ impl Renderer {
 
     /// Makes the input-side resources match `layout` and the lens's imaged box (kept while
     /// neither changes; everything starts black, and nothing outside the box is written).
-    fn ensure_source(&mut self, layout: &PlaneLayout, imaged: ImagedBox) {
+    fn ensure_source(&mut self, layout: &PlaneLayout, imaged: ImagedBox) -> Result<(), GpuError> {
         if self
             .source
             .as_ref()
             .is_some_and(|s| s.layout == *layout && s.imaged == imaged)
         {
-            return;
+            return Ok(());
         }
         let device = &self.gpu.device;
         let padded = upload_layout(layout);
+        let specs = SourcePlanes::new(padded.format, layout.width, layout.height);
         // The ingest may read a word past the last row's end.
-        let size = (padded.size as u64 + 16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let frame_size = (padded.size as u64 + 16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let host_levels = (self.filter == Filter::Mip && self.levels_on_host)
+            .then(|| frame_size.next_multiple_of(COPY_ALIGN as u64));
+        let size = match host_levels {
+            Some(at) => at + specs.buffer_size as u64,
+            None => frame_size,
+        };
         let shared = self.gpu.shared_memory;
         let read = if shared {
             wgpu::BufferUsages::STORAGE
@@ -624,7 +654,10 @@ impl Renderer {
                 )
             })
             .collect();
-        let raw = (!shared).then(|| {
+        // Levels made on the host start black around the imaged box, as the level buffer
+        // does; only the box is written after.
+        let host_levels = host_levels.map(|at| (at, specs.black_levels()));
+        let raw = (!shared && host_levels.is_none()).then(|| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("raw input"),
                 size,
@@ -632,11 +665,12 @@ impl Renderer {
                 mapped_at_creation: false,
             })
         });
-        let specs = SourcePlanes::new(padded.format, layout.width, layout.height);
-        let level_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("source levels"),
-            contents: &specs.black_levels(),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        let level_buffer = (self.filter == Filter::Mip && host_levels.is_none()).then(|| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("source levels"),
+                contents: &specs.black_levels(),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            })
         });
         let planes: Vec<Plane> = specs
             .planes
@@ -693,13 +727,17 @@ impl Renderer {
         let bounds = [columns.start, rows.start, columns.end, rows.end];
         targets.extend_from_slice(bytemuck::cast_slice(&bounds));
         let targets = uniform_init("ingest targets", &targets);
-        let inputs = match &raw {
-            Some(raw) => vec![raw],
-            None => uploads.iter().map(|u| &u.buffer).collect(),
+        // Only the passes need bindings: the bilinear filter makes no levels, and levels made
+        // on the host need no pass.
+        let inputs = match (&level_buffer, &raw) {
+            (None, _) => vec![],
+            (Some(_), Some(raw)) => vec![raw],
+            (Some(_), None) => uploads.iter().map(|u| &u.buffer).collect(),
         };
         let ingest = inputs
             .into_iter()
-            .map(|input| {
+            .zip(std::iter::repeat(level_buffer.as_ref()).flatten())
+            .map(|(input, level_buffer)| {
                 device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("ingest"),
                     layout: &self.layouts.ingest,
@@ -712,10 +750,13 @@ impl Renderer {
                 })
             })
             .collect();
-        let mips = specs
-            .mip_steps()
+        let steps = match &level_buffer {
+            Some(levels) => specs.mip_steps().into_iter().map(|s| (levels, s)).collect(),
+            None => vec![],
+        };
+        let mips = steps
             .into_iter()
-            .map(|(p, k)| {
+            .map(|(level_buffer, (p, k))| {
                 // Regions are indexed from level 1.
                 let (finer, coarser) = (region(p, k - 1), region(p, k));
                 let channels = specs.planes[p].channels;
@@ -744,11 +785,14 @@ impl Renderer {
             uploads,
             raw,
             level_buffer,
+            host_levels,
+            specs,
             planes,
             ingest,
             mips,
         });
         self.draw_group = None;
+        Ok(())
     }
 
     /// Makes the output-side resources match a `width` × `height` frame.
@@ -866,10 +910,10 @@ impl Renderer {
                 input.height,
             ));
         }
-        self.ensure_source(input, plan.lens.imaged_box());
+        self.ensure_source(input, plan.lens.imaged_box())?;
         // Frames arrive in the upload buffers as RGBA or NV12 (I420 woven on the way).
         let upload = self.source.as_ref().unwrap().padded.format;
-        if self.filter == Filter::Mip {
+        if self.filter == Filter::Mip && !self.levels_on_host {
             self.pipeline(INGEST, ingest_constants(upload))?;
             self.pipeline(MIP, [0; 5])?;
         }
@@ -901,9 +945,10 @@ impl Renderer {
     }
 
     /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free), rows
-    /// padded as the source's upload layout says.
-    fn fill_upload(&self, slot: usize, data: &[u8]) -> Result<(), GpuError> {
-        let source = self.source.as_ref().unwrap();
+    /// padded as the source's upload layout says, and the levels made from them on the host
+    /// after them where they are made there.
+    fn fill_upload(&mut self, slot: usize, data: &[u8]) -> Result<(), GpuError> {
+        let source = self.source.as_mut().unwrap();
         let upload = &source.uploads[slot];
         upload.wait(&self.gpu.device)?;
         {
@@ -914,6 +959,12 @@ impl Renderer {
             copy_for_upload(data, &source.layout, &source.padded, |at, bytes| {
                 view.slice(at..at + bytes.len()).copy_from_slice(bytes)
             });
+            if let Some((at, levels)) = &mut source.host_levels {
+                let specs = &source.specs;
+                specs.make_levels(data, &source.layout, &source.imaged, levels);
+                let at = *at as usize;
+                view.slice(at..at + levels.len()).copy_from_slice(levels);
+            }
         }
         upload.buffer.unmap();
         Ok(())
@@ -923,7 +974,8 @@ impl Renderer {
         let source = self.source.as_ref().unwrap();
         let upload = &source.uploads[slot].buffer;
         // The ingest reads the frame's bytes, for the mip filter's chain alone.
-        if let Some(raw) = source.raw.as_ref().filter(|_| self.filter == Filter::Mip) {
+        let ingest = self.filter == Filter::Mip && source.host_levels.is_none();
+        if let Some(raw) = source.raw.as_ref().filter(|_| ingest) {
             encoder.copy_buffer_to_buffer(upload, 0, raw, 0, None);
         }
         // Level 0 of every plane over the imaged box, straight from the upload buffer.
@@ -954,6 +1006,39 @@ impl Renderer {
         if self.filter != Filter::Mip {
             return;
         }
+        // Levels from 1 on: from the upload buffer, where made on the host, else from the
+        // level buffer once the passes have made them.
+        let (levels, base) = match (&source.host_levels, &source.level_buffer) {
+            (Some((at, _)), _) => (upload, *at),
+            (None, Some(level_buffer)) => {
+                self.encode_level_passes(encoder, slot);
+                (level_buffer, 0)
+            }
+            (None, None) => unreachable!("the mip filter has its levels made somewhere"),
+        };
+        for plane in &source.planes {
+            for (k, r) in plane.spec.regions.iter().enumerate() {
+                encoder.copy_buffer_to_texture(
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: levels,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: base + r.offset as u64,
+                            bytes_per_row: Some(r.stride),
+                            rows_per_image: None,
+                        },
+                    },
+                    texture_level(&plane.texture, k as u32 + 1, (0, 0)),
+                    extent(r.width, r.height),
+                );
+            }
+        }
+    }
+
+    /// The ingest and mip passes, writing every plane's levels from 1 on into the level
+    /// buffer.
+    fn encode_level_passes(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
+        let source = self.source.as_ref().unwrap();
+        let (columns, rows) = &source.imaged;
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("ingest and mip chain"),
             timestamp_writes: None,
@@ -969,24 +1054,6 @@ impl Renderer {
         for (group, (w, h)) in &source.mips {
             pass.set_bind_group(0, group, &[]);
             pass.dispatch_workgroups(groups(*w), groups(*h), 1);
-        }
-        drop(pass);
-        // Levels 1 and up of every plane, whole, from the level buffer.
-        for plane in &source.planes {
-            for (k, r) in plane.spec.regions.iter().enumerate() {
-                encoder.copy_buffer_to_texture(
-                    wgpu::TexelCopyBufferInfo {
-                        buffer: &source.level_buffer,
-                        layout: wgpu::TexelCopyBufferLayout {
-                            offset: r.offset as u64,
-                            bytes_per_row: Some(r.stride),
-                            rows_per_image: None,
-                        },
-                    },
-                    texture_level(&plane.texture, k as u32 + 1, (0, 0)),
-                    extent(r.width, r.height),
-                );
-            }
         }
     }
 
