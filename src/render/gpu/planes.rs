@@ -252,21 +252,30 @@ fn halve_pairs(top: &[u8], bottom: &[u8], out: &mut [u8]) {
     }
 }
 
-/// Two RGBA texels a word: R B sums and G A sums in 16-bit lanes.
+/// Four RGBA texels at a time (the rows summed in 16-bit lanes, then each texel's two
+/// columns), which the compiler vectorises; then the last few one by one.
+#[inline(never)]
 fn halve_rgba(top: &[u8], bottom: &[u8], out: &mut [u8]) {
-    let rows = top.as_chunks::<8>().0.iter().zip(bottom.as_chunks::<8>().0);
-    for (o, (t, b)) in out.as_chunks_mut::<4>().0.iter_mut().zip(rows) {
-        let (t, b) = (u64::from_le_bytes(*t), u64::from_le_bytes(*b));
-        let even = 0x00ff_00ff_00ff_00ff;
-        let rb = (t & even) + (b & even);
-        let ga = ((t >> 8) & even) + ((b >> 8) & even);
-        // Both texels' sums added, then each lane's rounded mean.
-        let means = |s: u64| {
-            let s = (s & 0xffff_ffff) + (s >> 32);
-            [s & 0xffff, s >> 16].map(|v| ((v + 2) >> 2) as u8)
-        };
-        let ([r, bl], [g, a]) = (means(rb), means(ga));
-        *o = [r, g, bl, a];
+    let len = out.len();
+    let (outs, rest) = out.as_chunks_mut::<16>();
+    let rows = top
+        .as_chunks::<32>()
+        .0
+        .iter()
+        .zip(bottom.as_chunks::<32>().0);
+    for (o, (t, b)) in outs.iter_mut().zip(rows) {
+        let sums: [u16; 32] = std::array::from_fn(|i| t[i] as u16 + b[i] as u16);
+        *o = std::array::from_fn(|j| {
+            let at = 8 * (j / 4) + j % 4;
+            ((sums[at] + sums[at + 4] + 2) >> 2) as u8
+        });
+    }
+    let done = 2 * (len - rest.len());
+    let (top, bottom) = (&top[done..], &bottom[done..]);
+    for (j, o) in rest.iter_mut().enumerate() {
+        let at = 8 * (j / 4) + j % 4;
+        let sum = [top[at], top[at + 4], bottom[at], bottom[at + 4]].map(u16::from);
+        *o = ((sum.iter().sum::<u16>() + 2) >> 2) as u8;
     }
 }
 
@@ -482,6 +491,30 @@ mod tests {
         let mut again = specs.black_levels();
         specs.make_levels(&planar, &i420, &imaged, &mut again);
         assert!(again == levels, "I420 and NV12 levels differ");
+    }
+
+    #[test]
+    fn rows_halve_to_rounded_means_at_every_width_and_texel_size() {
+        // The vectorised bodies and the texels after them, for luma, pairs and RGBA.
+        for ch in [1, 2, 4] {
+            for w in 0..40 {
+                let top: Vec<u8> = (0..2 * w * ch).map(|i| (i * 89 % 256) as u8).collect();
+                let bottom: Vec<u8> = (0..2 * w * ch).map(|i| (i * 53 % 251) as u8).collect();
+                let mut out = vec![0; w * ch];
+                halve_row(ch, &top, &bottom, &mut out);
+                for x in 0..w {
+                    for c in 0..ch {
+                        let at = 2 * x * ch + c;
+                        let sum: u32 = [top[at], top[at + ch], bottom[at], bottom[at + ch]]
+                            .iter()
+                            .map(|&b| b as u32)
+                            .sum();
+                        let want = ((sum + 2) / 4) as u8;
+                        assert_eq!(out[x * ch + c], want, "{ch} bytes, width {w}, ({x}, {c})");
+                    }
+                }
+            }
+        }
     }
 
     /// `data` copied for upload into a buffer laid out as its upload layout.
