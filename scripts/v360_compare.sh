@@ -3,9 +3,10 @@
 # (the CIL216 lens, equidistant, as FFmpeg's `fisheye` input assumes), on this machine, from
 # I420 and from the camera-native NV12 (which v360 cannot read: FFmpeg converts it first).
 # v360's figure is its steady state, from FFmpeg's progress reports past its 10th frame, so its
-# start-up and map building (about 0.3 s) are left out, as `bench` leaves out its warm-up. The machine's speed wanders by a third from minute to minute, so
-# every case runs once per round, the rounds one after another, and each line gives the
-# median over the rounds and their range.
+# start-up and map building (about 0.3 s) are left out, as `bench` leaves out its warm-up.
+# The machine's speed wanders by a third from minute to minute, so every case runs once per
+# round, the rounds one after another, and each line gives the median over the rounds and
+# their range.
 # Usage: scripts/v360_compare.sh [frames] [rounds]   (needs ffmpeg; docs/performance.md)
 set -euo pipefail
 frames=${1:-120}
@@ -50,6 +51,8 @@ for line in sys.stdin:
     if line.startswith("frame="):
         marks.append((int(line.split("=")[1]), time.monotonic()))
 marks = [m for m in marks if m[0] >= 10]
+if len(marks) < 2:
+    sys.exit("v360_compare: FFmpeg reported no progress past its 10th frame")
 (f0, t0), (f1, t1) = marks[0], marks[-1]
 print((t1 - t0) * 1000 / max(f1 - f0, 1))' >>"$work/$key"
 }

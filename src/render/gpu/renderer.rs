@@ -10,12 +10,11 @@
 //! shares host memory, else in a copy of it) and writes every plane's levels 1 and 2 into a
 //! level buffer, the mip passes the rest, and those levels are copied into the textures; on a
 //! software rasterizer the host makes the same levels instead, into the upload buffer after
-//! the frame (`SourcePlanes::make_levels`). The
-//! draw pass writes the output frame (RGBA, I420 or NV12) into a storage buffer, which is
-//! copied into a readback buffer of the ring. The draw pass is two
-//! dispatches: blocks inside one view, then the few that straddle an edge (the block map,
-//! rebuilt when the rectangles change). [`Renderer::push`] hands back frame N-1 while frame N
-//! renders.
+//! the frame (`SourcePlanes::make_levels`). The draw pass writes the output frame (RGBA, I420
+//! or NV12) into a storage buffer, which is copied into a readback buffer of the ring. The
+//! draw pass is two dispatches: blocks inside one view, then the few that straddle an edge
+//! (the block map, rebuilt when the rectangles change). [`Renderer::push`] hands back frame
+//! N-1 while frame N renders.
 //!
 //! The draw pipelines leave out the code of view kinds a frame lacks. A frame with new kinds
 //! never waits for a build: generic pipelines, made with the first frame, draw it
@@ -945,8 +944,8 @@ impl Renderer {
     }
 
     /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free), rows
-    /// padded as the source's upload layout says, and the levels made from them on the host
-    /// after them where they are made there.
+    /// padded as the source's upload layout says, and, where the host makes the mip levels
+    /// (`Source::host_levels`), the frame's levels after it.
     fn fill_upload(&mut self, slot: usize, data: &[u8]) -> Result<(), GpuError> {
         let source = self.source.as_mut().unwrap();
         let upload = &source.uploads[slot];
