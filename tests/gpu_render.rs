@@ -3,8 +3,8 @@
 //! world: every layout, crop mode and lens model; camera-native NV12 and I420 input;
 //! encoder-ready I420 and NV12 output; filtering of minified views (mip and bilinear); tiny
 //! frames; mip levels made by passes reading uploads in place or copied, or on the host; the
-//! frame ring; 4:2:0 colours passed through;
-//! how far the draw's parabolas between projected pixels stray from the projection.
+//! frame ring; 4:2:0 colours passed through; how far the draw's parabolas between projected
+//! pixels stray from the projection.
 //!
 //! Tolerances: GPU vs CPU reference PSNR ≥ 45 dB per frame; GPU vs truth within 0.5 dB of
 //! what the CPU reference scores; 4:2:0 input vs RGBA input ≥ 40 dB.

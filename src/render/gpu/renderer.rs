@@ -121,13 +121,15 @@ impl MapSlot {
     }
 }
 
-/// One plane of the source on the GPU: its texture (all levels) and where its levels from 1
-/// on lie in the level buffer.
+/// One plane of the source on the GPU: its texture (all levels); `Source::specs` says where
+/// its levels from 1 on lie in the level buffer.
 struct Plane {
-    spec: PlaneSpec,
     texture: wgpu::Texture,
     view: wgpu::TextureView,
 }
+
+/// One mip pass: its bind group and dispatch size (words across, rows).
+type MipStep = (wgpu::BindGroup, (u32, u32));
 
 /// What depends on the input layout: upload ring, raw buffer, level buffer, the planes.
 struct Source {
@@ -139,7 +141,8 @@ struct Source {
     levels: u32,
     uploads: Vec<MapSlot>,
     /// The frame's bytes where the ingest reads them: a copy of the upload buffer, or none
-    /// where the device reads the upload buffers themselves (`Gpu::shared_memory`).
+    /// where the device reads the upload buffers themselves (`Gpu::shared_memory`) or no
+    /// pass makes levels.
     raw: Option<wgpu::Buffer>,
     /// Every plane's levels from 1 on, packed (`planes::SourcePlanes`), where the passes
     /// make them.
@@ -147,12 +150,12 @@ struct Source {
     /// Where levels made on the host (`Renderer::make_levels_on_host`) lie in each upload
     /// buffer, after the frame, and the host's copy they are made in.
     host_levels: Option<(u64, Vec<u8>)>,
+    /// Every plane's size, levels and level regions, in the order of `planes`.
     specs: SourcePlanes,
     planes: Vec<Plane>,
     /// The ingest's bindings: one, or one per upload buffer where it reads them.
     ingest: Vec<wgpu::BindGroup>,
-    /// The mip passes: bind group and dispatch size (words across, rows).
-    mips: Vec<(wgpu::BindGroup, (u32, u32))>,
+    mips: Vec<MipStep>,
 }
 
 /// What depends on the output layout: the storage buffer the draw pass writes, readback ring.
@@ -604,6 +607,12 @@ impl Renderer {
         }
     }
 
+    /// Whether the ingest and mip passes make the mip filter's levels (not the host, and not
+    /// the bilinear filter, which needs none).
+    fn level_passes(&self) -> bool {
+        self.filter == Filter::Mip && !self.levels_on_host
+    }
+
     /// Waits until the draw pipelines being built on another thread, if any, are ready.
     pub fn wait_for_builds(&mut self) {
         self.collect_built(true);
@@ -631,6 +640,7 @@ impl Renderer {
         let specs = SourcePlanes::new(padded.format, layout.width, layout.height);
         // The ingest may read a word past the last row's end.
         let frame_size = (padded.size as u64 + 16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let passes = self.level_passes();
         let host_levels = (self.filter == Filter::Mip && self.levels_on_host)
             .then(|| frame_size.next_multiple_of(COPY_ALIGN as u64));
         let size = match host_levels {
@@ -638,7 +648,7 @@ impl Renderer {
             None => frame_size,
         };
         let shared = self.gpu.shared_memory;
-        let read = if shared {
+        let read = if shared && passes {
             wgpu::BufferUsages::STORAGE
         } else {
             wgpu::BufferUsages::empty()
@@ -656,7 +666,7 @@ impl Renderer {
         // Levels made on the host start black around the imaged box, as the level buffer
         // does; only the box is written after.
         let host_levels = host_levels.map(|at| (at, specs.black_levels()));
-        let raw = (!shared && host_levels.is_none()).then(|| {
+        let raw = (!shared && passes).then(|| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("raw input"),
                 size,
@@ -664,7 +674,7 @@ impl Renderer {
                 mapped_at_creation: false,
             })
         });
-        let level_buffer = (self.filter == Filter::Mip && host_levels.is_none()).then(|| {
+        let level_buffer = passes.then(|| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("source levels"),
                 contents: &specs.black_levels(),
@@ -696,7 +706,6 @@ impl Renderer {
                 // Level 0 is copied over the imaged box only: black around it.
                 fill_level0(&self.gpu.queue, &texture, spec);
                 Plane {
-                    spec: spec.clone(),
                     view: texture.create_view(&wgpu::TextureViewDescriptor {
                         mip_level_count: (self.filter == Filter::Bilinear).then_some(1),
                         ..Default::default()
@@ -705,6 +714,45 @@ impl Renderer {
                 }
             })
             .collect();
+        let (ingest, mips) = match &level_buffer {
+            Some(levels) => {
+                let inputs = match &raw {
+                    Some(raw) => vec![raw],
+                    None => uploads.iter().map(|u| &u.buffer).collect(),
+                };
+                self.level_pass_groups(levels, inputs, &specs, &imaged)
+            }
+            None => (Vec::new(), Vec::new()),
+        };
+        self.source = Some(Source {
+            layout: *layout,
+            padded,
+            imaged,
+            levels: levels_for(layout.width, layout.height),
+            uploads,
+            raw,
+            level_buffer,
+            host_levels,
+            specs,
+            planes,
+            ingest,
+            mips,
+        });
+        self.draw_group = None;
+        Ok(())
+    }
+
+    /// The ingest and mip passes' bind groups, writing levels into `levels`: an ingest group
+    /// per buffer in `inputs` (the frame's bytes: the upload buffers read in place, or their
+    /// copy), and the mip steps with their dispatch sizes (words across, rows).
+    fn level_pass_groups(
+        &self,
+        levels: &wgpu::Buffer,
+        inputs: Vec<&wgpu::Buffer>,
+        specs: &SourcePlanes,
+        imaged: &ImagedBox,
+    ) -> (Vec<wgpu::BindGroup>, Vec<MipStep>) {
+        let device = &self.gpu.device;
         let uniform_init = |label, contents: &[u8]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -722,40 +770,29 @@ impl Renderer {
         };
         let regions = [region(0, 0), region(0, 1), region(1, 0)];
         let mut targets = bytemuck::cast_slice(&regions).to_vec();
-        let (columns, rows) = &imaged;
+        let (columns, rows) = imaged;
         let bounds = [columns.start, rows.start, columns.end, rows.end];
         targets.extend_from_slice(bytemuck::cast_slice(&bounds));
         let targets = uniform_init("ingest targets", &targets);
-        // Only the passes need bindings: the bilinear filter makes no levels, and levels made
-        // on the host need no pass.
-        let inputs = match (&level_buffer, &raw) {
-            (None, _) => vec![],
-            (Some(_), Some(raw)) => vec![raw],
-            (Some(_), None) => uploads.iter().map(|u| &u.buffer).collect(),
-        };
         let ingest = inputs
             .into_iter()
-            .zip(std::iter::repeat(level_buffer.as_ref()).flatten())
-            .map(|(input, level_buffer)| {
+            .map(|input| {
                 device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("ingest"),
                     layout: &self.layouts.ingest,
                     entries: &[
                         bind(0, self.params.as_entire_binding()),
                         bind(1, input.as_entire_binding()),
-                        bind(2, level_buffer.as_entire_binding()),
+                        bind(2, levels.as_entire_binding()),
                         bind(3, targets.as_entire_binding()),
                     ],
                 })
             })
             .collect();
-        let steps = match &level_buffer {
-            Some(levels) => specs.mip_steps().into_iter().map(|s| (levels, s)).collect(),
-            None => vec![],
-        };
-        let mips = steps
+        let mips = specs
+            .mip_steps()
             .into_iter()
-            .map(|(level_buffer, (p, k))| {
+            .map(|(p, k)| {
                 // Regions are indexed from level 1.
                 let (finer, coarser) = (region(p, k - 1), region(p, k));
                 let channels = specs.planes[p].channels;
@@ -766,7 +803,7 @@ impl Renderer {
                     label: Some("mip"),
                     layout: &self.layouts.mip,
                     entries: &[
-                        bind(0, level_buffer.as_entire_binding()),
+                        bind(0, levels.as_entire_binding()),
                         bind(1, step.as_entire_binding()),
                     ],
                 });
@@ -776,22 +813,7 @@ impl Renderer {
                 )
             })
             .collect();
-        self.source = Some(Source {
-            layout: *layout,
-            padded,
-            imaged,
-            levels: levels_for(layout.width, layout.height),
-            uploads,
-            raw,
-            level_buffer,
-            host_levels,
-            specs,
-            planes,
-            ingest,
-            mips,
-        });
-        self.draw_group = None;
-        Ok(())
+        (ingest, mips)
     }
 
     /// Makes the output-side resources match a `width` × `height` frame.
@@ -912,7 +934,7 @@ impl Renderer {
         self.ensure_source(input, plan.lens.imaged_box())?;
         // Frames arrive in the upload buffers as RGBA or NV12 (I420 woven on the way).
         let upload = self.source.as_ref().unwrap().padded.format;
-        if self.filter == Filter::Mip && !self.levels_on_host {
+        if self.level_passes() {
             self.pipeline(INGEST, ingest_constants(upload))?;
             self.pipeline(MIP, [0; 5])?;
         }
@@ -972,22 +994,21 @@ impl Renderer {
     fn encode_upload(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
         let source = self.source.as_ref().unwrap();
         let upload = &source.uploads[slot].buffer;
-        // The ingest reads the frame's bytes, for the mip filter's chain alone.
-        let ingest = self.filter == Filter::Mip && source.host_levels.is_none();
-        if let Some(raw) = source.raw.as_ref().filter(|_| ingest) {
+        // The ingest reads the frame's bytes, where it reads a copy.
+        if let Some(raw) = &source.raw {
             encoder.copy_buffer_to_buffer(upload, 0, raw, 0, None);
         }
         // Level 0 of every plane over the imaged box, straight from the upload buffer.
         let (columns, rows) = &source.imaged;
         let padded = &source.padded;
-        for (i, plane) in source.planes.iter().enumerate() {
+        for (i, (plane, spec)) in source.planes.iter().zip(&source.specs.planes).enumerate() {
             // Chroma planes are half size, starting at their plane's offset.
             let (scale, start, stride) = match i {
                 0 => (1, 0, padded.stride),
                 _ => (2, padded.chroma[i - 1], padded.chroma_stride),
             };
             let (x, y) = (columns.start / scale, rows.start / scale);
-            let texel = plane.spec.channels;
+            let texel = spec.channels;
             encoder.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {
                     buffer: upload,
@@ -1015,8 +1036,8 @@ impl Renderer {
             }
             (None, None) => unreachable!("the mip filter has its levels made somewhere"),
         };
-        for plane in &source.planes {
-            for (k, r) in plane.spec.regions.iter().enumerate() {
+        for (plane, spec) in source.planes.iter().zip(&source.specs.planes) {
+            for (k, r) in spec.regions.iter().enumerate() {
                 encoder.copy_buffer_to_texture(
                     wgpu::TexelCopyBufferInfo {
                         buffer: levels,
