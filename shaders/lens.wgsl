@@ -1,19 +1,13 @@
-// The lens-model library every pass that maps rays to fisheye pixels shares: one function per
-// model of src/lens/, with the same name as the Rust function it twins (`equidistant_r` is
-// src/lens/equidistant.rs's `r_of_theta`), in f32. The model is chosen when the pipeline is
-// built (the LENS_MODEL override), so a frame pays for one model only.
+// The lens-model library every pass that maps rays to fisheye pixels shares: one function
+// `NAME_r(theta)` per model of src/lens/models/, NAME its lens.cal name (`kannala_brandt_r`
+// twins src/lens/models/kannala_brandt.rs's `r_of_theta`), in f32. The model is chosen when
+// the pipeline is built (the LENS_MODEL override, a model's code), so a frame pays for one
+// model only: `radial_r`, which calls the chosen one, is made from the models' registry by
+// src/render/gpu/shaders.rs.
 //
 // Prepended to a pass's own source by src/render/gpu/shaders.rs. The functions read the lens
 // from `params.lens`, the uniform each pass that includes this file declares (a by-value
 // copy would be a private array, which software rasterizers index lane by lane).
-
-const MODEL_EQUIDISTANT: u32 = 0u;
-const MODEL_EQUISOLID: u32 = 1u;
-const MODEL_STEREOGRAPHIC: u32 = 2u;
-const MODEL_ORTHOGRAPHIC: u32 = 3u;
-const MODEL_KANNALA_BRANDT: u32 = 4u;
-const MODEL_DOUBLE_SPHERE: u32 = 5u;
-const MODEL_OCAM: u32 = 6u;
 
 override LENS_MODEL: u32 = 0u;
 
@@ -51,13 +45,16 @@ fn orthographic_r(theta: f32) -> f32 {
     return sin(theta);
 }
 
-fn kannala_brandt_r(k: vec4f, theta: f32) -> f32 {
+fn kannala_brandt_r(theta: f32) -> f32 {
+    let k = params.lens.k;
     let t2 = theta * theta;
     return theta * (1.0 + t2 * (k.x + t2 * (k.y + t2 * (k.z + t2 * k.w))));
 }
 
 // Negative where the model does not project (its denominator vanishes).
-fn double_sphere_r(xi: f32, alpha: f32, theta: f32) -> f32 {
+fn double_sphere_r(theta: f32) -> f32 {
+    let xi = params.lens.k.x;
+    let alpha = params.lens.k.y;
     let s = sin(theta);
     let c = cos(theta);
     let d2 = sqrt(s * s + (xi + c) * (xi + c));
@@ -125,20 +122,6 @@ fn ocam_r(theta: f32) -> f32 {
         }
     }
     return r;
-}
-
-// Normalized radius for a ray θ from the axis, negative where the model does not image it.
-fn radial_r(theta: f32) -> f32 {
-    switch LENS_MODEL {
-        case MODEL_EQUIDISTANT: { return equidistant_r(theta); }
-        case MODEL_EQUISOLID: { return equisolid_r(theta); }
-        case MODEL_STEREOGRAPHIC: { return stereographic_r(theta); }
-        case MODEL_ORTHOGRAPHIC: { return orthographic_r(theta); }
-        case MODEL_KANNALA_BRANDT: { return kannala_brandt_r(params.lens.k, theta); }
-        case MODEL_DOUBLE_SPHERE: { return double_sphere_r(params.lens.k.x, params.lens.k.y, theta); }
-        case MODEL_OCAM: { return ocam_r(theta); }
-        default: { return -1.0; }
-    }
 }
 
 // FRAME_EDGE_SLACK as in src/lens/mod.rs: a ray that lands exactly on the frame's edge (the

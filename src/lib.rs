@@ -10,6 +10,7 @@
 
 pub mod cli;
 pub mod control;
+pub mod frame;
 pub mod geometry;
 pub mod gst;
 pub mod head;

@@ -1,10 +1,23 @@
-//! Human-facing units: angles written as radians or with a `deg` suffix, and `WxH` sizes.
-//! Used by lens.cal, state files and the command line alike.
+//! Human-facing text: angles written as radians or with a `deg` suffix, `WxH` sizes, and the
+//! line a value stands on in a file. Used by lens.cal, state files and the command line alike.
 
 use serde::{Deserialize, Deserializer};
 
+/// Why a value written by a person was not understood.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum UnitError {
+    #[error("`{0}` is not an angle (radians, or degrees with a `deg` suffix)")]
+    NotAnAngle(String),
+    #[error("`{0}` is not a finite angle")]
+    Infinite(String),
+    #[error("`{0}` is not a size like 1920x1080")]
+    NotASize(String),
+    #[error("`{0}`: width and height must be positive")]
+    EmptySize(String),
+}
+
 /// Parses `0.5`, `0.5rad` or `30deg` (spaces allowed before the unit) into radians.
-pub fn parse_angle(text: &str) -> Result<f64, String> {
+pub fn parse_angle(text: &str) -> Result<f64, UnitError> {
     let t = text.trim();
     let (number, scale) = if let Some(n) = t.strip_suffix("deg") {
         (n, std::f64::consts::PI / 180.0)
@@ -15,27 +28,37 @@ pub fn parse_angle(text: &str) -> Result<f64, String> {
     } else {
         (t, 1.0)
     };
-    let value: f64 = number.trim().parse().map_err(|_| {
-        format!("`{text}` is not an angle (radians, or degrees with a `deg` suffix)")
-    })?;
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| UnitError::NotAnAngle(text.to_string()))?;
     if !value.is_finite() {
-        return Err(format!("`{text}` is not a finite angle"));
+        return Err(UnitError::Infinite(text.to_string()));
     }
     Ok(value * scale)
 }
 
 /// Parses `1920x1080`.
-pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
-    let err = || format!("`{text}` is not a size like 1920x1080");
+pub fn parse_size(text: &str) -> Result<(u32, u32), UnitError> {
+    let err = || UnitError::NotASize(text.to_string());
     let (w, h) = text.trim().split_once(['x', 'X']).ok_or_else(err)?;
     let (w, h): (u32, u32) = (
         w.trim().parse().map_err(|_| err())?,
         h.trim().parse().map_err(|_| err())?,
     );
     if w == 0 || h == 0 {
-        return Err(format!("`{text}`: width and height must be positive"));
+        return Err(UnitError::EmptySize(text.to_string()));
     }
     Ok((w, h))
+}
+
+/// The 1-based line of byte `offset` in `text`, for `file:line` messages.
+pub fn line_of(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
 }
 
 /// Formats radians for people: degrees with two decimals.

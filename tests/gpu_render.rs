@@ -11,13 +11,14 @@
 
 mod common;
 use common::*;
+use digiview::frame::{PixelFormat, PlaneLayout, yuv};
 use digiview::image_ops::{pixel, psnr};
 use digiview::layout::Rect;
 use digiview::lens::Lens;
 use digiview::lens::samples::sample_lenses;
 use digiview::render::gpu::renderer::render_image;
 use digiview::render::gpu::{Gpu, Renderer};
-use digiview::render::{Filter, FramePlan, PixelFormat, PlaneLayout, cpu, yuv};
+use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;

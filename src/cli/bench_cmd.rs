@@ -3,11 +3,11 @@
 //! stage waited for on its own (per-stage medians), one pipelined as the video head runs
 //! (frames per second, and each frame's latency from upload to readable bytes).
 
-use super::render_cmd::{Backend, lens_for};
-use super::{StateArgs, spinner};
-use crate::lens::LensCal;
+use super::{Backend, StateArgs, spinner};
+use crate::frame::{PixelFormat, PlaneLayout, yuv};
+use crate::lens::{LensCal, Lenses};
 use crate::render::gpu::{Gpu, Renderer, StageTimes};
-use crate::render::{Filter, FramePlan, PixelFormat, PlaneLayout, cpu, yuv};
+use crate::render::{Filter, FramePlan, cpu};
 use crate::scene::GridWorld;
 use crate::scene::synth::fisheye;
 use crate::state::{State, Tracked};
@@ -121,7 +121,7 @@ pub fn bench(cal_path: &std::path::Path, args: BenchArgs) -> Result<()> {
             })
             .collect();
     }
-    let lens = lens_for(&cal, &base, args.input_size)?;
+    let lens = Lenses::new(&cal).for_frame(base.lens, args.input_size, base.sensor.roi())?;
     let input_layout = PlaneLayout::tight(args.input_format, args.input_size.0, args.input_size.1)?;
     let bar = spinner(&format!(
         "synthesising the {}x{} fisheye input",

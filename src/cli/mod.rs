@@ -49,6 +49,15 @@ pub enum Command {
     Ctl(ctl_cmd::CtlArgs),
 }
 
+/// Which renderer `render` and `bench` use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    /// The f64 CPU reference.
+    Cpu,
+    /// The wgpu renderer (lavapipe where there is no GPU).
+    Gpu,
+}
+
 /// Everything a state file holds, as flags that override it.
 #[derive(Args, Debug, Default, Clone)]
 pub struct StateArgs {
@@ -98,7 +107,6 @@ impl StateArgs {
             Some(p) => State::load(p)?,
             None => State::default(),
         };
-        let bad = |e: String| anyhow::anyhow!(e);
         if let Some(l) = &self.lens {
             s.lens = cal.find(l)?.lens_id;
         }
@@ -116,31 +124,24 @@ impl StateArgs {
         }
         for c in &self.cams {
             s.apply_camera_flag(c)
-                .map_err(bad)
                 .with_context(|| format!("--cam {c}"))?;
         }
         if let Some(a) = &self.attitude {
-            State::apply_angles(&mut s.vehicle.attitude, a)
-                .map_err(bad)
-                .context("--attitude")?;
+            State::apply_angles(&mut s.vehicle.attitude, a).context("--attitude")?;
         }
         if let Some(a) = &self.mount {
-            State::apply_angles(&mut s.mount, a)
-                .map_err(bad)
-                .context("--mount")?;
+            State::apply_angles(&mut s.mount, a).context("--mount")?;
         }
         if let Some(p) = &self.position {
-            s.apply_position(p).map_err(bad).context("--position")?;
+            s.apply_position(p).context("--position")?;
         }
         for t in &self.tracks {
-            s.add_tracked(t)
-                .map_err(bad)
-                .with_context(|| format!("--track {t}"))?;
+            s.add_tracked(t).with_context(|| format!("--track {t}"))?;
         }
         if let Some(t) = self.time {
             s.time = t;
         }
-        s.validate().map_err(bad)?;
+        s.validate()?;
         Ok(s)
     }
 }

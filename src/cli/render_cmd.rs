@@ -1,24 +1,18 @@
 //! `digiview render` (fisheye image → output frame) and `digiview synth` (synthetic fisheye
 //! frames, ground-truth output frames and panoramas).
 
-use super::{StateArgs, spinner};
-use crate::lens::{Lens, LensCal, Roi};
+use super::{Backend, StateArgs, spinner};
+use crate::frame::PixelFormat;
+use crate::lens::{LensCal, Lenses};
 use crate::render::gpu::renderer::render_image;
 use crate::render::gpu::{Gpu, Renderer};
-use crate::render::{Filter, FramePlan, PixelFormat, cpu};
+use crate::render::{Filter, FramePlan, cpu};
 use crate::scene::synth::{equirect, fisheye, truth};
 use crate::scene::{GridWorld, PanoramaWorld, World};
-use crate::state::State;
 use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use image::RgbImage;
 use std::path::{Path, PathBuf};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Backend {
-    Cpu,
-    Gpu,
-}
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -67,20 +61,6 @@ pub struct SynthArgs {
     state: StateArgs,
 }
 
-/// The state's lens, scaled to a fisheye frame of `size` (after the sensor crop, if any).
-pub(crate) fn lens_for(cal: &LensCal, state: &State, size: (u32, u32)) -> Result<Lens> {
-    let entry = cal
-        .by_id(state.lens)
-        .with_context(|| format!("lens_id {} is not in {}", state.lens, cal.path.display()))?;
-    let roi = state.sensor.roi.map(|[x, y, w, h]| Roi {
-        x: x as f64,
-        y: y as f64,
-        width: w as f64,
-        height: h as f64,
-    });
-    Ok(entry.lens().for_frame(size.0, size.1, roi))
-}
-
 fn save(img: &RgbImage, path: &Path) -> Result<()> {
     img.save(path)
         .with_context(|| format!("writing {}", path.display()))?;
@@ -109,6 +89,11 @@ pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
     let cal = LensCal::load(cal_path)?;
     let state = args.state.state(&cal)?;
     if is_pattern(&args.input) || !is_image(&args.input) {
+        if args.backend == Backend::Cpu {
+            anyhow::bail!(
+                "the CPU reference renders single images; videos and sequences use --backend gpu"
+            );
+        }
         return super::render_video::render_video(&cal, &state, &args.video());
     }
     if is_pattern(&args.out) || !is_image(&args.out) {
@@ -121,7 +106,7 @@ pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
     let input = image::open(&args.input)
         .with_context(|| format!("reading {}", args.input.display()))?
         .to_rgb8();
-    let lens = lens_for(&cal, &state, input.dimensions())?;
+    let lens = Lenses::new(&cal).for_frame(state.lens, input.dimensions(), state.sensor.roi())?;
     let plan = FramePlan::new(&state, &lens)?;
     let out = match args.backend {
         Backend::Cpu => {
@@ -147,7 +132,6 @@ impl RenderArgs {
             out: self.out.clone(),
             input_fps: self.input_fps,
             bitrate_kbps: self.bitrate_kbps,
-            backend: self.backend,
             filter: self.filter,
         }
     }
@@ -173,7 +157,8 @@ pub fn synth(cal_path: &Path, args: SynthArgs) -> Result<()> {
             .to_rgb8();
         Box::new(PanoramaWorld::new(img))
     };
-    let lens = lens_for(&cal, &state, (state.sensor.width, state.sensor.height))?;
+    let sensor = (state.sensor.width, state.sensor.height);
+    let lens = Lenses::new(&cal).for_frame(state.lens, sensor, state.sensor.roi())?;
     let bar = spinner("synthesising");
     let img = if let Some((w, h)) = args.equirect {
         equirect(world.as_ref(), &state, w, h)

@@ -3,11 +3,11 @@
 //! or an image sequence, with a progress bar. Frames are pipelined: frame N uploads and
 //! renders while frame N-1 is read back and encoded.
 
-use super::render_cmd::{Backend, lens_for};
-use crate::lens::LensCal;
+use crate::frame::PixelFormat;
+use crate::lens::{LensCal, Lenses};
 use crate::render::gpu::renderer::RenderedFrame;
 use crate::render::gpu::{Gpu, Renderer};
-use crate::render::{Filter, FramePlan, PixelFormat};
+use crate::render::{Filter, FramePlan};
 use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
 use crate::stream::encoder::AccessUnit;
@@ -23,7 +23,6 @@ pub struct VideoJob {
     pub out: PathBuf,
     pub input_fps: u32,
     pub bitrate_kbps: u32,
-    pub backend: Backend,
     pub filter: Filter,
 }
 
@@ -76,9 +75,7 @@ impl Sink {
         if !out.to_ascii_lowercase().ends_with(".mp4") {
             bail!("{out}: a video renders to .mp4 or to an image pattern such as out/%05d.png");
         }
-        let recorder = Arc::new(Mutex::new(Some(
-            Recorder::start(&job.out).map_err(|e| anyhow!(e))?,
-        )));
+        let recorder = Arc::new(Mutex::new(Some(Recorder::start(&job.out)?)));
         let feed = recorder.clone();
         let fps = fps.round().clamp(1.0, 240.0) as u32;
         let cfg = EncoderConfig {
@@ -92,8 +89,7 @@ impl Sink {
             {
                 tracing::error!("{e}");
             }
-        })
-        .map_err(|e| anyhow!(e))?;
+        })?;
         Ok(Sink::Mp4 {
             encoder,
             recorder,
@@ -103,9 +99,9 @@ impl Sink {
 
     fn write(&mut self, frame: RenderedFrame, pts: Duration) -> Result<()> {
         match self {
-            Sink::Mp4 { encoder, fps, .. } => encoder
-                .push(frame.data, &frame.layout, pts, *fps)
-                .map_err(|e| anyhow!(e)),
+            Sink::Mp4 { encoder, fps, .. } => {
+                Ok(encoder.push(frame.data, &frame.layout, pts, *fps)?)
+            }
             Sink::Images(pattern) => {
                 let path = numbered(pattern, frame.id)?;
                 frame
@@ -121,22 +117,19 @@ impl Sink {
             encoder, recorder, ..
         } = self
         {
-            encoder.finish().map_err(|e| anyhow!(e))?;
+            encoder.finish()?;
             let r = recorder
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .take()
                 .context("the recording was lost")?;
-            r.finish().map_err(|e| anyhow!(e))?;
+            r.finish()?;
         }
         Ok(())
     }
 }
 
 pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> {
-    if job.backend == Backend::Cpu {
-        bail!("the CPU reference renders single images; videos and sequences use --backend gpu");
-    }
     let text = job.input.to_string_lossy().to_string();
     let spec = if text.contains('%') {
         SourceSpec::Sequence(text)
@@ -146,7 +139,7 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         }
         SourceSpec::File(job.input.clone())
     };
-    let mut frames = FileFrames::open(&spec, job.input_fps).map_err(|e| anyhow!(e))?;
+    let mut frames = FileFrames::open(&spec, job.input_fps)?;
     let duration = frames.duration().or_else(|| match &spec {
         // A sequence's length: its files, counted from 0 until one is missing.
         SourceSpec::Sequence(p) => {
@@ -162,6 +155,7 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     } else {
         PixelFormat::I420
     };
+    let lenses = Lenses::new(cal);
     let gpu = Gpu::new()?;
     let mut renderer = Renderer::new(&gpu, out_format, job.filter)?;
     renderer.fixed_view_kinds();
@@ -181,13 +175,13 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     loop {
         let next = frames
             .next_frame()
-            .map_err(|e| anyhow!("decoding {}: {e}", job.input.display()))?;
+            .with_context(|| format!("decoding {}", job.input.display()))?;
         let Some((frame, pts, fps)) = next else {
             break;
         };
         let size = (frame.layout.width, frame.layout.height);
         if plan.as_ref().is_none_or(|(s, _)| *s != size) {
-            let lens = lens_for(cal, state, size)?;
+            let lens = lenses.for_frame(state.lens, size, state.sensor.roi())?;
             plan = Some((size, FramePlan::new(state, &lens)?));
         }
         if sink.is_none() {

@@ -5,13 +5,14 @@
 
 use super::StateArgs;
 use crate::control::Controller;
-use crate::control::live::{Capturer, Live, NoVideo};
 use crate::control::permissions::{Allow, Permissions};
 use crate::control::server::{self, Shutdown};
 use crate::head::Head;
 use crate::head::capture::Capture;
 use crate::head::config::Config;
 use crate::lens::LensCal;
+use crate::state::Live;
+use crate::state::capture::{Capturer, NoVideo};
 use crate::stream::Rtsp;
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
@@ -63,7 +64,7 @@ pub struct ServeArgs {
 /// The configuration file with the flags applied.
 fn config(args: &ServeArgs) -> Result<Config> {
     let mut cfg = match &args.config {
-        Some(p) => Config::load(p).map_err(|e| anyhow!(e))?,
+        Some(p) => Config::load(p)?,
         None => Config::default(),
     };
     if let Some(s) = &args.source {
@@ -87,7 +88,7 @@ fn config(args: &ServeArgs) -> Result<Config> {
     if let Some((w, h)) = args.demo_size {
         (cfg.demo.width, cfg.demo.height) = (w, h);
     }
-    cfg.check().map_err(|e| anyhow!(e))?;
+    cfg.check()?;
     Ok(cfg)
 }
 
@@ -144,7 +145,7 @@ pub fn serve(lens_cal: &Path, args: ServeArgs) -> Result<()> {
     } else {
         Box::new(capture.clone())
     };
-    let live = Arc::new(Live::new(state, &cal, hook).map_err(anyhow::Error::msg)?);
+    let live = Arc::new(Live::new(state, &cal, hook)?);
     let controller = Arc::new(Controller::new(live.clone(), permissions));
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -163,8 +164,7 @@ pub fn serve(lens_cal: &Path, args: ServeArgs) -> Result<()> {
     } else {
         let key_wanted = Arc::new(AtomicBool::new(false));
         let wanted = key_wanted.clone();
-        let rtsp = Rtsp::start(&cfg.rtsp, move || wanted.store(true, Ordering::Relaxed))
-            .map_err(|e| anyhow!(e))?;
+        let rtsp = Rtsp::start(&cfg.rtsp, move || wanted.store(true, Ordering::Relaxed))?;
         let host = match cfg.rtsp.address.as_str() {
             "0.0.0.0" | "::" => "127.0.0.1",
             a => a,
@@ -192,8 +192,7 @@ pub fn serve(lens_cal: &Path, args: ServeArgs) -> Result<()> {
         head.stop.store(true, Ordering::Relaxed);
         thread
             .join()
-            .map_err(|_| anyhow!("the frame loop panicked"))?
-            .map_err(|e| anyhow!(e))?;
+            .map_err(|_| anyhow!("the frame loop panicked"))??;
     }
     Ok(())
 }

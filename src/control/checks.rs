@@ -3,12 +3,12 @@
 //! through them on every `cargo test`.
 
 use super::Controller;
-use super::live::{Live, NoVideo};
 use super::permissions::Permissions;
 use crate::lens::LensCal;
 use crate::protocol::text::annotate;
 use crate::protocol::{Body, FRAME_LEN, Message, crc8};
-use crate::state::State;
+use crate::state::capture::NoVideo;
+use crate::state::{Live, State};
 use std::net::{IpAddr, Ipv4Addr};
 use std::sync::Arc;
 

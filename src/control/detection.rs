@@ -38,7 +38,7 @@ pub fn detection(state: &State) -> Detection {
 /// The seed's rules: mode is ignored; a sorting mode above 2 is ignored; thresholds and
 /// overlaps outside [0, 0.99) keep their value; box limits are clamped to 10..=500; a score
 /// field of 255 keeps its value.
-pub fn set_detection(s: &mut State, p: &Detection) -> Result<(), String> {
+pub fn set_detection(s: &mut State, p: &Detection) -> Result<(), Refusal> {
     let d = &mut s.detection;
     if p.sorting_mode <= 2 {
         d.sorting_mode = p.sorting_mode;

@@ -1,6 +1,6 @@
-//! Control: the live state and the request handling of the DigiView control protocol, the
-//! tokio server that carries it over TCP and UDP, and the blocking client behind
-//! `digiview ctl`. Sits beside the frame path: it changes the live state that the renderer
+//! Control: the request handling of the DigiView control protocol, the tokio server that
+//! carries it over TCP and UDP, and the blocking client behind `digiview ctl`. Sits beside
+//! the frame path: it changes the live state (`crate::state::Live`) that the frame loop
 //! snapshots once per frame, and never waits on a frame.
 //!
 //! [`Controller::handle`] turns one received frame into its replies with no I/O, so the
@@ -10,25 +10,33 @@ pub mod camera;
 pub mod checks;
 pub mod client;
 pub mod detection;
-pub mod live;
 pub mod load;
 pub mod permissions;
 pub mod server;
 pub mod system;
 
 use crate::protocol::{Body, Message, Param, Verdict};
-use crate::state::MAX_CAMERAS;
-use live::Live;
+use crate::state::{Invalid, Live, MAX_CAMERAS};
 use permissions::Permissions;
 use std::net::IpAddr;
 use std::sync::Arc;
 use tracing::debug;
 
 /// Why a request was refused; the text goes to the server's log.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum Refusal {
+    /// DATA_ERROR: the request's values, or what they ask for, are refused.
+    #[error("{0}")]
     Data(String),
+    /// FORBIDDEN: the client may not do this.
+    #[error("{0}")]
     Forbidden(&'static str),
+}
+
+impl From<Invalid> for Refusal {
+    fn from(e: Invalid) -> Self {
+        Refusal::Data(e.0)
+    }
 }
 
 impl Refusal {
@@ -87,12 +95,8 @@ impl Controller {
         };
         let param_type = msg.body.param_type();
         let refused = |r: Refusal| {
-            let why = match &r {
-                Refusal::Data(why) => why.as_str(),
-                Refusal::Forbidden(why) => why,
-            };
             let what = msg.body.message_type();
-            debug!(%peer, "refused {what} of param_type {param_type}: {why}");
+            debug!(%peer, "refused {what} of param_type {param_type}: {r}");
             Outcome::one(Body::Verdict(r.verdict(), param_type))
         };
         match msg.body {
@@ -134,7 +138,6 @@ impl Controller {
         let c = &s.cameras[cam];
         let id = cam as u8;
         let one = |p: Param| Ok(vec![p]);
-        let geometry = |r: Result<Param, String>| r.map(|p| vec![p]).map_err(Refusal::Data);
         match query {
             Param::SystemStatus(_) => one(Param::SystemStatus(system::system_status(live))),
             Param::VideoOutput(_) => one(Param::VideoOutput(system::video_output(&s)?)),
@@ -150,9 +153,9 @@ impl Controller {
             Param::CamLockFlags(_) => one(Param::CamLockFlags(camera::lock_flags(c, id))),
             Param::CamControlMode(_) => one(Param::CamControlMode(camera::control_mode(c, id))),
             Param::CamCropMode(_) => one(Param::CamCropMode(camera::crop_mode(c, id))),
-            Param::CamOffset(q) => geometry(camera::offset(live, &s, q).map(Param::CamOffset)),
+            Param::CamOffset(q) => one(Param::CamOffset(camera::offset(live, &s, q)?)),
             Param::CamFov(_) => one(Param::CamFov(camera::fov(c, id))),
-            Param::CamTarget(q) => geometry(camera::target(live, &s, q).map(Param::CamTarget)),
+            Param::CamTarget(q) => one(Param::CamTarget(camera::target(live, &s, q)?)),
             Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s))),
             Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s))),
         }
@@ -189,7 +192,6 @@ impl Controller {
                 unreachable!("handled above")
             }
         })
-        .map_err(Refusal::Data)
     }
 }
 

@@ -31,12 +31,17 @@ impl Allow {
     }
 }
 
+/// A word in a permission list that is none of the forms it takes.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("`{0}` is not an address, a CIDR range, `loopback`, `any` or `none`")]
+pub struct NotAnAddress(pub String);
+
 impl FromStr for Allow {
-    type Err = String;
+    type Err = NotAnAddress;
 
     /// `any`, `none`, `loopback`, or a comma-separated list of addresses and CIDR ranges
     /// (`loopback` may be one of them).
-    fn from_str(text: &str) -> Result<Allow, String> {
+    fn from_str(text: &str) -> Result<Allow, NotAnAddress> {
         match text.trim() {
             "any" | "anyone" => return Ok(Allow::Anyone),
             "none" | "" => return Ok(Allow::Nets(vec![])),
@@ -54,9 +59,7 @@ impl FromStr for Allow {
             } else if let Ok(a) = item.parse::<IpAddr>() {
                 nets.push(IpNet::from(a));
             } else {
-                return Err(format!(
-                    "`{item}` is not an address, a CIDR range, `loopback`, `any` or `none`"
-                ));
+                return Err(NotAnAddress(item.to_string()));
             }
         }
         Ok(Allow::Nets(nets))
@@ -114,6 +117,7 @@ mod tests {
             "10.0.0.0/33"
                 .parse::<Allow>()
                 .unwrap_err()
+                .to_string()
                 .contains("10.0.0.0/33")
         );
     }

@@ -2,14 +2,13 @@
 //! LENS, CAM_SENSOR and GENERAL_SETTINGS, with the seed's rules field by field.
 
 use super::Refusal;
-use super::live::Live;
 use crate::geometry::wrap_pi;
-use crate::layout::{Rect, TILE_SIZE, layout};
+use crate::layout::{LAYOUT_MODES, OVERLAY_MODES, Rect, TILE_SIZE, layout};
 use crate::protocol::BoundingBox;
 use crate::protocol::params::{
     CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
 };
-use crate::state::{FPS_RANGE, MAX_OUTPUT, MIN_OUTPUT, State};
+use crate::state::{FPS_RANGE, Live, MAX_OUTPUT, MIN_OUTPUT, State};
 
 pub const MAX_EXPOSURE_US: u32 = 40_000;
 pub const MAX_GAIN: u32 = 50_000;
@@ -56,7 +55,7 @@ pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
 /// Width and height above the maximum are clamped; below the minimum the size change is
 /// ignored (both kept, so the frame never gets an unasked-for shape). Sizes are rounded down
 /// to even numbers for 4:2:0 video. fps is clamped; an unknown layout or overlay is ignored.
-pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), String> {
+pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), Refusal> {
     let (w, h) = (
         (p.width as u32).min(MAX_OUTPUT.0),
         (p.height as u32).min(MAX_OUTPUT.1),
@@ -67,15 +66,15 @@ pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), String> {
         o.height = h & !1;
     }
     o.fps = (p.fps as u32).clamp(FPS_RANGE.0, FPS_RANGE.1);
-    if p.layout_mode <= 6 {
+    if p.layout_mode < LAYOUT_MODES {
         o.layout = p.layout_mode;
     }
-    if p.detection_overlay_mode <= 5 {
+    if p.detection_overlay_mode < OVERLAY_MODES {
         o.overlay = p.detection_overlay_mode;
     }
     layout(o.width, o.height, o.layout, o.overlay)
         .map(|_| ())
-        .map_err(|e| e.to_string())
+        .map_err(Refusal::data)
 }
 
 pub fn capture(live: &Live) -> Capture {
@@ -90,11 +89,11 @@ pub fn capture(live: &Live) -> Capture {
 /// Bit 0 takes one still; bit 1 starts (1) or stops (0) recording.
 pub fn set_capture(live: &Live, p: &Capture) -> Result<(), Refusal> {
     if p.flags & 1 != 0 {
-        live.capture().still().map_err(Refusal::Data)?;
+        live.capture().still().map_err(Refusal::data)?;
     }
     live.capture()
         .record(p.flags & 2 != 0)
-        .map_err(Refusal::Data)
+        .map_err(Refusal::data)
 }
 
 pub fn lens(state: &State) -> Lens {
@@ -104,9 +103,12 @@ pub fn lens(state: &State) -> Lens {
 }
 
 /// A lens_id that lens.cal does not have is refused.
-pub fn set_lens(live: &Live, s: &mut State, p: &Lens) -> Result<(), String> {
-    if !live.has_lens(p.lens_id) {
-        return Err(format!("lens_id {} is not in lens.cal", p.lens_id));
+pub fn set_lens(live: &Live, s: &mut State, p: &Lens) -> Result<(), Refusal> {
+    if live.lenses().get(p.lens_id).is_none() {
+        return Err(Refusal::Data(format!(
+            "lens_id {} is not in lens.cal",
+            p.lens_id
+        )));
     }
     s.lens = p.lens_id;
     Ok(())
@@ -124,7 +126,7 @@ pub fn sensor(state: &State) -> CamSensor {
 
 /// Any non-zero ae is on. Brightness, exposure and gain are clamped into the seed's open
 /// ranges; exposure also to the camera's frame time.
-pub fn set_sensor(s: &mut State, p: &CamSensor) -> Result<(), String> {
+pub fn set_sensor(s: &mut State, p: &CamSensor) -> Result<(), Refusal> {
     let frame_us = 1_000_000 / s.sensor.fps.max(1);
     let sensor = &mut s.sensor;
     sensor.ae = p.ae != 0;
@@ -153,28 +155,33 @@ pub fn general(state: &State) -> GeneralSettings {
 /// Camera size 1..=8192 and fps 1..=240, or the message is refused. A ROI of 0x0 means no
 /// sensor crop; otherwise it is centred in the lens's calibration frame and must fit in it.
 /// Mount yaw wraps, pitch and roll are taken as given; any non-zero run_ai is on.
-pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<(), String> {
+pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<(), Refusal> {
     if !(1..=MAX_CAMERA_SIZE).contains(&p.camera_width)
         || !(1..=MAX_CAMERA_SIZE).contains(&p.camera_height)
     {
-        return Err(format!(
+        return Err(Refusal::Data(format!(
             "camera size {}x{} is outside 1x1..=8192x8192",
             p.camera_width, p.camera_height
-        ));
+        )));
     }
     if !(1..=240).contains(&p.camera_fps) {
-        return Err(format!("camera fps {} is outside 1..=240", p.camera_fps));
+        return Err(Refusal::Data(format!(
+            "camera fps {} is outside 1..=240",
+            p.camera_fps
+        )));
     }
     let roi = match (p.roi_width as u32, p.roi_height as u32) {
         (0, 0) => None,
         (w, h) => {
-            let (cw, ch) = live
-                .calibration_size(s)
-                .ok_or("the state's lens is not in lens.cal")?;
+            let lens = live
+                .lenses()
+                .get(s.lens)
+                .ok_or_else(|| Refusal::data("the state's lens is not in lens.cal"))?;
+            let (cw, ch) = (lens.width, lens.height);
             if w == 0 || h == 0 || w > cw || h > ch {
-                return Err(format!(
+                return Err(Refusal::Data(format!(
                     "sensor crop {w}x{h} does not fit the lens's {cw}x{ch} calibration frame"
-                ));
+                )));
             }
             Some([(cw - w) / 2, (ch - h) / 2, w, h])
         }

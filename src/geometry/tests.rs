@@ -100,6 +100,33 @@ fn aiming_points_the_views_forward_axis_along_the_ray_under_any_locks() {
 }
 
 #[test]
+fn pilot_views_look_along_the_nose_and_coordinate_views_at_their_target() {
+    let vehicle = Euler::new(0.3, 0.1, -0.2);
+    let position = GeoPosition {
+        lat: 58.0,
+        lon: 15.0,
+        alt: 150.0,
+        relative_alt: 50.0,
+    };
+    let mut steering = Steering {
+        control: control::PILOT,
+        angles: Euler::new(0.0, -0.5, 0.0),
+        locks: LockFlags::ALL,
+        target: None,
+    };
+    let nose = steering.world_from_view(vehicle, &position) * DVec3::X;
+    assert!((nose - vehicle.matrix() * DVec3::X).length() < 1e-12);
+    // A target 100 m east on the ground, 50 m below: the view points at it.
+    steering.control = control::COORDINATE;
+    steering.target = Some(from_ned(position.point(), DVec3::new(0.0, 100.0, 50.0)));
+    let fwd = steering.world_from_view(vehicle, &position) * DVec3::X;
+    assert!(
+        (fwd - DVec3::new(0.0, 100.0, 50.0).normalize()).length() < 1e-6,
+        "{fwd}"
+    );
+}
+
+#[test]
 fn relative_angles_follow_the_frame_rel_formulas() {
     let (yaw, pitch) = relative_angles(direction(0.4, -0.2));
     assert!((yaw - 0.4).abs() < 1e-12 && (pitch + 0.2).abs() < 1e-12);

@@ -1,6 +1,8 @@
-//! A user view's orientation from its angles, lock flags and the vehicle's attitude; the chain
-//! from the world to the fisheye lens; and the fov and zoom rules per crop mode.
+//! A user view's orientation from its control mode, angles, lock flags, target and the
+//! vehicle's attitude and position; the chain from the world to the fisheye lens; and the fov
+//! and zoom rules per crop mode.
 
+use super::ground::{GeoPoint, GeoPosition, ray_to_target};
 use super::rotation::{Euler, MOUNT_FROM_LENS, wrap_pi, yaw_pitch};
 use glam::{DMat3, DVec3};
 use std::f64::consts::TAU;
@@ -51,6 +53,44 @@ impl LockFlags {
 /// R_world_view for a user camera.
 pub fn view_orientation(cam: Euler, locks: LockFlags, vehicle: Euler) -> DMat3 {
     locks.compose(cam, vehicle).matrix()
+}
+
+/// CAM_CONTROL_MODE values.
+pub mod control {
+    /// The view looks along the vehicle's nose (pilot view).
+    pub const PILOT: u8 = 0;
+    pub const DIRECTIONAL: u8 = 1;
+    /// The view aims at its geographic target.
+    pub const COORDINATE: u8 = 2;
+    /// Pass: as directional.
+    pub const PASS: u8 = 3;
+}
+
+/// How a user view is aimed: what CAM_CONTROL_MODE, CAM_EULER, CAM_LOCK_FLAGS and CAM_TARGET
+/// set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Steering {
+    pub control: u8,
+    pub angles: Euler,
+    pub locks: LockFlags,
+    pub target: Option<GeoPoint>,
+}
+
+impl Steering {
+    /// R_world_view by the control mode: pilot (0) looks along the vehicle's nose; coordinate
+    /// (2) aims at its target, recomputed from the vehicle's position; the others compose the
+    /// view's angles with the vehicle's per the lock flags.
+    pub fn world_from_view(&self, vehicle: Euler, position: &GeoPosition) -> DMat3 {
+        let (angles, locks) = (self.angles, self.locks);
+        match (self.control, self.target) {
+            (control::PILOT, _) => vehicle.matrix(),
+            (control::COORDINATE, Some(target)) => match ray_to_target(position, target) {
+                Some(ray) => view_orientation(aim(ray, angles, locks, vehicle), locks, vehicle),
+                None => view_orientation(angles, locks, vehicle),
+            },
+            _ => view_orientation(angles, locks, vehicle),
+        }
+    }
 }
 
 /// R_lens_world = (R_world_body · R_body_mount · M)ᵀ: carries world (NED) rays into the lens frame.

@@ -4,8 +4,8 @@
 //! an error reply rather than a truncated file.
 
 use super::config::{CaptureConfig, StillFormat};
-use crate::control::live::{CaptureStatus, Capturer};
-use crate::render::PlaneLayout;
+use crate::frame::PlaneLayout;
+use crate::state::capture::{CaptureError, CaptureStatus, Capturer};
 use crate::stream::Recorder;
 use crate::stream::encoder::AccessUnit;
 use gstreamer::glib;
@@ -49,20 +49,21 @@ impl Capture {
     }
 
     /// The directory exists (made if missing) and has room; the error says why not.
-    fn ready(&self) -> Result<(), String> {
+    fn ready(&self) -> Result<(), CaptureError> {
         let dir = &self.cfg.dir;
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("capture directory {}: {e}", dir.display()))?;
-        let stat = rustix::fs::statvfs(dir)
-            .map_err(|e| format!("capture directory {}: {e}", dir.display()))?;
+        let unusable = |source| CaptureError::Directory {
+            dir: dir.clone(),
+            source,
+        };
+        std::fs::create_dir_all(dir).map_err(unusable)?;
+        let stat = rustix::fs::statvfs(dir).map_err(|e| unusable(e.into()))?;
         let free_mb = stat.f_bavail.saturating_mul(stat.f_frsize) / (1024 * 1024);
         if free_mb < self.cfg.min_free_mb {
-            return Err(format!(
-                "capture directory {} has {free_mb} MB free, under the {} MB kept free \
-                 (capture.min_free_mb)",
-                dir.display(),
-                self.cfg.min_free_mb
-            ));
+            return Err(CaptureError::Full {
+                dir: dir.clone(),
+                free_mb,
+                min_free_mb: self.cfg.min_free_mb,
+            });
         }
         Ok(())
     }
@@ -100,7 +101,7 @@ impl Capture {
                 files.push((PathBuf::from(name), raw));
             }
             for (path, (data, layout)) in files {
-                let written = crate::render::yuv::decode(&data, &layout)
+                let written = crate::frame::yuv::decode(&data, &layout)
                     .map_err(|e| e.to_string())
                     .and_then(|img| {
                         let format = match this.cfg.still_format {
@@ -140,20 +141,21 @@ impl Capture {
 }
 
 impl Capturer for Capture {
-    fn still(&self) -> Result<(), String> {
+    fn still(&self) -> Result<(), CaptureError> {
         self.ready()?;
         self.still_wanted.store(true, Ordering::Relaxed);
         Ok(())
     }
 
-    fn record(&self, on: bool) -> Result<(), String> {
+    fn record(&self, on: bool) -> Result<(), CaptureError> {
         if on {
             let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
             if recorder.is_some() {
                 return Ok(());
             }
             self.ready()?;
-            let r = Recorder::start(&self.name(".mp4"))?;
+            let r = Recorder::start(&self.name(".mp4"))
+                .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
             info!("recording to {}", r.path().display());
             *recorder = Some(r);
             self.videos.fetch_add(1, Ordering::Relaxed);

@@ -2,7 +2,9 @@
 //! (or none) runs the demo source with the stream at rtsp://HOST:8554/digiview; docs/serve.md
 //! lists them all. Unknown keys are errors that name the key.
 
-use crate::render::PixelFormat;
+use crate::frame::PixelFormat;
+use crate::source::SpecError;
+use crate::stream::rtsp::RtspConfigError;
 use crate::stream::{EncoderConfig, RtspConfig};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -154,61 +156,92 @@ impl Default for MavlinkConfig {
     }
 }
 
+/// Why a configuration is refused.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read {}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    In {
+        path: PathBuf,
+        source: Box<ConfigError>,
+    },
+    #[error(transparent)]
+    Toml(#[from] toml::de::Error),
+    #[error("source: {0}")]
+    Source(#[from] SpecError),
+    #[error(transparent)]
+    Rtsp(#[from] RtspConfigError),
+    /// A value outside its range: the key, the value and the range.
+    #[error("{0}")]
+    Range(String),
+}
+
+fn out_of_range(message: String) -> Result<(), ConfigError> {
+    Err(ConfigError::Range(message))
+}
+
 impl Config {
-    pub fn load(path: &Path) -> Result<Config, String> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        Config::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.into(),
+            source,
+        })?;
+        Config::parse(&text).map_err(|e| ConfigError::In {
+            path: path.into(),
+            source: Box::new(e),
+        })
     }
 
-    pub fn parse(text: &str) -> Result<Config, String> {
-        let cfg: Config = toml::from_str(text).map_err(|e| e.to_string())?;
+    pub fn parse(text: &str) -> Result<Config, ConfigError> {
+        let cfg: Config = toml::from_str(text)?;
         cfg.check()?;
         Ok(cfg)
     }
 
     /// Ranges and forms the types alone do not hold.
-    pub fn check(&self) -> Result<(), String> {
-        self.source
-            .parse::<crate::source::SourceSpec>()
-            .map_err(|e| format!("source: {e}"))?;
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.source.parse::<crate::source::SourceSpec>()?;
         if !(1..=240).contains(&self.source_fps) {
-            return Err(format!("source_fps {} is outside 1..=240", self.source_fps));
+            return out_of_range(format!("source_fps {} is outside 1..=240", self.source_fps));
         }
         let d = &self.demo;
         if d.width < 64 || d.height < 64 || d.width > 7680 || d.height > 4320 {
-            return Err(format!(
+            return out_of_range(format!(
                 "demo size {}x{} is outside 64x64..7680x4320",
                 d.width, d.height
             ));
         }
         if d.format.is_yuv() && (d.width % 2 == 1 || d.height % 2 == 1) {
-            return Err(format!(
+            return out_of_range(format!(
                 "demo size {}x{} must be even for {}",
                 d.width, d.height, d.format
             ));
         }
         if d.stamp && !d.format.is_yuv() {
-            return Err("demo stamp needs a 4:2:0 format (nv12 or i420)".into());
+            return out_of_range("demo stamp needs a 4:2:0 format (nv12 or i420)".into());
         }
         if !(1..=120).contains(&d.fps) {
-            return Err(format!("demo fps {} is outside 1..=120", d.fps));
+            return out_of_range(format!("demo fps {} is outside 1..=120", d.fps));
         }
         self.rtsp.check()?;
         if !(self.encoder.bitrate_kbps >= 100 && self.encoder.bitrate_kbps <= 100_000) {
-            return Err(format!(
+            return out_of_range(format!(
                 "encoder bitrate_kbps {} is outside 100..=100000",
                 self.encoder.bitrate_kbps
             ));
         }
         if !(0.1..=60.0).contains(&self.encoder.key_interval_s) {
-            return Err(format!(
+            return out_of_range(format!(
                 "encoder key_interval_s {} is outside 0.1..=60",
                 self.encoder.key_interval_s
             ));
         }
         if !(0.0..=3600.0).contains(&self.health_interval_s) {
-            return Err(format!(
+            return out_of_range(format!(
                 "health_interval_s {} is outside 0..=3600",
                 self.health_interval_s
             ));
@@ -240,7 +273,7 @@ mod tests {
             ("[encoder]\nbitrate_kbps = 5", "bitrate_kbps"),
             ("[capture]\nstill_format = \"gif\"", "still_format"),
         ] {
-            let e = Config::parse(text).unwrap_err();
+            let e = Config::parse(text).unwrap_err().to_string();
             assert!(e.contains(says), "{text:?}: {e}");
         }
     }

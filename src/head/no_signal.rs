@@ -1,7 +1,7 @@
 //! The frame streamed while the source is down: dark grey with "NO SIGNAL" in the middle, so
 //! a viewer sees the head is alive and the camera is not.
 
-use crate::render::{PixelFormat, PlaneLayout};
+use crate::frame::{PixelFormat, PlaneLayout};
 
 /// 5x7 glyphs, one byte per row, bit 4 the leftmost column.
 fn glyph(c: char) -> [u8; 7] {

@@ -5,145 +5,23 @@
 //! (x right, y down, z along the optical axis) and pixel coordinates are OpenCV's too: the
 //! centre of the top-left pixel is (0, 0).
 //!
-//! Every model here is rotationally symmetric about the optical axis in its own normalized
-//! plane, so it is written as a radial function r(θ) with θ = atan2(ρ, z) the angle from the
-//! axis (valid beyond 90°), followed by a 2×2 affine to pixels: diag(fx, fy) for the classic
-//! models, OCam's (c, d, e) matrix for Scaramuzza's. One file per model holds the radial
-//! part; `shaders/lens.wgsl` has a twin function of the same name for each.
+//! A lens is a radial model r(θ) (`models`: one file per model, each with a WGSL twin of the
+//! same name in shaders/lens.wgsl, and the registry that names them) followed by a 2×2 affine
+//! to pixels: diag(fx, fy) for the classic models, OCam's (c, d, e) matrix for Scaramuzza's.
+//! `calfile` reads and writes lens.cal, `import` other tools' calibrations, `check` tests an
+//! entry, and [`Lenses`] looks a state's lens up.
 
 pub mod calfile;
 pub mod check;
-pub mod double_sphere;
-pub mod equidistant;
-pub mod equisolid;
 pub mod import;
-pub mod kannala_brandt;
-pub mod ocam;
-pub mod orthographic;
+pub mod models;
 pub mod samples;
-pub mod solve;
-pub mod stereographic;
 
 pub use calfile::{LensCal, LensEntry, LensError, Provenance};
+pub use models::{Model, ModelLimits, Radial, RadialModel};
 
 use glam::{DMat2, DVec2, DVec3};
 use std::ops::Range;
-
-/// The radial part of a lens model and its coefficients.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Model {
-    Equidistant,
-    Equisolid,
-    Stereographic,
-    Orthographic,
-    /// OpenCV fisheye coefficients k1..k4.
-    KannalaBrandt {
-        k: [f64; 4],
-    },
-    DoubleSphere {
-        xi: f64,
-        alpha: f64,
-    },
-    /// OCamCalib polynomials, lowest order first, in pixel units of the calibration frame.
-    Ocam {
-        pol: Vec<f64>,
-        invpol: Vec<f64>,
-    },
-}
-
-impl Model {
-    pub fn name(&self) -> &'static str {
-        match self {
-            Model::Equidistant => "equidistant",
-            Model::Equisolid => "equisolid",
-            Model::Stereographic => "stereographic",
-            Model::Orthographic => "orthographic",
-            Model::KannalaBrandt { .. } => "kannala_brandt",
-            Model::DoubleSphere { .. } => "double_sphere",
-            Model::Ocam { .. } => "ocam",
-        }
-    }
-}
-
-/// Where the model itself stops being one-to-one: θ and the normalized radius there.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ModelLimits {
-    pub theta_max: f64,
-    pub r_max: f64,
-}
-
-/// The radial model with its limits worked out once.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Radial {
-    pub model: Model,
-    pub limits: ModelLimits,
-}
-
-/// How far out to look for an OCam polynomial's fold, in pixels.
-const OCAM_SEARCH_RADIUS: f64 = 20_000.0;
-
-impl Radial {
-    pub fn new(model: Model) -> Self {
-        let theta_max = match &model {
-            Model::Equidistant => equidistant::MAX_THETA,
-            Model::Equisolid => equisolid::MAX_THETA,
-            Model::Stereographic => stereographic::MAX_THETA,
-            Model::Orthographic => orthographic::MAX_THETA,
-            Model::KannalaBrandt { k } => kannala_brandt::max_theta(k),
-            Model::DoubleSphere { xi, alpha } => double_sphere::max_theta(*xi, *alpha),
-            Model::Ocam { pol, .. } => {
-                // OCam's limit is found in r; θ follows from it (the fold search runs once).
-                let r_max = ocam::max_radius(pol, OCAM_SEARCH_RADIUS);
-                let theta_max = ocam::theta_of_r(pol, r_max);
-                return Radial {
-                    model,
-                    limits: ModelLimits { theta_max, r_max },
-                };
-            }
-        };
-        let mut radial = Radial {
-            model,
-            limits: ModelLimits {
-                theta_max,
-                r_max: f64::INFINITY,
-            },
-        };
-        radial.limits.r_max = radial.r_of_theta(theta_max).unwrap_or(f64::INFINITY);
-        radial
-    }
-
-    /// Normalized radius for a ray at angle θ from the axis; None beyond the model's limit.
-    pub fn r_of_theta(&self, theta: f64) -> Option<f64> {
-        if !(0.0..=self.limits.theta_max + 1e-12).contains(&theta) {
-            return None;
-        }
-        match &self.model {
-            Model::Equidistant => Some(equidistant::r_of_theta(theta)),
-            Model::Equisolid => Some(equisolid::r_of_theta(theta)),
-            Model::Stereographic => Some(stereographic::r_of_theta(theta)),
-            Model::Orthographic => Some(orthographic::r_of_theta(theta)),
-            Model::KannalaBrandt { k } => Some(kannala_brandt::r_of_theta(k, theta)),
-            Model::DoubleSphere { xi, alpha } => double_sphere::r_of_theta(*xi, *alpha, theta),
-            Model::Ocam { pol, invpol } => ocam::r_of_theta(pol, invpol, self.limits.r_max, theta),
-        }
-    }
-
-    /// Angle from the axis for a normalized radius; None beyond the model's limit.
-    pub fn theta_of_r(&self, r: f64) -> Option<f64> {
-        if !(0.0..=self.limits.r_max * (1.0 + 1e-12)).contains(&r) {
-            return None;
-        }
-        match &self.model {
-            Model::Equidistant => equidistant::theta_of_r(r),
-            Model::Equisolid => equisolid::theta_of_r(r),
-            Model::Stereographic => stereographic::theta_of_r(r),
-            Model::Orthographic => orthographic::theta_of_r(r),
-            Model::KannalaBrandt { k } => kannala_brandt::theta_of_r(k, self.limits.theta_max, r),
-            Model::DoubleSphere { xi, alpha } => double_sphere::theta_of_r(*xi, *alpha, r),
-            Model::Ocam { pol, .. } => Some(ocam::theta_of_r(pol, r)),
-        }
-    }
-}
 
 /// Normalized plane → pixels: pixel = matrix · (mx, my) + offset, with (mx, my) along the lens
 /// frame's x (right) and y (down).
@@ -358,6 +236,48 @@ impl Lens {
             height,
             ..self.clone()
         }
+    }
+}
+
+/// Every lens of a lens.cal, at its calibration frame, by lens_id: the one place a state's
+/// `lens` is looked up.
+#[derive(Clone, Debug)]
+pub struct Lenses {
+    path: std::path::PathBuf,
+    lenses: Vec<Lens>,
+}
+
+impl Lenses {
+    pub fn new(cal: &LensCal) -> Lenses {
+        Lenses {
+            path: cal.path.clone(),
+            lenses: cal.entries.iter().map(LensEntry::lens).collect(),
+        }
+    }
+
+    /// The lens `id` at its calibration frame.
+    pub fn get(&self, id: u8) -> Option<&Lens> {
+        self.lenses.iter().find(|l| l.id == id)
+    }
+
+    /// The lens models of every lens.
+    pub fn models(&self) -> impl Iterator<Item = &Model> {
+        self.lenses.iter().map(|l| &l.radial.model)
+    }
+
+    /// The lens `id` as a `width` × `height` frame (a source's actual size) sees it, after
+    /// the sensor crop `roi`.
+    pub fn for_frame(
+        &self,
+        id: u8,
+        (width, height): (u32, u32),
+        roi: Option<Roi>,
+    ) -> Result<Lens, LensError> {
+        let lens = self.get(id).ok_or_else(|| LensError::NoSuchId {
+            path: self.path.clone(),
+            id,
+        })?;
+        Ok(lens.for_frame(width, height, roi))
     }
 }
 

@@ -2,6 +2,9 @@
 //! widest field of view: what the model tests, the GPU parity tests and the benchmarks run on
 //! where the shipped lenses (three models) do not cover a model.
 
+use super::models::{
+    DoubleSphere, Equidistant, Equisolid, KannalaBrandt, Ocam, Orthographic, Stereographic,
+};
 use super::{Lens, Model, PixelAffine};
 
 /// One lens per model with coefficients typical of real calibrations, each near its widest fov.
@@ -13,7 +16,7 @@ pub fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "equidistant",
             0,
-            Model::Equidistant,
+            Model::Equidistant(Equidistant),
             pin(300.0),
             size,
             deg(190.0),
@@ -21,7 +24,7 @@ pub fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "equisolid",
             1,
-            Model::Equisolid,
+            Model::Equisolid(Equisolid),
             pin(300.0),
             size,
             deg(190.0),
@@ -29,7 +32,7 @@ pub fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "stereographic",
             2,
-            Model::Stereographic,
+            Model::Stereographic(Stereographic),
             pin(220.0),
             size,
             deg(190.0),
@@ -37,7 +40,7 @@ pub fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "orthographic",
             3,
-            Model::Orthographic,
+            Model::Orthographic(Orthographic),
             pin(470.0),
             size,
             deg(180.0),
@@ -45,9 +48,9 @@ pub fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "kb4",
             4,
-            Model::KannalaBrandt {
+            Model::KannalaBrandt(KannalaBrandt {
                 k: [0.0423, -0.0126, 0.0031, -0.0004],
-            },
+            }),
             pin(290.0),
             size,
             deg(195.0),
@@ -55,10 +58,10 @@ pub fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "double_sphere",
             5,
-            Model::DoubleSphere {
+            Model::DoubleSphere(DoubleSphere {
                 xi: -0.22,
                 alpha: 0.58,
-            },
+            }),
             pin(180.0),
             size,
             deg(190.0),
@@ -66,10 +69,10 @@ pub fn sample_lenses() -> Vec<Lens> {
         Lens::new(
             "ocam",
             6,
-            Model::Ocam {
+            Model::Ocam(Ocam {
                 pol: vec![-190.0, 0.0, 1.1e-3, 2.0e-7, 1.0e-9],
                 invpol: vec![280.0, 180.0, 30.0],
-            },
+            }),
             PixelAffine::ocam(1.0004, 0.0003, -0.0002, 478.6, 640.9),
             size,
             deg(195.0),

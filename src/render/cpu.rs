@@ -4,9 +4,9 @@
 //! sample of the fisheye's mip chain at the footprint its quad neighbours give (those the
 //! same view draws).
 
-use super::frame::{FrameError, PixelFormat, PlaneLayout};
 use super::mip::{Filter, Pyramid, lod};
 use super::plan::{FramePlan, PlannedView};
+use crate::frame::{FrameError, PixelFormat, PlaneLayout};
 use crate::image_ops::{sample_offsets, to_rgb8};
 use glam::{DVec2, DVec3};
 use image::RgbImage;

@@ -4,8 +4,7 @@
 //! shaders/ingest.wgsl and shaders/mip.wgsl and samples it in shaders/render.wgsl; this is the
 //! f64 twin the CPU reference renders with.
 
-use super::frame::PlaneLayout;
-use super::yuv;
+use crate::frame::{PlaneLayout, yuv};
 use crate::image_ops::{bilinear, bilinear_luma};
 use glam::{DVec2, DVec3};
 use image::{GrayImage, RgbImage};
@@ -244,7 +243,7 @@ pub fn lod(q: DVec2, nx: Option<DVec2>, ny: Option<DVec2>) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::frame::PixelFormat;
+    use crate::frame::PixelFormat;
 
     #[test]
     fn each_level_is_the_box_average_of_the_one_below() {

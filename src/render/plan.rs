@@ -56,6 +56,7 @@ impl FramePlan {
         let out = &state.output;
         let layout = layout(out.width, out.height, out.layout, out.overlay)?;
         let vehicle = state.vehicle.attitude.euler();
+        let position = &state.vehicle.position;
         let lens_from_world = lens_from_world(vehicle, state.mount.euler());
         let mut views = Vec::new();
         for (i, &(rect, slot)) in layout.views.iter().enumerate() {
@@ -67,7 +68,7 @@ impl FramePlan {
                         rect,
                         cam.crop,
                         cam.fov,
-                        state.world_from_view(i),
+                        cam.steering().world_from_view(vehicle, position),
                         lens,
                         &lens_from_world,
                     )
@@ -106,13 +107,17 @@ impl FramePlan {
             _ => {
                 let rect = Rect::new(0, 0, UNSHOWN_VIEW, UNSHOWN_VIEW);
                 let cam = &state.cameras[i];
+                let vehicle = &state.vehicle;
+                let world_from_view = cam
+                    .steering()
+                    .world_from_view(vehicle.attitude.euler(), &vehicle.position);
                 PlannedView {
                     rect,
                     map: camera_map(
                         rect,
                         cam.crop,
                         cam.fov,
-                        state.world_from_view(i),
+                        world_from_view,
                         &self.lens,
                         &self.lens_from_world,
                     ),

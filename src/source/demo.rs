@@ -4,13 +4,13 @@
 //! per 2x2 block along rays worked out once per lens: about 20 ms a 1280x720 frame on two
 //! cores.
 
+use crate::frame::yuv::rgb_to_yuv;
+use crate::frame::{PixelFormat, PlaneLayout};
 use crate::geometry::Euler;
 use crate::geometry::GeoPosition;
 use crate::geometry::ground::from_ned;
 use crate::geometry::view::lens_from_world;
 use crate::lens::Lens;
-use crate::render::yuv::rgb_to_yuv;
-use crate::render::{PixelFormat, PlaneLayout};
 use crate::scene::synth::{eye_at, world_origin};
 use crate::scene::{GridWorld, World};
 use glam::{DMat3, DVec2, DVec3, Vec3};
@@ -188,7 +188,7 @@ fn byte(v: f64) -> u8 {
 /// for glass-to-glass latency: 32 bits of a millisecond clock, 8 cells across and 4 down,
 /// most significant bit first, white for 1 and black for 0, inside a one-cell grey border.
 pub mod stamp {
-    use crate::render::PlaneLayout;
+    use crate::frame::PlaneLayout;
     use glam::DVec2;
 
     pub const COLS: i64 = 8;

@@ -2,9 +2,9 @@
 //! or an image sequence, decoded and converted (only where the camera's own layout is not
 //! one the GPU ingests) to NV12, I420 or RGBA, delivered by an appsink to a [`FrameSlot`].
 
-use super::{Frame, FrameSlot, SourceSpec, clock_us};
-use crate::gst::{bus_error, element, error_text};
-use crate::render::{PixelFormat, PlaneLayout};
+use super::{FrameSlot, SourceError, SourceSpec, clock_us};
+use crate::frame::{Frame, PixelFormat, PlaneLayout};
+use crate::gst::{GstError, bus_error, element, element_error, set_state};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
@@ -32,10 +32,10 @@ pub struct GstSource {
     looped: bool,
 }
 
-fn description(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, bool), String> {
+fn description(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, bool), SourceError> {
     // (description, whether to pace at the media's own timestamps)
     Ok(match spec {
-        SourceSpec::Demo => return Err("the demo source is not a GStreamer pipeline".into()),
+        SourceSpec::Demo => return Err(SourceError::NotAPipeline),
         SourceSpec::V4l2(_) => (format!("v4l2src name=digiview_src ! {SINK}"), false),
         SourceSpec::Pipeline(d) => (format!("{d} ! {SINK}"), false),
         SourceSpec::File(_) => (
@@ -86,14 +86,17 @@ fn build(
     spec: &SourceSpec,
     fps: u32,
     looped: bool,
-) -> Result<(gst::Pipeline, gst_app::AppSink, bool), String> {
+) -> Result<(gst::Pipeline, gst_app::AppSink, bool), SourceError> {
     if let SourceSpec::File(p) | SourceSpec::Image(p) = spec
         && !p.is_file()
     {
-        return Err(format!("{}: no such file", p.display()));
+        return Err(SourceError::NoFile(p.clone()));
     }
     let (description, sync) = description(spec, fps, looped)?;
-    let pipeline = crate::gst::launch(&description).map_err(|e| format!("source {spec}: {e}"))?;
+    let pipeline = crate::gst::launch(&description).map_err(|source| SourceError::Pipeline {
+        spec: spec.to_string(),
+        source,
+    })?;
     if let Some(src) = pipeline.by_name("digiview_src") {
         match spec {
             SourceSpec::V4l2(dev) => src.set_property("device", dev.to_string_lossy().as_ref()),
@@ -115,7 +118,7 @@ pub fn open(
     fps: u32,
     looped: bool,
     slot: Arc<FrameSlot>,
-) -> Result<GstSource, String> {
+) -> Result<GstSource, SourceError> {
     let (pipeline, sink, sync) = build(spec, fps, looped)?;
     sink.set_sync(sync);
     let base = pipeline.clone();
@@ -131,8 +134,8 @@ pub fn open(
             })
             .build(),
     );
-    pipeline.set_state(gst::State::Playing).map_err(|_| {
-        bus_error(&pipeline).unwrap_or_else(|| format!("source {spec} did not start"))
+    set_state(&pipeline, gst::State::Playing, || {
+        format!("source {spec} did not start")
     })?;
     Ok(GstSource { pipeline, looped })
 }
@@ -146,30 +149,31 @@ pub struct FileFrames {
 
 impl FileFrames {
     /// `spec` is a file or a sequence (read at `fps`).
-    pub fn open(spec: &SourceSpec, fps: u32) -> Result<FileFrames, String> {
+    pub fn open(spec: &SourceSpec, fps: u32) -> Result<FileFrames, SourceError> {
         if !matches!(spec, SourceSpec::File(_) | SourceSpec::Sequence(_)) {
-            return Err(format!("{spec} is not a file or an image sequence"));
+            return Err(SourceError::NotAFile(spec.to_string()));
         }
         let (pipeline, sink, _) = build(spec, fps, false)?;
         sink.set_sync(false);
         sink.set_drop(false);
         sink.set_max_buffers(2);
-        pipeline
-            .set_state(gst::State::Paused)
-            .map_err(|_| bus_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
+        let unreadable = |source| SourceError::Unreadable {
+            spec: spec.to_string(),
+            source,
+        };
+        let refused = || "it would not start".to_string();
+        set_state(&pipeline, gst::State::Paused, refused).map_err(unreadable)?;
         // Wait for the first frame (or the error that there is none).
-        let bus = pipeline.bus().ok_or("no bus")?;
+        let bus = pipeline.bus().ok_or(GstError::NoBus)?;
         let settled = bus.timed_pop_filtered(
             gst::ClockTime::from_seconds(30),
             &[gst::MessageType::AsyncDone, gst::MessageType::Error],
         );
         if let Some(gst::MessageView::Error(e)) = settled.as_ref().map(|m| m.view()) {
             let _ = pipeline.set_state(gst::State::Null);
-            return Err(format!("cannot read {spec}: {}", error_text(e)));
+            return Err(unreadable(element_error(e)));
         }
-        pipeline
-            .set_state(gst::State::Playing)
-            .map_err(|_| bus_error(&pipeline).unwrap_or_else(|| format!("cannot read {spec}")))?;
+        set_state(&pipeline, gst::State::Playing, refused).map_err(unreadable)?;
         Ok(FileFrames { pipeline, sink })
     }
 
@@ -185,13 +189,13 @@ impl FileFrames {
     #[allow(clippy::type_complexity)]
     pub fn next_frame(
         &mut self,
-    ) -> Result<Option<(Frame, std::time::Duration, Option<f64>)>, String> {
+    ) -> Result<Option<(Frame, std::time::Duration, Option<f64>)>, SourceError> {
         if let Some(e) = bus_error(&self.pipeline) {
-            return Err(e);
+            return Err(e.into());
         }
         let Ok(sample) = self.sink.pull_sample() else {
             return match bus_error(&self.pipeline) {
-                Some(e) => Err(e),
+                Some(e) => Err(e.into()),
                 None => Ok(None),
             };
         };
@@ -199,7 +203,9 @@ impl FileFrames {
         let segment = sample
             .segment()
             .and_then(|s| s.downcast_ref::<gst::ClockTime>().cloned());
-        let buffer = sample.buffer().ok_or("sample without buffer")?;
+        let buffer = sample
+            .buffer()
+            .ok_or_else(|| sample_error("without buffer"))?;
         let pts = match (buffer.pts(), segment) {
             (Some(p), Some(seg)) => seg.to_stream_time(p).unwrap_or(p),
             (Some(p), None) => p,
@@ -226,23 +232,29 @@ impl Drop for FileFrames {
 }
 
 /// Copies a decoded sample into a tightly packed frame with its capture time.
-fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, String> {
-    let caps = sample.caps().ok_or("sample without caps")?;
-    let info = gst_video::VideoInfo::from_caps(caps).map_err(|e| e.to_string())?;
+/// A sample that is not a frame the renderers take.
+fn sample_error(what: impl std::fmt::Display) -> SourceError {
+    SourceError::Sample(format!("a decoded sample {what}"))
+}
+
+fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, SourceError> {
+    let caps = sample.caps().ok_or_else(|| sample_error("without caps"))?;
+    let info = gst_video::VideoInfo::from_caps(caps).map_err(sample_error)?;
     let format = match info.format() {
         gst_video::VideoFormat::Nv12 => PixelFormat::Nv12,
         gst_video::VideoFormat::I420 => PixelFormat::I420,
         gst_video::VideoFormat::Rgba => PixelFormat::Rgba,
-        f => return Err(format!("unexpected format {f:?}")),
+        f => return Err(sample_error(format_args!("in the unexpected format {f:?}"))),
     };
-    let buffer = sample.buffer().ok_or("sample without buffer")?;
-    let layout =
-        PlaneLayout::tight(format, info.width(), info.height()).map_err(|e| e.to_string())?;
-    let video = gst_video::VideoFrameRef::from_buffer_ref_readable(buffer, &info)
-        .map_err(|e| e.to_string())?;
+    let buffer = sample
+        .buffer()
+        .ok_or_else(|| sample_error("without buffer"))?;
+    let layout = PlaneLayout::tight(format, info.width(), info.height())?;
+    let video =
+        gst_video::VideoFrameRef::from_buffer_ref_readable(buffer, &info).map_err(sample_error)?;
     let mut data = vec![0u8; layout.size as usize];
     for (k, plane) in layout.planes().into_iter().enumerate() {
-        let src = video.plane_data(k as u32).map_err(|e| e.to_string())?;
+        let src = video.plane_data(k as u32).map_err(sample_error)?;
         let stride = video.plane_stride()[k] as usize;
         let (offset, row) = (plane.offset as usize, plane.bytes as usize);
         let dst_stride = plane.stride as usize;
@@ -265,21 +277,21 @@ fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, Str
 
 impl GstSource {
     /// Runs until the source ends, fails (the error says what failed) or `stop` is set.
-    pub fn run(&self, stop: &AtomicBool) -> Result<Ended, String> {
-        let bus = self.pipeline.bus().ok_or("source pipeline has no bus")?;
+    pub fn run(&self, stop: &AtomicBool) -> Result<Ended, SourceError> {
+        let bus = self.pipeline.bus().ok_or(GstError::NoBus)?;
         while !stop.load(Ordering::Relaxed) {
             let Some(msg) = bus.timed_pop(gst::ClockTime::from_mseconds(100)) else {
                 continue;
             };
             match msg.view() {
-                gst::MessageView::Error(e) => return Err(error_text(e)),
+                gst::MessageView::Error(e) => return Err(element_error(e).into()),
                 gst::MessageView::Eos(_) if self.looped => {
                     self.pipeline
                         .seek_simple(
                             gst::SeekFlags::FLUSH | gst::SeekFlags::KEY_UNIT,
                             gst::ClockTime::ZERO,
                         )
-                        .map_err(|e| format!("cannot loop the source: {e}"))?;
+                        .map_err(SourceError::Loop)?;
                 }
                 gst::MessageView::Eos(_) => return Ok(Ended::Eos),
                 _ => {}
@@ -298,7 +310,7 @@ impl Drop for GstSource {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::{PixelFormat, yuv};
+    use crate::frame::{PixelFormat, yuv};
     use image::{Rgb, RgbImage};
     use std::time::{Duration, Instant};
 

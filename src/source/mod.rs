@@ -9,8 +9,49 @@ mod gst_source;
 
 pub use gst_source::{Ended, FileFrames, GstSource, open};
 
-use crate::render::PlaneLayout;
+use crate::frame::{Frame, FrameError};
+use crate::gst::GstError;
 use std::path::PathBuf;
+
+/// Why a `--source` string (or the config's `source`) was refused.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SpecError {
+    #[error(
+        "source {0:?}: expected demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, image:PATH or \
+         sequence:PATTERN"
+    )]
+    Form(String),
+    #[error("source {0:?}: nothing after {1}:")]
+    Empty(String, String),
+    #[error("source {0:?}: a sequence pattern numbers its files, e.g. frames/%05d.png")]
+    Pattern(String),
+    #[error("source {0:?}: unknown kind {1:?}")]
+    Kind(String, String),
+}
+
+/// Why a source could not start, or stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    #[error("{}: no such file", .0.display())]
+    NoFile(PathBuf),
+    #[error("the demo source is not a GStreamer pipeline")]
+    NotAPipeline,
+    #[error("{0} is not a file or an image sequence")]
+    NotAFile(String),
+    #[error("source {spec}: {source}")]
+    Pipeline { spec: String, source: GstError },
+    #[error("cannot read {spec}: {source}")]
+    Unreadable { spec: String, source: GstError },
+    #[error(transparent)]
+    Gst(#[from] GstError),
+    #[error("cannot loop the source: {0}")]
+    Loop(gstreamer::glib::BoolError),
+    /// A decoded sample that is not a frame the renderers take.
+    #[error("{0}")]
+    Sample(String),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+}
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -18,15 +59,6 @@ use std::time::{Duration, Instant};
 /// the one time base of capture times and telemetry.
 pub fn clock_us() -> u64 {
     gstreamer::get_timestamp().useconds()
-}
-
-/// One camera frame.
-#[derive(Clone, Debug)]
-pub struct Frame {
-    pub data: Vec<u8>,
-    pub layout: PlaneLayout,
-    /// When the sensor captured it ([`clock_us`]).
-    pub captured_us: u64,
 }
 
 /// What to read frames from, written as one string (`--source`, or `source` in the config).
@@ -47,21 +79,18 @@ pub enum SourceSpec {
 }
 
 impl std::str::FromStr for SourceSpec {
-    type Err = String;
+    type Err = SpecError;
 
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, SpecError> {
         let s = s.trim();
         if s == "demo" {
             return Ok(SourceSpec::Demo);
         }
-        let (kind, rest) = s.split_once(':').ok_or_else(|| {
-            format!(
-                "source {s:?}: expected demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, \
-                 image:PATH or sequence:PATTERN"
-            )
-        })?;
+        let (kind, rest) = s
+            .split_once(':')
+            .ok_or_else(|| SpecError::Form(s.to_string()))?;
         if rest.trim().is_empty() {
-            return Err(format!("source {s:?}: nothing after {kind}:"));
+            return Err(SpecError::Empty(s.to_string(), kind.to_string()));
         }
         let rest = rest.trim().to_string();
         Ok(match kind {
@@ -70,12 +99,8 @@ impl std::str::FromStr for SourceSpec {
             "file" => SourceSpec::File(rest.into()),
             "image" => SourceSpec::Image(rest.into()),
             "sequence" if rest.contains('%') => SourceSpec::Sequence(rest),
-            "sequence" => {
-                return Err(format!(
-                    "source {s:?}: a sequence pattern numbers its files, e.g. frames/%05d.png"
-                ));
-            }
-            _ => return Err(format!("source {s:?}: unknown kind {kind:?}")),
+            "sequence" => return Err(SpecError::Pattern(s.to_string())),
+            _ => return Err(SpecError::Kind(s.to_string(), kind.to_string())),
         })
     }
 }
@@ -177,7 +202,7 @@ pub fn backoff(attempt: u32) -> Duration {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::PixelFormat;
+    use crate::frame::{PixelFormat, PlaneLayout};
 
     #[test]
     fn source_strings_parse_and_print_back() {

@@ -3,9 +3,9 @@
 //! frame, and an appsink handing each access unit to the caller. A new output size or frame
 //! rate is a caps change on the appsrc: the encoder reconfigures in place, the stream goes on.
 
-use super::H264_CAPS;
-use crate::gst::{bus_error, element, launch, wait_eos};
-use crate::render::{PixelFormat, PlaneLayout};
+use super::{H264_CAPS, StreamError};
+use crate::frame::{PixelFormat, PlaneLayout};
+use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
@@ -101,7 +101,7 @@ impl Encoder {
         cfg: &EncoderConfig,
         fps: u32,
         sink: impl Fn(AccessUnit) + Send + Sync + 'static,
-    ) -> Result<Encoder, String> {
+    ) -> Result<Encoder, StreamError> {
         super::init()?;
         let sink: Arc<Sink> = Arc::new(Box::new(sink));
         let mut errors = vec![];
@@ -111,10 +111,7 @@ impl Encoder {
                 Err(e) => errors.push(format!("{name}: {e}")),
             }
         }
-        Err(format!(
-            "no H.264 encoder would start ({})",
-            errors.join("; ")
-        ))
+        Err(StreamError::NoEncoder(errors.join("; ")))
     }
 
     fn start(
@@ -122,9 +119,9 @@ impl Encoder {
         cfg: &EncoderConfig,
         fps: u32,
         sink: Arc<Sink>,
-    ) -> Result<Encoder, String> {
+    ) -> Result<Encoder, StreamError> {
         if gst::ElementFactory::find(name).is_none() {
-            return Err("not installed".into());
+            return Err(StreamError::NotInstalled);
         }
         let description = format!(
             "appsrc name=src is-live=true format=time ! {} ! h264parse config-interval=-1 \
@@ -161,9 +158,7 @@ impl Encoder {
                 })
                 .build(),
         );
-        pipeline
-            .set_state(gst::State::Playing)
-            .map_err(|_| bus_error(&pipeline).unwrap_or_else(|| "would not start".into()))?;
+        set_state(&pipeline, gst::State::Playing, || "would not start".into())?;
         tracing::info!("encoder: {name}");
         Ok(Encoder {
             pipeline,
@@ -182,17 +177,23 @@ impl Encoder {
         cfg: &EncoderConfig,
         fps: u32,
         sink: impl Fn(AccessUnit) + Send + Sync + 'static,
-    ) -> Result<Encoder, String> {
+    ) -> Result<Encoder, StreamError> {
         let mut e = Encoder::new(cfg, fps, sink)?;
         e.blocking = true;
         Ok(e)
     }
 
     /// Encodes what was pushed and hands out every access unit before returning.
-    pub fn finish(self) -> Result<(), String> {
+    pub fn finish(self) -> Result<(), StreamError> {
         let _ = self.src.end_of_stream();
-        wait_eos(&self.pipeline, gst::ClockTime::from_seconds(60))
-            .map_err(|e| format!("encoder {}: {e}", self.name))
+        wait_eos(&self.pipeline, gst::ClockTime::from_seconds(60)).map_err(|e| self.failed(e))
+    }
+
+    fn failed(&self, source: GstError) -> StreamError {
+        StreamError::Encoder {
+            name: self.name.clone(),
+            source,
+        }
     }
 
     /// The encoder element in use.
@@ -208,12 +209,12 @@ impl Encoder {
         layout: &PlaneLayout,
         pts: Duration,
         fps: u32,
-    ) -> Result<(), String> {
+    ) -> Result<(), StreamError> {
         if let Some(e) = bus_error(&self.pipeline) {
-            return Err(format!("encoder {}: {e}", self.name));
+            return Err(self.failed(e));
         }
         if layout.format != PixelFormat::I420 {
-            return Err(format!("the encoder takes I420, not {}", layout.format));
+            return Err(StreamError::Format(layout.format));
         }
         let pts = gst::ClockTime::from_nseconds(pts.as_nanos() as u64);
         loop {
@@ -228,7 +229,7 @@ impl Encoder {
             }
             drop(q);
             if let Some(e) = bus_error(&self.pipeline) {
-                return Err(format!("encoder {}: {e}", self.name));
+                return Err(self.failed(e));
             }
             std::thread::sleep(Duration::from_millis(1));
         }
@@ -241,9 +242,9 @@ impl Encoder {
             )
             .fps(gst::Fraction::new(fps as i32, 1))
             .build()
-            .map_err(|e| e.to_string())?
+            .map_err(StreamError::Caps)?
             .to_caps()
-            .map_err(|e| e.to_string())?;
+            .map_err(StreamError::Caps)?;
             self.src.set_caps(Some(&caps));
             if self.caps.is_some() {
                 tracing::info!(
@@ -272,11 +273,14 @@ impl Encoder {
                     layout.chroma_stride as i32,
                 ],
             )
-            .map_err(|e| e.to_string())?;
+            .map_err(StreamError::Caps)?;
         }
         self.src
             .push_buffer(buffer)
-            .map_err(|e| format!("encoder {}: {e:?}", self.name))?;
+            .map_err(|flow| StreamError::Flow {
+                name: self.name.clone(),
+                flow,
+            })?;
         Ok(())
     }
 

@@ -4,8 +4,8 @@
 //! starts at a key frame; its timestamps start at zero. The file is written unbuffered and
 //! opened O_SYNC, so what mp4mux has written is on the disk, not in a cache.
 
-use super::H264_CAPS;
-use crate::gst::{bus_error, element, launch, wait_eos};
+use super::{H264_CAPS, StreamError};
+use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
@@ -19,7 +19,7 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    pub fn start(path: &Path) -> Result<Recorder, String> {
+    pub fn start(path: &Path) -> Result<Recorder, StreamError> {
         let pipeline = launch(&format!(
             "appsrc name=src format=time caps={H264_CAPS} ! h264parse \
              ! mp4mux fragment-duration=1000 streamable=true \
@@ -28,8 +28,8 @@ impl Recorder {
         let src: gst_app::AppSrc = element(&pipeline, "src")?;
         element::<gst::Element>(&pipeline, "file")?
             .set_property("location", path.to_string_lossy().as_ref());
-        pipeline.set_state(gst::State::Playing).map_err(|_| {
-            bus_error(&pipeline).unwrap_or_else(|| format!("cannot record to {}", path.display()))
+        set_state(&pipeline, gst::State::Playing, || {
+            format!("cannot record to {}", path.display())
         })?;
         Ok(Recorder {
             pipeline,
@@ -49,9 +49,9 @@ impl Recorder {
     }
 
     /// Adds one access unit; units before the first key frame are skipped.
-    pub fn push(&mut self, buffer: &gst::Buffer, key: bool) -> Result<(), String> {
+    pub fn push(&mut self, buffer: &gst::Buffer, key: bool) -> Result<(), StreamError> {
         if let Some(e) = bus_error(&self.pipeline) {
-            return Err(format!("recording {}: {e}", self.path.display()));
+            return Err(self.failed(e));
         }
         let Some(pts) = buffer.pts() else {
             return Ok(());
@@ -71,16 +71,26 @@ impl Recorder {
         self.src
             .push_buffer(b)
             .map(|_| ())
-            .map_err(|e| format!("recording {}: {e:?}", self.path.display()))
+            .map_err(|flow| StreamError::RecordingFlow {
+                path: self.path.clone(),
+                flow,
+            })
+    }
+
+    fn failed(&self, source: GstError) -> StreamError {
+        StreamError::Recording {
+            path: self.path.clone(),
+            source,
+        }
     }
 
     /// Ends the file cleanly (its last fragment written) and returns its path.
-    pub fn finish(self) -> Result<PathBuf, String> {
+    pub fn finish(self) -> Result<PathBuf, StreamError> {
         let _ = self.src.end_of_stream();
         let ended = wait_eos(&self.pipeline, gst::ClockTime::from_seconds(5));
         let _ = self.pipeline.set_state(gst::State::Null);
         ended
             .map(|()| self.path.clone())
-            .map_err(|e| format!("recording {}: {e}", self.path.display()))
+            .map_err(|e| self.failed(e))
     }
 }

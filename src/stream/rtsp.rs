@@ -4,7 +4,7 @@
 //! client that vanishes is the server's business and costs the frame path nothing. Optional
 //! basic authentication.
 
-use super::H264_CAPS;
+use super::{H264_CAPS, StreamError};
 use gstreamer as gst;
 use gstreamer::glib;
 use gstreamer::prelude::*;
@@ -41,24 +41,30 @@ impl Default for RtspConfig {
     }
 }
 
+/// Why an `[rtsp]` configuration is refused.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RtspConfigError {
+    #[error("rtsp path {0:?} must start with / and name a mount point, without spaces")]
+    Path(String),
+    #[error("rtsp user {0:?} must be non-empty and without ':'")]
+    User(String),
+    #[error("rtsp user and password go together: set both or neither")]
+    HalfCredentials,
+}
+
 impl RtspConfig {
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), RtspConfigError> {
         if !self.path.starts_with('/')
             || self.path.len() < 2
             || self.path.contains(char::is_whitespace)
         {
-            return Err(format!(
-                "rtsp path {:?} must start with / and name a mount point, without spaces",
-                self.path
-            ));
+            return Err(RtspConfigError::Path(self.path.clone()));
         }
         match (&self.user, &self.password) {
             (Some(u), Some(_)) if u.is_empty() || u.contains(':') => {
-                Err(format!("rtsp user {u:?} must be non-empty and without ':'"))
+                Err(RtspConfigError::User(u.clone()))
             }
-            (Some(_), None) | (None, Some(_)) => {
-                Err("rtsp user and password go together: set both or neither".into())
-            }
+            (Some(_), None) | (None, Some(_)) => Err(RtspConfigError::HalfCredentials),
             _ => Ok(()),
         }
     }
@@ -88,7 +94,7 @@ impl Rtsp {
     pub fn start(
         cfg: &RtspConfig,
         on_join: impl Fn() + Send + Sync + 'static,
-    ) -> Result<Rtsp, String> {
+    ) -> Result<Rtsp, StreamError> {
         cfg.check()?;
         super::init()?;
         let on_join = Arc::new(on_join);
@@ -154,19 +160,14 @@ impl Rtsp {
         }
         server
             .mount_points()
-            .ok_or("the RTSP server has no mount points")?
+            .ok_or(StreamError::NoMountPoints)?
             .add_factory(&cfg.path, factory);
         let context = glib::MainContext::new();
         let main_loop = glib::MainLoop::new(Some(&context), false);
         let attached = context
             .with_thread_default(|| server.attach(Some(&context)))
-            .map_err(|e| e.to_string())?;
-        attached.map_err(|_| {
-            format!(
-                "cannot serve RTSP on {}:{} (port in use, or not allowed)",
-                cfg.address, cfg.port
-            )
-        })?;
+            .map_err(StreamError::Context)?;
+        attached.map_err(|_| StreamError::Listen(format!("{}:{}", cfg.address, cfg.port)))?;
         let port = server.bound_port() as u16;
         let thread = {
             let main_loop = main_loop.clone();
@@ -176,7 +177,7 @@ impl Rtsp {
                     let _server = server;
                     let _ = context.with_thread_default(|| main_loop.run());
                 })
-                .map_err(|e| e.to_string())?
+                .map_err(|e| StreamError::Thread("rtsp", e))?
         };
         Ok(Rtsp {
             main_loop,

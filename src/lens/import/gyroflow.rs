@@ -2,7 +2,7 @@
 //! models. When `asymmetrical` is false, Gyroflow itself ignores the stored principal point
 //! and uses the frame centre; so do we. A `crop` factor divides the focal lengths, as in Gyroflow.
 
-use super::{Imported, kb4};
+use super::{Imported, Unreadable, kb4};
 use crate::lens::PixelAffine;
 use serde::Deserialize;
 
@@ -47,7 +47,7 @@ struct Profile {
     date: String,
 }
 
-pub fn parse(text: &str) -> Result<Imported, String> {
+pub fn parse(text: &str) -> Result<Imported, Unreadable> {
     let p: Profile =
         serde_json::from_str(text).map_err(|e| format!("not a Gyroflow lens profile: {e}"))?;
     if let Some(m) = p
@@ -55,23 +55,23 @@ pub fn parse(text: &str) -> Result<Imported, String> {
         .as_deref()
         .filter(|m| *m != "opencv_fisheye")
     {
-        return Err(format!(
-            "distortion_model `{m}` is not supported (only opencv_fisheye)"
-        ));
+        return Err(
+            format!("distortion_model `{m}` is not supported (only opencv_fisheye)").into(),
+        );
     }
     for s in [p.input_horizontal_stretch, p.input_vertical_stretch]
         .into_iter()
         .flatten()
     {
         if (s - 1.0).abs() > 1e-6 && s > 0.01 {
-            return Err(format!(
-                "anamorphic profiles (input stretch {s}) are not supported"
-            ));
+            return Err(
+                format!("anamorphic profiles (input stretch {s}) are not supported").into(),
+            );
         }
     }
     let k = &p.fisheye_params.camera_matrix;
     if k.len() != 3 {
-        return Err(format!("camera_matrix has {} rows, not 3", k.len()));
+        return Err(format!("camera_matrix has {} rows, not 3", k.len()).into());
     }
     let crop = p.crop.filter(|c| *c > 0.0).unwrap_or(1.0);
     let (fx, fy) = (k[0][0] / crop, k[1][1] / crop);

@@ -2,11 +2,12 @@
 //! `ds` + `none` is Double Sphere. Other Kalibr models (omni, eucm, fov, radtan) have no
 //! DigiView equivalent and are refused by name.
 
-use super::{Imported, kb4};
+use super::{Imported, Unreadable, kb4};
+use crate::lens::models::DoubleSphere;
 use crate::lens::{Model, PixelAffine};
 use yaml_rust2::{Yaml, YamlLoader};
 
-pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
+pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, Unreadable> {
     let docs = YamlLoader::load_from_str(text).map_err(|e| format!("not valid YAML: {e}"))?;
     let root = docs.into_iter().next().ok_or("empty file")?;
     let map = root
@@ -26,12 +27,12 @@ pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
     let field = |f: &str| {
         let v = &cam[f];
         if v.is_badvalue() {
-            Err(format!("{name}: no `{f}`"))
+            Err(Unreadable(format!("{name}: no `{f}`")))
         } else {
             Ok(v)
         }
     };
-    let list = |f: &str| -> Result<Vec<f64>, String> {
+    let list = |f: &str| -> Result<Vec<f64>, Unreadable> {
         field(f)?
             .as_vec()
             .ok_or_else(|| format!("{name}: `{f}` is not a list"))?
@@ -39,7 +40,7 @@ pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
             .map(|x| {
                 x.as_f64()
                     .or_else(|| x.as_i64().map(|i| i as f64))
-                    .ok_or_else(|| format!("{name}: `{f}` holds a non-number"))
+                    .ok_or_else(|| Unreadable(format!("{name}: `{f}` holds a non-number")))
             })
             .collect()
     };
@@ -50,12 +51,12 @@ pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
     let intr = list("intrinsics")?;
     let res = list("resolution")?;
     if res.len() != 2 {
-        return Err(format!("{name}: resolution needs [width, height]"));
+        return Err(format!("{name}: resolution needs [width, height]").into());
     }
     let (model, f) = match (camera_model, distortion) {
         ("pinhole", "equidistant") => {
             if intr.len() != 4 {
-                return Err(format!("{name}: pinhole intrinsics need [fu, fv, pu, pv]"));
+                return Err(format!("{name}: pinhole intrinsics need [fu, fv, pu, pv]").into());
             }
             (
                 kb4(&list("distortion_coeffs")?, "distortion_coeffs")?,
@@ -64,22 +65,22 @@ pub fn parse(text: &str, camera: Option<&str>) -> Result<Imported, String> {
         }
         ("ds", "none") => {
             if intr.len() != 6 {
-                return Err(format!(
-                    "{name}: ds intrinsics need [xi, alpha, fu, fv, pu, pv]"
-                ));
+                return Err(
+                    format!("{name}: ds intrinsics need [xi, alpha, fu, fv, pu, pv]").into(),
+                );
             }
             (
-                Model::DoubleSphere {
+                Model::DoubleSphere(DoubleSphere {
                     xi: intr[0],
                     alpha: intr[1],
-                },
+                }),
                 [intr[2], intr[3], intr[4], intr[5]],
             )
         }
         (m, d) => {
             return Err(format!(
                 "{name}: Kalibr model {m}-{d} has no DigiView equivalent (pinhole-equidistant or ds-none)"
-            ));
+            ).into());
         }
     };
     Ok(Imported {

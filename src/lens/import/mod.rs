@@ -8,8 +8,26 @@ mod kalibr;
 mod ocamcalib;
 mod opencv;
 
+use super::models::KannalaBrandt;
 use super::{LensEntry, LensError, Model, PixelAffine, Provenance, Radial};
 use std::path::Path;
+
+/// Why a calibration file could not be read as its format: what is missing or malformed.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Unreadable(pub String);
+
+impl From<String> for Unreadable {
+    fn from(message: String) -> Self {
+        Unreadable(message)
+    }
+}
+
+impl From<&str> for Unreadable {
+    fn from(message: &str) -> Self {
+        Unreadable(message.to_string())
+    }
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
@@ -80,7 +98,7 @@ pub fn import(
         Format::Gyroflow => gyroflow::parse(&text),
         Format::Kalibr => kalibr::parse(&text, opts.camera),
     }
-    .map_err(err)?;
+    .map_err(|e| err(e.0))?;
     if got.width == 0 || got.height == 0 {
         return Err(err("the calibration's image size is zero".into()));
     }
@@ -138,24 +156,24 @@ fn widest_angle(radial: &Radial, affine: &PixelAffine, w: u32, h: u32) -> f64 {
 }
 
 /// A list of numbers from whitespace- or comma-separated text.
-fn numbers(text: &str) -> Result<Vec<f64>, String> {
+fn numbers(text: &str) -> Result<Vec<f64>, Unreadable> {
     text.split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == ']')
         .filter(|s| !s.is_empty())
         .map(|s| {
             s.parse::<f64>()
-                .map_err(|_| format!("`{s}` is not a number"))
+                .map_err(|_| Unreadable(format!("`{s}` is not a number")))
         })
         .collect()
 }
 
-fn kb4(k: &[f64], what: &str) -> Result<Model, String> {
+fn kb4(k: &[f64], what: &str) -> Result<Model, Unreadable> {
     let k: [f64; 4] = k.try_into().map_err(|_| {
         format!(
             "{what} has {} coefficients; a fisheye (Kannala-Brandt) calibration has 4",
             k.len()
         )
     })?;
-    Ok(Model::KannalaBrandt { k })
+    Ok(Model::KannalaBrandt(KannalaBrandt { k }))
 }
 
 #[cfg(test)]

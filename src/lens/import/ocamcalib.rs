@@ -2,23 +2,24 @@
 //! polynomial (count, coefficients), the inverse polynomial (count, coefficients), the centre
 //! (row, column, 0-based), the affine c d e, and the image size (height, width).
 
-use super::{Imported, numbers};
+use super::{Imported, Unreadable, numbers};
+use crate::lens::models::Ocam;
 use crate::lens::{Model, PixelAffine};
 
-pub fn parse(text: &str) -> Result<Imported, String> {
+pub fn parse(text: &str) -> Result<Imported, Unreadable> {
     let lines: Vec<(usize, &str)> = text
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
         .collect();
-    let row = |i: usize, what: &str| -> Result<Vec<f64>, String> {
+    let row = |i: usize, what: &str| -> Result<Vec<f64>, Unreadable> {
         let (n, l) = lines
             .get(i)
             .ok_or_else(|| format!("missing the {what} line"))?;
-        numbers(l).map_err(|e| format!("line {n} ({what}): {e}"))
+        numbers(l).map_err(|e| Unreadable(format!("line {n} ({what}): {e}")))
     };
-    let counted = |i: usize, what: &str| -> Result<Vec<f64>, String> {
+    let counted = |i: usize, what: &str| -> Result<Vec<f64>, Unreadable> {
         let v = row(i, what)?;
         let n = *v
             .first()
@@ -27,7 +28,8 @@ pub fn parse(text: &str) -> Result<Imported, String> {
             return Err(format!(
                 "the {what} line says {n} coefficients but has {}",
                 v.len() - 1
-            ));
+            )
+            .into());
         }
         Ok(v[1..].to_vec())
     };
@@ -43,7 +45,7 @@ pub fn parse(text: &str) -> Result<Imported, String> {
         return Err("the direct polynomial's first coefficient must be negative".into());
     }
     Ok(Imported {
-        model: Model::Ocam { pol, invpol },
+        model: Model::Ocam(Ocam { pol, invpol }),
         affine: PixelAffine::ocam(cde[0], cde[1], cde[2], centre[0], centre[1]),
         width: size[1] as u32,
         height: size[0] as u32,

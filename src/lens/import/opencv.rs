@@ -2,7 +2,7 @@
 //! tagged `!!opencv-matrix`) or XML (`<opencv_storage>`). The camera matrix and the four
 //! fisheye coefficients go by several names in the wild; all the common ones are accepted.
 
-use super::{Imported, kb4, numbers};
+use super::{Imported, Unreadable, kb4, numbers};
 use crate::lens::PixelAffine;
 use std::path::Path;
 use yaml_rust2::{Yaml, YamlLoader};
@@ -16,7 +16,7 @@ const D_NAMES: [&str; 5] = [
     "distortion_coeffs",
 ];
 
-pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
+pub fn parse(path: &Path, text: &str) -> Result<Imported, Unreadable> {
     let fields = if text.trim_start().starts_with("<?xml") || text.contains("<opencv_storage>") {
         xml_fields(text)?
     } else {
@@ -31,7 +31,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
     let k = get(&K_NAMES).ok_or("no camera matrix (camera_matrix or K)")?;
     let d = get(&D_NAMES).ok_or("no distortion coefficients (distortion_coefficients or D)")?;
     if k.len() != 9 {
-        return Err(format!("the camera matrix has {} values, not 9", k.len()));
+        return Err(format!("the camera matrix has {} values, not 9", k.len()).into());
     }
     if k[1].abs() > 1e-9 {
         return Err("the camera matrix has skew; DigiView's lens models have none".into());
@@ -68,7 +68,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, String> {
 }
 
 /// Top-level name → numbers, for YAML FileStorage.
-fn yaml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
+fn yaml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, Unreadable> {
     // FileStorage writes `%YAML:1.0`, which is not a YAML 1.x directive; drop it.
     let cleaned: String = text
         .lines()
@@ -92,12 +92,12 @@ fn yaml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
     Ok(out)
 }
 
-fn yaml_numbers(v: &Yaml) -> Result<Vec<f64>, String> {
+fn yaml_numbers(v: &Yaml) -> Result<Vec<f64>, Unreadable> {
     match v {
         Yaml::Real(s) => s
             .parse()
             .map(|x| vec![x])
-            .map_err(|_| format!("`{s}` is not a number")),
+            .map_err(|_| Unreadable(format!("`{s}` is not a number"))),
         Yaml::Integer(i) => Ok(vec![*i as f64]),
         Yaml::Array(a) => a
             .iter()
@@ -108,14 +108,15 @@ fn yaml_numbers(v: &Yaml) -> Result<Vec<f64>, String> {
 }
 
 /// Top-level element name → numbers, for XML FileStorage.
-fn xml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
+fn xml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, Unreadable> {
     let doc = roxmltree::Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
     let root = doc.root_element();
     if root.tag_name().name() != "opencv_storage" {
         return Err(format!(
             "the root element is <{}>, not <opencv_storage>",
             root.tag_name().name()
-        ));
+        )
+        .into());
     }
     let mut out = vec![];
     for node in root.children().filter(|n| n.is_element()) {

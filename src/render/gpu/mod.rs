@@ -15,7 +15,7 @@ pub mod shaders;
 pub use device::Gpu;
 pub use renderer::{RenderedFrame, Renderer, StageTimes};
 
-use super::frame::FrameError;
+use crate::frame::FrameError;
 
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {

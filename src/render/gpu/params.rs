@@ -4,9 +4,9 @@
 //! fields, so the Rust and WGSL layouts agree without padding rules; sizes asserted below.
 
 use super::GpuError;
+use crate::frame::PlaneLayout;
 use crate::geometry::Projection;
-use crate::lens::{Lens, Model};
-use crate::render::frame::PlaneLayout;
+use crate::lens::Lens;
 use crate::render::plan::{FramePlan, PlannedView, ViewMap};
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
@@ -59,19 +59,6 @@ const KIND_RECTILINEAR: u32 = 1;
 const KIND_PANORAMA: u32 = 2;
 const KIND_FISHEYE: u32 = 3;
 
-/// The model's code (`MODEL_*` in shaders/lens.wgsl), the LENS_MODEL override.
-pub fn model_code(model: &Model) -> u32 {
-    match model {
-        Model::Equidistant => 0,
-        Model::Equisolid => 1,
-        Model::Stereographic => 2,
-        Model::Orthographic => 3,
-        Model::KannalaBrandt { .. } => 4,
-        Model::DoubleSphere { .. } => 5,
-        Model::Ocam { .. } => 6,
-    }
-}
-
 fn packed<const N: usize>(coefficients: &[f64]) -> [[f32; 4]; N] {
     let mut out = [[0.0; 4]; N];
     for (i, c) in coefficients.iter().enumerate() {
@@ -83,26 +70,17 @@ fn packed<const N: usize>(coefficients: &[f64]) -> [[f32; 4]; N] {
 pub fn gpu_lens(lens: &Lens) -> Result<GpuLens, GpuError> {
     let m = lens.affine.matrix;
     let inv = m.inverse();
-    let mut k = [0.0f32; 4];
-    let (mut pol, mut invpol): (&[f64], &[f64]) = (&[], &[]);
-    match &lens.radial.model {
-        Model::KannalaBrandt { k: c } => k = c.map(|v| v as f32),
-        Model::DoubleSphere { xi, alpha } => k = [*xi as f32, *alpha as f32, 0.0, 0.0],
-        Model::Ocam { pol: p, invpol: ip } => {
-            if p.len() > OCAM_POL || ip.len() > OCAM_INVPOL {
-                return Err(GpuError::Lens {
-                    lens: lens.name.clone(),
-                    what: format!(
-                        "OCam polynomials of {} and {} coefficients; the GPU takes at most \
-                         {OCAM_POL} and {OCAM_INVPOL}",
-                        p.len(),
-                        ip.len()
-                    ),
-                });
-            }
-            (pol, invpol) = (p, ip);
-        }
-        _ => {}
+    let c = lens.radial.model.coefficients();
+    if c.pol.len() > OCAM_POL || c.invpol.len() > OCAM_INVPOL {
+        return Err(GpuError::Lens {
+            lens: lens.name.clone(),
+            what: format!(
+                "OCam polynomials of {} and {} coefficients; the GPU takes at most \
+                 {OCAM_POL} and {OCAM_INVPOL}",
+                c.pol.len(),
+                c.invpol.len()
+            ),
+        });
     }
     let r_limit = lens.radial.r_of_theta(lens.half_fov).unwrap_or(0.0);
     Ok(GpuLens {
@@ -120,10 +98,10 @@ pub fn gpu_lens(lens: &Lens) -> Result<GpuLens, GpuError> {
             lens.radial.limits.theta_max as f32,
             lens.radial.limits.r_max.min(f32::MAX as f64) as f32,
         ],
-        k,
-        counts: [pol.len() as u32, invpol.len() as u32, 0, 0],
-        pol: packed(pol),
-        invpol: packed(invpol),
+        k: c.k.map(|v| v as f32),
+        counts: [c.pol.len() as u32, c.invpol.len() as u32, 0, 0],
+        pol: packed(c.pol),
+        invpol: packed(c.invpol),
     })
 }
 

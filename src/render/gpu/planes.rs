@@ -5,7 +5,7 @@
 //! textures are copied from. Pure arithmetic and byte copies, kept apart from the wgpu calls
 //! (src/render/gpu/renderer.rs) so it can be checked on its own.
 
-use crate::render::frame::{PixelFormat, PlaneLayout, PlaneRows};
+use crate::frame::{PixelFormat, PlaneLayout, PlaneRows};
 use crate::render::mip::{ImagedBox, levels_for};
 use bytemuck::{Pod, Zeroable};
 use std::ops::Range;

@@ -21,17 +21,17 @@
 //! (`draw_pipelines`).
 
 use super::blocks::{BLOCK_H, BLOCK_W, BlockMap};
-use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params, model_code};
+use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params};
 use super::planes::{
     COPY_ALIGN, INGEST_BLOCK, PlaneSpec, SourcePlanes, copy_for_upload, upload_layout,
 };
 use super::shaders;
 use super::{Gpu, GpuError};
+use crate::frame::yuv;
+use crate::frame::{PixelFormat, PlaneLayout};
 use crate::lens::Model;
-use crate::render::frame::{PixelFormat, PlaneLayout};
 use crate::render::mip::{Filter, ImagedBox, levels_for};
 use crate::render::plan::FramePlan;
-use crate::render::yuv;
 use image::RgbImage;
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -215,7 +215,7 @@ pub struct Renderer {
     /// Generic draw pipelines just built, to be dispatched once with the next frame so a
     /// device that compiles at dispatch has them compiled before they are needed.
     warm_up: Vec<[u32; 5]>,
-    /// Lens models (`model_code`) whose generic draw pipelines the first frame also makes
+    /// Lens models (`Model::code`) whose generic draw pipelines the first frame also makes
     /// (see [`Renderer::expect_lens_models`]).
     expected_models: Vec<u32>,
     next_id: u64,
@@ -565,7 +565,7 @@ impl Renderer {
     /// Ignored with [`Renderer::fixed_view_kinds`].
     pub fn expect_lens_models<'a>(&mut self, models: impl IntoIterator<Item = &'a Model>) {
         self.expected_models.clear();
-        for code in models.into_iter().map(model_code) {
+        for code in models.into_iter().map(Model::code) {
             if !self.expected_models.contains(&code) {
                 self.expected_models.push(code);
             }
@@ -949,7 +949,7 @@ impl Renderer {
         // The draw pipeline leaves out the code of view kinds the frame lacks.
         let kinds = views.iter().fold(0, |kinds, v| kinds | 1 << v.kind[0]);
         let draw = [
-            model_code(&plan.lens.radial.model),
+            plan.lens.radial.model.code(),
             self.output_format.shader_code(),
             self.filter.shader_code(),
             upload.shader_code(),

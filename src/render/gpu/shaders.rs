@@ -1,6 +1,9 @@
-//! The WGSL sources, composed: each pass is the shared lens library and common definitions
-//! followed by the pass's own file. Embedded at build time so the binary needs no shader
-//! files at run time.
+//! The WGSL sources, composed: each pass is the shared lens library, the lens models' dispatch
+//! (made here from the models' registry, `Model::NAMES`) and the common definitions, followed
+//! by the pass's own file. Embedded at build time so the binary needs no shader files at run
+//! time.
+
+use crate::lens::Model;
 
 pub const LENS: &str = include_str!("../../../shaders/lens.wgsl");
 pub const COMMON: &str = include_str!("../../../shaders/common.wgsl");
@@ -9,15 +12,31 @@ pub const LEVELS: &str = include_str!("../../../shaders/levels.wgsl");
 pub const MIP: &str = include_str!("../../../shaders/mip.wgsl");
 pub const RENDER: &str = include_str!("../../../shaders/render.wgsl");
 
-/// A pass's full source: lens library, common definitions, then the pass.
+/// `radial_r(theta)`: the normalized radius of the model whose code is the LENS_MODEL
+/// override, by its twin `NAME_r` in shaders/lens.wgsl; negative for an unknown code.
+pub fn lens_models() -> String {
+    let cases: String = Model::NAMES
+        .iter()
+        .enumerate()
+        .map(|(code, name)| format!("        case {code}u: {{ return {name}_r(theta); }}\n"))
+        .collect();
+    format!(
+        "// Made from the lens models' registry (src/lens/models/mod.rs).\n\
+         fn radial_r(theta: f32) -> f32 {{\n    switch LENS_MODEL {{\n{cases}        \
+         default: {{ return -1.0; }}\n    }}\n}}\n"
+    )
+}
+
+/// A pass's full source: lens library, the models' dispatch, common definitions, then the
+/// pass.
 pub fn compose(pass: &str) -> String {
-    [LENS, COMMON, pass].join("\n")
+    [LENS, &lens_models(), COMMON, pass].join("\n")
 }
 
 /// Every pass, named, as compiled.
 pub fn passes() -> [(&'static str, String); 3] {
     [
-        ("ingest", [LENS, COMMON, LEVELS, INGEST].join("\n")),
+        ("ingest", compose(&[LEVELS, INGEST].join("\n"))),
         // The mip pass reads no lens and no parameters.
         ("mip", [LEVELS, MIP].join("\n")),
         ("render", compose(RENDER)),
@@ -44,16 +63,9 @@ mod tests {
 
     #[test]
     fn every_lens_model_has_its_wgsl_twin() {
-        for f in [
-            "fn equidistant_r(",
-            "fn equisolid_r(",
-            "fn stereographic_r(",
-            "fn orthographic_r(",
-            "fn kannala_brandt_r(",
-            "fn double_sphere_r(",
-            "fn ocam_r(",
-        ] {
-            assert!(LENS.contains(f), "shaders/lens.wgsl lacks {f}");
+        for name in Model::NAMES {
+            let twin = format!("fn {name}_r(theta: f32) -> f32");
+            assert!(LENS.contains(&twin), "shaders/lens.wgsl lacks {twin}");
         }
     }
 }

@@ -3,7 +3,7 @@
 //! inputs and checks of the GPU's encoder-ready output. Chroma of a 2x2 block is the block's
 //! mean colour; decoding repeats it over the block, as the GPU's upload does.
 
-use super::frame::{FrameError, PixelFormat, PlaneLayout};
+use super::{FrameError, PixelFormat, PlaneLayout};
 use crate::image_ops::pixel as rgb;
 use glam::DVec3;
 use image::RgbImage;

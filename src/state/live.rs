@@ -1,14 +1,15 @@
-//! The live state of a running DigiView: the one [`State`] that the renderer snapshots once
-//! per frame and the control server (and later MAVLink) changes, plus the run's status and
-//! its capture hook.
+//! The live handle of a running DigiView: the one [`State`] that the frame loop snapshots once
+//! per frame and the control server (and later MAVLink and the web page) changes, the lenses
+//! of lens.cal it may name, the run's status, and its capture hook.
 //!
 //! Readers never wait: a snapshot is an `Arc` loaded lock-free. Writers take a short mutex
 //! among themselves only, copy the state, change the copy, check it and publish it whole,
 //! so a reader sees either the old state or the new one, never half of a change, and a
 //! refused change leaves nothing behind.
 
-use crate::lens::{Lens, LensCal, Roi};
-use crate::state::State;
+use super::capture::Capturer;
+use super::{Invalid, State};
+use crate::lens::{LensCal, Lenses};
 use arc_swap::ArcSwap;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
@@ -36,58 +37,10 @@ pub enum Failure {
     Gpu = 3,
 }
 
-/// What CAPTURE's GET reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct CaptureStatus {
-    pub recording: bool,
-    pub images: u16,
-    pub videos: u16,
-}
-
-/// Where CAPTURE requests go: the video pipeline takes stills and records; without one
-/// (`serve --no-video`) there is nothing to capture and the request is refused.
-pub trait Capturer: Send + Sync {
-    fn still(&self) -> Result<(), String>;
-    fn record(&self, on: bool) -> Result<(), String>;
-    fn status(&self) -> CaptureStatus;
-}
-
-impl<T: Capturer> Capturer for Arc<T> {
-    fn still(&self) -> Result<(), String> {
-        T::still(self)
-    }
-    fn record(&self, on: bool) -> Result<(), String> {
-        T::record(self, on)
-    }
-    fn status(&self) -> CaptureStatus {
-        T::status(self)
-    }
-}
-
-/// The capture hook of a control server without video.
-pub struct NoVideo;
-
-impl Capturer for NoVideo {
-    fn still(&self) -> Result<(), String> {
-        Err("there is no video pipeline (serve --no-video) to take a still from".into())
-    }
-    fn record(&self, on: bool) -> Result<(), String> {
-        if on {
-            Err("there is no video pipeline (serve --no-video) to record".into())
-        } else {
-            Ok(())
-        }
-    }
-    fn status(&self) -> CaptureStatus {
-        CaptureStatus::default()
-    }
-}
-
 pub struct Live {
     state: ArcSwap<State>,
     writer: Mutex<()>,
-    /// Every lens of lens.cal, by lens_id, at its calibration frame.
-    lenses: Vec<(u8, Lens)>,
+    lenses: Lenses,
     status: AtomicU8,
     failure: AtomicU8,
     capture: Box<dyn Capturer>,
@@ -95,11 +48,14 @@ pub struct Live {
 
 impl Live {
     /// The initial state must be valid and name a lens of `cal`.
-    pub fn new(state: State, cal: &LensCal, capture: Box<dyn Capturer>) -> Result<Live, String> {
+    pub fn new(state: State, cal: &LensCal, capture: Box<dyn Capturer>) -> Result<Live, Invalid> {
         state.validate()?;
-        let lenses: Vec<(u8, Lens)> = cal.entries.iter().map(|e| (e.lens_id, e.lens())).collect();
-        if !lenses.iter().any(|(id, _)| *id == state.lens) {
-            return Err(format!("lens_id {} is not in lens.cal", state.lens));
+        let lenses = Lenses::new(cal);
+        if lenses.get(state.lens).is_none() {
+            return Err(Invalid(format!(
+                "lens_id {} is not in lens.cal",
+                state.lens
+            )));
         }
         Ok(Live {
             state: ArcSwap::from_pointee(state),
@@ -118,10 +74,10 @@ impl Live {
 
     /// Changes the state: `change` edits a copy, which is published only if `change` succeeds
     /// and the result is valid. Concurrent updates are applied one after another.
-    pub fn update<T>(
+    pub fn update<T, E: From<Invalid>>(
         &self,
-        change: impl FnOnce(&mut State) -> Result<T, String>,
-    ) -> Result<T, String> {
+        change: impl FnOnce(&mut State) -> Result<T, E>,
+    ) -> Result<T, E> {
         let _one_writer = self.writer.lock().unwrap_or_else(|e| e.into_inner());
         let mut next = State::clone(&self.state.load());
         let out = change(&mut next)?;
@@ -130,37 +86,9 @@ impl Live {
         Ok(out)
     }
 
-    /// The lens model of every lens of lens.cal.
-    pub fn lens_models(&self) -> impl Iterator<Item = &crate::lens::Model> {
-        self.lenses.iter().map(|(_, lens)| &lens.radial.model)
-    }
-
-    pub fn has_lens(&self, id: u8) -> bool {
-        self.lenses.iter().any(|(i, _)| *i == id)
-    }
-
-    /// The state's lens at the sensor's frame size, after its crop.
-    pub fn lens(&self, state: &State) -> Option<Lens> {
-        self.lens_for_frame(state, state.sensor.width, state.sensor.height)
-    }
-
-    /// The state's lens scaled to a `width` × `height` frame (a source's actual size), after
-    /// the sensor crop.
-    pub fn lens_for_frame(&self, state: &State, width: u32, height: u32) -> Option<Lens> {
-        let (_, lens) = self.lenses.iter().find(|(id, _)| *id == state.lens)?;
-        let roi = state.sensor.roi.map(|[x, y, w, h]| Roi {
-            x: x as f64,
-            y: y as f64,
-            width: w as f64,
-            height: h as f64,
-        });
-        Some(lens.for_frame(width, height, roi))
-    }
-
-    /// The calibration frame size of the state's lens.
-    pub fn calibration_size(&self, state: &State) -> Option<(u32, u32)> {
-        let (_, lens) = self.lenses.iter().find(|(id, _)| *id == state.lens)?;
-        Some((lens.width, lens.height))
+    /// Every lens of lens.cal, by lens_id.
+    pub fn lenses(&self) -> &Lenses {
+        &self.lenses
     }
 
     pub fn status(&self) -> RunStatus {
@@ -199,6 +127,7 @@ impl Live {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::state::capture::NoVideo;
     use std::sync::mpsc;
 
     fn live() -> Live {
@@ -213,18 +142,18 @@ mod tests {
         let before = live.snapshot();
         let refused = live.update(|s| {
             s.output.layout = 3;
-            Err::<(), _>("refused".to_string())
+            Err::<(), _>(Invalid("refused".to_string()))
         });
-        assert_eq!(refused, Err("refused".to_string()));
+        assert_eq!(refused, Err(Invalid("refused".to_string())));
         let invalid = live.update(|s| {
             s.output.width = 5;
-            Ok(())
+            Ok::<_, Invalid>(())
         });
-        assert!(invalid.unwrap_err().contains("output size 5x1080"));
+        assert!(invalid.unwrap_err().0.contains("output size 5x1080"));
         assert_eq!(*live.snapshot(), *before);
         live.update(|s| {
             s.output.layout = 3;
-            Ok(())
+            Ok::<_, Invalid>(())
         })
         .unwrap();
         assert_eq!(live.snapshot().output.layout, 3);
@@ -245,7 +174,7 @@ mod tests {
                     // Finish only after the reader has its snapshot: were snapshots to wait
                     // for writers, this would never return.
                     go_rx.recv().unwrap();
-                    Ok(())
+                    Ok::<_, Invalid>(())
                 })
                 .unwrap()
             });

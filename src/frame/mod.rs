@@ -1,6 +1,10 @@
-//! Frames as bytes: the pixel formats the renderers take in and hand out (RGBA8 for images,
-//! the camera-native and encoder-native 4:2:0 layouts I420 and NV12) and where each plane
-//! sits in a buffer. Plain data shared by the sources, the GPU renderer and the encoder.
+//! Frames as plain bytes, the data every stage of the path hands on: the pixel formats frames
+//! come in and go out in (RGBA8 for images, the camera-native and encoder-native 4:2:0 layouts
+//! I420 and NV12), where each plane sits in a buffer, BT.709 conversion to and from RGB
+//! (`yuv`), and one camera frame with its capture time. Sources make them, the renderers read
+//! and write them, the encoder takes them; nothing here knows about any of those.
+
+pub mod yuv;
 
 use std::fmt;
 
@@ -56,6 +60,16 @@ pub enum FrameError {
         want: usize,
         got: usize,
     },
+}
+
+/// One camera frame: its bytes, how they are laid out, and when the sensor captured it.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub data: Vec<u8>,
+    pub layout: PlaneLayout,
+    /// Microseconds on the monotonic clock the sources stamp frames with
+    /// (`crate::source::clock_us`).
+    pub captured_us: u64,
 }
 
 /// One plane's rows in a frame's buffer, in bytes: where the first starts, how far apart they

@@ -1,0 +1,243 @@
+//! The frame loop: paced by [`Pacer`], it takes the newest frame from the slot, renders it
+//! with the live state and the vehicle as the telemetry had it at capture time (or streams
+//! "no signal" while the source is down), hands stills to the capture, and feeds the
+//! encoder. A failed GPU or encoder is rebuilt and the status says so meanwhile.
+
+use super::pacing::Pacer;
+use super::{Head, HeadError, no_signal};
+use crate::frame::{Frame, PixelFormat, PlaneLayout};
+use crate::head::capture::Still;
+use crate::render::gpu::{Gpu, GpuError, Renderer};
+use crate::render::{Filter, FramePlan};
+use crate::state::{Failure, RunStatus, State};
+use crate::stream::Encoder;
+use crate::stream::encoder::AccessUnit;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+use tracing::{error, info, warn};
+
+/// A source silent for this long is gone: the stream shows "no signal".
+const SIGNAL_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// Why a frame was not rendered: the GPU failed (rebuild it), or this frame or state cannot
+/// be rendered (skip it, say why).
+enum RenderFailure {
+    Gpu(String),
+    Frame(String),
+}
+
+/// What the status should say: running while frames flow; error once the source failed or
+/// went silent; nothing new (idle) while the first frame is awaited.
+fn health(signal: bool, source_failed: bool, had_a_frame: bool) -> Option<bool> {
+    match (signal && !source_failed, source_failed || had_a_frame) {
+        (true, _) => Some(true),
+        (false, true) => Some(false),
+        (false, false) => None,
+    }
+}
+
+impl Head {
+    /// The encoder's sink: every access unit to the clients and the recording.
+    fn encoder(self: &Arc<Head>, fps: u32) -> Result<Encoder, HeadError> {
+        let head = self.clone();
+        let encoder = Encoder::new(&self.cfg.encoder, fps, move |au: AccessUnit| {
+            head.rtsp.push(&au.buffer);
+            head.capture.on_access_unit(&au);
+            if let Some(t) = au.encode_time {
+                head.stats.encoded.fetch_add(1, Ordering::Relaxed);
+                head.stats
+                    .encode_us
+                    .fetch_add(t.as_micros() as u64, Ordering::Relaxed);
+            }
+        })?;
+        Ok(encoder)
+    }
+
+    /// The stream's renderer: I420 out, mip filtering, ready from its first frame for a
+    /// LENS SET to any lens of lens.cal.
+    fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
+        let mut renderer = Renderer::new(gpu, PixelFormat::I420, Filter::Mip)?;
+        renderer.expect_lens_models(self.live.lenses().models());
+        Ok(renderer)
+    }
+
+    pub(super) fn frame_loop(self: &Arc<Head>) -> Result<(), HeadError> {
+        let gpu = Gpu::new()?;
+        let mut renderer = self.renderer(&gpu)?;
+        let mut encoder = self.encoder(self.live.snapshot().output.fps)?;
+        let start = Instant::now();
+        let mut pacer = Pacer::default();
+        let mut last_frame: Option<Frame> = None;
+        // The state of the last frame rendered.
+        let mut shown: Option<Arc<State>> = None;
+        // The status last reported: None idle, Some(running or not).
+        let mut healthy: Option<bool> = None;
+        while !self.stop.load(Ordering::Relaxed) {
+            let state = self.live.snapshot();
+            let period = Duration::from_secs_f64(1.0 / state.output.fps as f64);
+            let due = pacer.due();
+            if let Some(early) = due.checked_sub(start.elapsed()) {
+                std::thread::sleep(early);
+            }
+            let fresh = self
+                .slot
+                .take_until(start + pacer.wait_until(start.elapsed(), period));
+            let signal = self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
+            if fresh.is_some() && self.source_error().is_some() {
+                self.set_source_error(None);
+                info!("source: frames again");
+            }
+            let is_fresh = fresh.is_some();
+            let arrived = fresh.map(|(f, arrived)| {
+                last_frame = Some(f);
+                arrived.saturating_duration_since(start)
+            });
+            pacer.taken(due, arrived, start.elapsed(), period);
+            let moved = !shown.as_ref().is_some_and(|s| Arc::ptr_eq(s, &state));
+            if !pacer.worth_rendering(is_fresh, signal, moved, start.elapsed()) {
+                continue;
+            }
+            shown = Some(state.clone());
+            let pts = pacer.pts(start.elapsed());
+            let t0 = Instant::now();
+            let rendered = match (&last_frame, signal) {
+                (Some(frame), true) => self.render(&mut renderer, frame, &state),
+                _ => Ok(no_signal::frame(state.output.width, state.output.height)),
+            };
+            let (data, layout) = match rendered {
+                Ok(r) => r,
+                Err(RenderFailure::Frame(e)) => {
+                    warn!("frame not rendered: {e}");
+                    continue;
+                }
+                Err(RenderFailure::Gpu(e)) => {
+                    // The GPU failed: say so, start a new device and renderer, go on.
+                    error!("GPU: {e}; rebuilding the renderer");
+                    self.live.set_failure(Failure::Gpu);
+                    healthy = Some(false);
+                    std::thread::sleep(Duration::from_secs(1));
+                    match Gpu::new().and_then(|g| self.renderer(&g)) {
+                        Ok(r) => renderer = r,
+                        Err(e) => error!("GPU: {e}"),
+                    }
+                    continue;
+                }
+            };
+            self.stats
+                .render_us
+                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+            self.stats.out.fetch_add(1, Ordering::Relaxed);
+            self.offer_still(&data, layout, last_frame.as_ref());
+            if self.key_wanted.swap(false, Ordering::Relaxed) | self.capture.take_key_request() {
+                encoder.force_key_unit();
+            }
+            let dropped_before = encoder.dropped;
+            if let Err(e) = encoder.push(data, &layout, pts, state.output.fps) {
+                error!("{e}; rebuilding the encoder");
+                self.live.set_failure(Failure::Encoder);
+                healthy = Some(false);
+                drop(encoder);
+                encoder = self.rebuild_encoder(state.output.fps)?;
+                continue;
+            }
+            self.stats
+                .encoder_dropped
+                .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
+            let now_ok = health(signal, self.source_error().is_some(), last_frame.is_some());
+            if now_ok != healthy {
+                match now_ok {
+                    Some(true) => self.live.set_status(RunStatus::Running),
+                    Some(false) => self.live.set_failure(Failure::Source),
+                    None => {}
+                }
+                healthy = now_ok;
+            }
+        }
+        drop(encoder);
+        self.live.set_status(RunStatus::Finished);
+        Ok(())
+    }
+
+    /// A new encoder after one failed, tried every half second until one starts or the
+    /// head stops.
+    fn rebuild_encoder(self: &Arc<Head>, fps: u32) -> Result<Encoder, HeadError> {
+        loop {
+            std::thread::sleep(Duration::from_millis(500));
+            match self.encoder(fps) {
+                Ok(e) => return Ok(e),
+                Err(e) if !self.stop.load(Ordering::Relaxed) => error!("{e}"),
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// Hands the rendered frame (and the fisheye frame, if the capture wants it) over as a
+    /// still when one was asked for.
+    fn offer_still(&self, data: &[u8], layout: PlaneLayout, fisheye: Option<&Frame>) {
+        if !self.capture.take_still_request() {
+            return;
+        }
+        let raw = match (fisheye, self.capture.wants_raw()) {
+            (Some(f), true) => Some((f.data.clone(), f.layout)),
+            _ => None,
+        };
+        self.capture.save_still(Still {
+            output: (data.to_vec(), layout),
+            raw,
+        });
+    }
+
+    /// Renders `frame` with `state`, the vehicle as the telemetry had it at capture time.
+    fn render(
+        &self,
+        renderer: &mut Renderer,
+        frame: &Frame,
+        state: &State,
+    ) -> Result<(Vec<u8>, PlaneLayout), RenderFailure> {
+        let mut s = state.clone();
+        let (attitude, position) = self.telemetry.at(frame.captured_us);
+        if let Some(a) = attitude {
+            (
+                s.vehicle.attitude.yaw,
+                s.vehicle.attitude.pitch,
+                s.vehicle.attitude.roll,
+            ) = (a.yaw, a.pitch, a.roll);
+        }
+        if let Some(p) = position {
+            s.vehicle.position = p;
+        }
+        let size = (frame.layout.width, frame.layout.height);
+        let lens = self
+            .live
+            .lenses()
+            .for_frame(s.lens, size, s.sensor.roi())
+            .map_err(|e| RenderFailure::Frame(e.to_string()))?;
+        let plan = FramePlan::new(&s, &lens).map_err(|e| RenderFailure::Frame(e.to_string()))?;
+        let out = renderer
+            .render(&frame.data, &frame.layout, &plan)
+            .map_err(|e| match e {
+                GpuError::Failed(_) | GpuError::Device { .. } => RenderFailure::Gpu(e.to_string()),
+                other => RenderFailure::Frame(other.to_string()),
+            })?;
+        Ok((out.data, out.layout))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::health;
+
+    #[test]
+    fn the_status_is_running_with_frames_error_once_the_source_fails_and_idle_before_any() {
+        assert_eq!(health(true, false, true), Some(true));
+        assert_eq!(health(false, false, true), Some(false), "silent");
+        assert_eq!(health(true, true, true), Some(false), "failed");
+        assert_eq!(health(false, true, false), Some(false), "failed first");
+        assert_eq!(
+            health(false, false, false),
+            None,
+            "waiting for the first frame"
+        );
+    }
+}

@@ -1,0 +1,126 @@
+//! The source thread: the built-in demo (a simulated camera and flight, feeding the
+//! telemetry as an autopilot would), or a GStreamer source reopened with back-off whenever it
+//! fails. Frames go to the head's newest-wins slot.
+
+use super::{Head, HeadError};
+use crate::frame::{Frame, PlaneLayout};
+use crate::source::demo::{DemoCamera, Flight};
+use crate::source::{Ended, SourceSpec, backoff, clock_us};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+use tracing::{error, info};
+
+impl Head {
+    /// Runs the source until the head stops: the demo, or a GStreamer source reopened with
+    /// back-off whenever it fails, its failure kept for the status and the health log.
+    pub(super) fn source_thread(&self, spec: SourceSpec) {
+        if spec == SourceSpec::Demo {
+            if let Err(e) = self.demo_source() {
+                error!("demo source: {e}");
+                self.set_source_error(Some(e.to_string()));
+            }
+            return;
+        }
+        let mut attempt = 0;
+        while !self.stop.load(Ordering::Relaxed) {
+            let outcome = crate::source::open(
+                &spec,
+                self.cfg.source_fps,
+                self.cfg.source_loop,
+                self.slot.clone(),
+            )
+            .and_then(|s| {
+                info!("source: {spec}");
+                s.run(&self.stop)
+            });
+            let e = match outcome {
+                Ok(Ended::Stopped) => return,
+                Ok(Ended::Eos) => {
+                    info!("source {spec} ended");
+                    self.set_source_error(Some(format!("source {spec} ended")));
+                    return;
+                }
+                Err(e) => e,
+            };
+            // A source that delivered a while before failing starts its back-off afresh.
+            if self
+                .slot
+                .silence()
+                .is_some_and(|s| s < Duration::from_secs(5))
+            {
+                attempt = 0;
+            }
+            let wait = backoff(attempt);
+            attempt += 1;
+            error!("source {spec} failed: {e}; retrying in {wait:?}");
+            self.set_source_error(Some(format!("camera gone: {e}")));
+            let until = Instant::now() + wait;
+            while Instant::now() < until && !self.stop.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
+    }
+
+    /// The simulated camera and flight, paced at the demo's frame rate.
+    fn demo_source(&self) -> Result<(), HeadError> {
+        let d = &self.cfg.demo;
+        let state = self.live.snapshot();
+        let lens =
+            self.live
+                .lenses()
+                .for_frame(state.lens, (d.width, d.height), state.sensor.roi())?;
+        let layout = PlaneLayout::tight(d.format, d.width, d.height)?;
+        let camera = DemoCamera::new(&lens, layout, state.mount.euler());
+        let flight = Flight {
+            hover: state.vehicle.position,
+            attitude: state.vehicle.attitude.euler(),
+            motion: d.motion,
+            radius: 30.0,
+            lap: 90.0,
+        };
+        info!(
+            "source: demo, {}x{} {} at {} fps, {}",
+            d.width,
+            d.height,
+            d.format,
+            d.fps,
+            if d.motion {
+                "flying a circle"
+            } else {
+                "hovering"
+            }
+        );
+        let period = Duration::from_secs_f64(1.0 / d.fps as f64);
+        let start = Instant::now();
+        let mut next = start;
+        while !self.stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            if now < next {
+                std::thread::sleep(next - now);
+            }
+            next += period;
+            if next < Instant::now() {
+                // Fell behind (a busy machine): skip ahead rather than burst.
+                next = Instant::now() + period;
+            }
+            if self.slot.pending() {
+                // The renderer has not taken the last frame: a simulated camera need not
+                // spend the CPU the renderer needs on a frame that would be dropped.
+                continue;
+            }
+            let captured_us = clock_us();
+            let t = start.elapsed().as_secs_f64();
+            let (attitude, position) = flight.pose(t);
+            self.telemetry.attitude(captured_us, attitude);
+            self.telemetry.position(position);
+            let stamp = d.stamp.then_some((captured_us / 1000) as u32);
+            let data = camera.frame(attitude, &position, t, stamp);
+            self.slot.put(Frame {
+                data,
+                layout,
+                captured_us,
+            });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,123 @@
+//! State files: a [`State`] written as TOML (docs/cli.md shows one), angles in radians or
+//! `"30deg"`, `[[camera]]` tables placed by their `id`. A bad file is an error that names the
+//! file and line, or the field and its range.
+
+use super::{Camera, Invalid, MAX_CAMERAS, State};
+use crate::units::line_of;
+use std::path::Path;
+
+#[derive(Debug, thiserror::Error)]
+pub enum StateError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}:{line}: {message}")]
+    Parse {
+        path: String,
+        line: usize,
+        message: String,
+    },
+    #[error("{path}: {source}")]
+    Invalid { path: String, source: Invalid },
+}
+
+impl State {
+    pub fn load(path: &Path) -> Result<State, StateError> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| StateError::Io {
+            path: shown.clone(),
+            source,
+        })?;
+        State::parse(&text, &shown)
+    }
+
+    pub fn parse(text: &str, path: &str) -> Result<State, StateError> {
+        let mut state: State = toml::from_str(text).map_err(|e| StateError::Parse {
+            path: path.to_string(),
+            line: e.span().map_or(1, |s| line_of(text, s.start)),
+            message: e.message().trim().to_string(),
+        })?;
+        state
+            .place_cameras()
+            .and_then(|()| state.validate())
+            .map_err(|source| StateError::Invalid {
+                path: path.to_string(),
+                source,
+            })?;
+        Ok(state)
+    }
+
+    /// Puts `[[camera]]` tables at their ids and fills missing cameras with defaults.
+    fn place_cameras(&mut self) -> Result<(), Invalid> {
+        let given = std::mem::take(&mut self.cameras);
+        if given.len() > MAX_CAMERAS {
+            return Err(Invalid(format!(
+                "{} cameras given, at most {MAX_CAMERAS}",
+                given.len()
+            )));
+        }
+        let mut slots: Vec<Option<Camera>> = vec![None; MAX_CAMERAS];
+        for (i, cam) in given.into_iter().enumerate() {
+            let id = cam.id.unwrap_or(i);
+            if id >= MAX_CAMERAS || slots[id].is_some() {
+                return Err(Invalid(format!(
+                    "camera id {id} is out of range (0..={}) or given twice",
+                    MAX_CAMERAS - 1
+                )));
+            }
+            slots[id] = Some(Camera { id: None, ..cam });
+        }
+        self.cameras = slots
+            .into_iter()
+            .enumerate()
+            .map(|(i, c)| c.unwrap_or_else(|| Camera::numbered(i)))
+            .collect();
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_state_file_reads_degrees_places_cameras_by_id_and_fills_the_rest() {
+        let s = State::parse(
+            r#"
+            lens = 2
+            [output]
+            layout = 0
+            [[camera]]
+            id = 2
+            yaw = "45deg"
+            fov = 1.0
+            [vehicle.attitude]
+            roll = "20deg"
+            "#,
+            "s.toml",
+        )
+        .unwrap();
+        assert_eq!(s.lens, 2);
+        assert_eq!(s.output.layout, 0);
+        assert_eq!(s.cameras.len(), 4);
+        assert!((s.cameras[2].yaw - 45f64.to_radians()).abs() < 1e-12);
+        assert_eq!(s.cameras[2].fov, 1.0);
+        assert_eq!(s.cameras[1], Camera::numbered(1));
+        assert!((s.vehicle.attitude.roll - 20f64.to_radians()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_state_files_name_the_line_or_the_field() {
+        let err = |text| State::parse(text, "s.toml").unwrap_err().to_string();
+        let e = err("[output]\nwidht = 3\n");
+        assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
+        let e = err("[output]\nlayout = 9\n");
+        assert_eq!(e, "s.toml: layout 9 does not exist (0..=6)");
+        let e = err("[[camera]]\nyaw = \"north\"\n");
+        assert!(e.starts_with("s.toml:2: "), "{e}");
+        let e = err("[[camera]]\nfov = \"200deg\"\n");
+        assert!(e.contains("camera 0: fov 3.491 rad is outside"), "{e}");
+    }
+}

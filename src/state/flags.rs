@@ -1,0 +1,170 @@
+//! The command line's way into the state: `key=value` lists that set a camera, an attitude, a
+//! position or a tracked object (`--cam 0:yaw=45deg,fov=90deg`), the same fields a state file
+//! names. Each flag changes only what it names; the caller validates the whole state after.
+
+use super::{Angles, State, Tracked};
+use crate::units::{UnitError, parse_angle};
+
+/// Why a flag was refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum FlagError {
+    #[error("`{0}` is not key=value")]
+    NotKeyValue(String),
+    #[error("{key}=`{value}` is not a valid number here")]
+    NotANumber { key: String, value: String },
+    #[error("`{key}` is not {what}")]
+    UnknownKey { key: String, what: &'static str },
+    #[error("`{flag}`: {why}")]
+    Camera { flag: String, why: String },
+    #[error(transparent)]
+    Angle(#[from] UnitError),
+}
+
+impl State {
+    /// Applies `--cam 0:yaw=45deg,pitch=-30deg,fov=90deg,crop=1,lock=7`.
+    pub fn apply_camera_flag(&mut self, flag: &str) -> Result<(), FlagError> {
+        let refused = |why: String| FlagError::Camera {
+            flag: flag.to_string(),
+            why,
+        };
+        let (id, pairs) = flag
+            .split_once(':')
+            .ok_or_else(|| refused("expected N:key=value,...".into()))?;
+        let id: usize = id
+            .trim()
+            .parse()
+            .map_err(|_| refused(format!("camera id `{id}` is not a number")))?;
+        let last = self.cameras.len() - 1;
+        let cam = self
+            .cameras
+            .get_mut(id)
+            .ok_or_else(|| refused(format!("camera id {id} is outside 0..={last}")))?;
+        for (key, value) in key_values(pairs)? {
+            match key {
+                "yaw" => cam.yaw = parse_angle(value)?,
+                "pitch" => cam.pitch = parse_angle(value)?,
+                "roll" => cam.roll = parse_angle(value)?,
+                "fov" => cam.fov = parse_angle(value)?,
+                "zoom" => cam.zoom = number(key, value)?,
+                "crop" => cam.crop = number(key, value)?,
+                "lock" => cam.lock = number(key, value)?,
+                "control" => cam.control = number(key, value)?,
+                _ => {
+                    return Err(unknown(
+                        key,
+                        "a camera field (yaw, pitch, roll, fov, zoom, crop, lock, control)",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies `--attitude yaw=10deg,pitch=5deg,roll=20deg` (or `--mount ...`) to a triple.
+    pub fn apply_angles(target: &mut Angles, flag: &str) -> Result<(), FlagError> {
+        for (key, value) in key_values(flag)? {
+            match key {
+                "yaw" => target.yaw = parse_angle(value)?,
+                "pitch" => target.pitch = parse_angle(value)?,
+                "roll" => target.roll = parse_angle(value)?,
+                _ => return Err(unknown(key, "an angle (yaw, pitch, roll)")),
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies `--position lat=58.0,lon=15.0,alt=150,rel=50`.
+    pub fn apply_position(&mut self, flag: &str) -> Result<(), FlagError> {
+        let p = &mut self.vehicle.position;
+        for (key, value) in key_values(flag)? {
+            match key {
+                "lat" => p.lat = number(key, value)?,
+                "lon" => p.lon = number(key, value)?,
+                "alt" => p.alt = number(key, value)?,
+                "rel" | "relative_alt" => p.relative_alt = number(key, value)?,
+                _ => return Err(unknown(key, "a position field (lat, lon, alt, rel)")),
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds a tracked object from `--track yaw=10deg,pitch=-40deg,size=3deg,score=90`.
+    pub fn add_tracked(&mut self, flag: &str) -> Result<(), FlagError> {
+        let mut t = Tracked {
+            id: self.tracked.len() as u32,
+            ..Tracked::default()
+        };
+        for (key, value) in key_values(flag)? {
+            match key {
+                "yaw" => t.yaw = parse_angle(value)?,
+                "pitch" => t.pitch = parse_angle(value)?,
+                "size" => t.size = parse_angle(value)?,
+                "score" => t.score = number(key, value)?,
+                "id" => t.id = number(key, value)?,
+                _ => {
+                    return Err(unknown(
+                        key,
+                        "a tracked-object field (yaw, pitch, size, score, id)",
+                    ));
+                }
+            }
+        }
+        self.tracked.push(t);
+        Ok(())
+    }
+}
+
+fn unknown(key: &str, what: &'static str) -> FlagError {
+    FlagError::UnknownKey {
+        key: key.to_string(),
+        what,
+    }
+}
+
+fn key_values(text: &str) -> Result<Vec<(&str, &str)>, FlagError> {
+    text.split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|kv| {
+            kv.split_once('=')
+                .map(|(k, v)| (k.trim(), v.trim()))
+                .ok_or_else(|| FlagError::NotKeyValue(kv.to_string()))
+        })
+        .collect()
+}
+
+fn number<T: std::str::FromStr>(key: &str, value: &str) -> Result<T, FlagError> {
+    value.parse().map_err(|_| FlagError::NotANumber {
+        key: key.to_string(),
+        value: value.to_string(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flags_override_fields_and_reject_unknown_keys() {
+        let mut s = State::default();
+        s.apply_camera_flag("1:yaw=10deg,crop=2,lock=3").unwrap();
+        assert_eq!((s.cameras[1].crop, s.cameras[1].lock), (2, 3));
+        assert!(
+            s.apply_camera_flag("4:yaw=0")
+                .unwrap_err()
+                .to_string()
+                .contains("outside 0..=3")
+        );
+        assert!(
+            s.apply_camera_flag("0:colour=red")
+                .unwrap_err()
+                .to_string()
+                .contains("not a camera field")
+        );
+        State::apply_angles(&mut s.vehicle.attitude, "roll=20deg,pitch=0.1").unwrap();
+        assert_eq!(s.vehicle.attitude.pitch, 0.1);
+        s.apply_position("lat=1,lon=2,alt=30,rel=20").unwrap();
+        assert_eq!(s.vehicle.position.relative_alt, 20.0);
+        s.add_tracked("yaw=5deg,size=2deg").unwrap();
+        assert_eq!(s.tracked.len(), 1);
+    }
+}

@@ -1,0 +1,105 @@
+//! The one check every way into the state goes through (state files, flags, the control
+//! protocol, and what comes later): every field against the range the protocol allows.
+
+use super::{FPS_RANGE, MAX_OUTPUT, MIN_OUTPUT, RATIO_RANGE, State};
+use crate::geometry::view::{LockFlags, clamp_fov, control, crop, fov_range};
+use crate::layout::{LAYOUT_MODES, OVERLAY_MODES};
+
+/// Why a state is refused: the field, its value and the range it must lie in.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Invalid(pub String);
+
+fn invalid<T>(message: String) -> Result<T, Invalid> {
+    Err(Invalid(message))
+}
+
+impl State {
+    /// Checks every field against the range the protocol allows.
+    pub fn validate(&self) -> Result<(), Invalid> {
+        let o = &self.output;
+        let (lo, hi) = (MIN_OUTPUT, MAX_OUTPUT);
+        if !(lo.0..=hi.0).contains(&o.width) || !(lo.1..=hi.1).contains(&o.height) {
+            return invalid(format!(
+                "output size {}x{} is outside {}x{}..={}x{}",
+                o.width, o.height, lo.0, lo.1, hi.0, hi.1
+            ));
+        }
+        if !(FPS_RANGE.0..=FPS_RANGE.1).contains(&o.fps) {
+            return invalid(format!(
+                "output fps {} is outside {}..={}",
+                o.fps, FPS_RANGE.0, FPS_RANGE.1
+            ));
+        }
+        if o.layout >= LAYOUT_MODES {
+            return invalid(format!(
+                "layout {} does not exist (0..={})",
+                o.layout,
+                LAYOUT_MODES - 1
+            ));
+        }
+        if o.overlay >= OVERLAY_MODES {
+            return invalid(format!(
+                "overlay {} does not exist (0..={})",
+                o.overlay,
+                OVERLAY_MODES - 1
+            ));
+        }
+        for (i, c) in self.cameras.iter().enumerate() {
+            if c.lock > LockFlags::ALL.0 {
+                return invalid(format!(
+                    "camera {i}: lock flags {} are outside 0..=7",
+                    c.lock
+                ));
+            }
+            if c.control > control::PASS {
+                return invalid(format!(
+                    "camera {i}: control mode {} is outside 0..={}",
+                    c.control,
+                    control::PASS
+                ));
+            }
+            if clamp_fov(c.fov, c.crop) != c.fov && c.crop <= crop::DEBUG {
+                let (lo, hi) = fov_range(c.crop);
+                return invalid(format!(
+                    "camera {i}: fov {:.3} rad is outside {lo}..={hi:.3} for crop mode {}",
+                    c.fov, c.crop
+                ));
+            }
+            if c.control == control::COORDINATE && c.target.is_none() {
+                return invalid(format!(
+                    "camera {i}: control mode 2 needs a target (lat, lon, alt)"
+                ));
+            }
+        }
+        let s = &self.sensor;
+        if s.width == 0 || s.height == 0 {
+            return invalid("sensor size must be positive".into());
+        }
+        let d = &self.detection;
+        for (name, v) in [
+            ("crop_confidence_threshold", d.crop_confidence_threshold),
+            ("var_confidence_threshold", d.var_confidence_threshold),
+            ("crop_box_overlap", d.crop_box_overlap),
+            ("var_box_overlap", d.var_box_overlap),
+        ] {
+            if !RATIO_RANGE.contains(&v) {
+                return invalid(format!("detection {name} {v} is outside [0, 0.99)"));
+            }
+        }
+        if d.sorting_mode > 2 {
+            return invalid(format!(
+                "detection sorting_mode {} is outside 0..=2",
+                d.sorting_mode
+            ));
+        }
+        let p = &self.vehicle.position;
+        if !(-90.0..=90.0).contains(&p.lat) || !(-180.0..=180.0).contains(&p.lon) {
+            return invalid(format!(
+                "vehicle position {}, {} is not a latitude, longitude",
+                p.lat, p.lon
+            ));
+        }
+        Ok(())
+    }
+}
