@@ -1,15 +1,21 @@
 //! The GPU renderer (wgpu, WGSL in shaders/): fisheye bytes in, output frame bytes out, one
-//! compute pass per frame for all views. `device` picks the adapter, `shaders` composes the
-//! WGSL, `params` lays out the per-frame buffers shared with it, `planes` how the source's
-//! planes and mip levels are held, `blocks` says which view draws each block of the output,
-//! `renderer` owns the GPU resources and the upload →
-//! render → readback ring. Touches no sockets and no GStreamer.
+//! draw pass per frame for all views. `device` picks the adapter, `shaders` composes the WGSL,
+//! `params` lays out the per-frame buffers shared with it, `planes` how the source's planes
+//! and mip levels are held (plain arithmetic), `blocks` says which view draws each block of
+//! the output, `pipelines` builds and caches the passes' pipelines, `input` owns the
+//! input-side resources and the upload, `draw` the output target and the block map's buffer,
+//! `ring` the mapped buffers of frames in flight, and `renderer` ties them into the upload →
+//! render → readback path. Touches no sockets and no GStreamer.
 
 pub mod blocks;
 pub mod device;
+mod draw;
+mod input;
 pub mod params;
+mod pipelines;
 pub mod planes;
 pub mod renderer;
+mod ring;
 pub mod shaders;
 
 pub use device::Gpu;
