@@ -8,9 +8,10 @@ use crate::image_ops::pixel as rgb;
 use glam::DVec3;
 use image::RgbImage;
 
-const KR: f64 = 0.2126;
-const KB: f64 = 0.0722;
-const KG: f64 = 1.0 - KR - KB;
+/// BT.709's luma weights of red, blue and green (`KR`, `KB`, `KG` in shaders/common.wgsl).
+pub const KR: f64 = 0.2126;
+pub const KB: f64 = 0.0722;
+pub const KG: f64 = 1.0 - KR - KB;
 
 /// RGB (0..255) → Y, Cb, Cr code values.
 pub fn rgb_to_yuv(c: DVec3) -> DVec3 {

@@ -361,6 +361,57 @@ provenance = { kind = "calibrated", by = "test", date = "2026-11-21" }
     }
 
     #[test]
+    fn every_model_of_the_registry_is_written_and_read_back_through_lens_cal() {
+        let lenses = crate::lens::samples::sample_lenses();
+        let names: Vec<&str> = lenses.iter().map(|l| l.radial.model.name()).collect();
+        assert_eq!(
+            names,
+            Model::NAMES,
+            "one sample lens per model, in code order"
+        );
+        for lens in lenses {
+            let model = &lens.radial.model;
+            assert_eq!(Model::NAMES[model.code() as usize], model.name());
+            let entry = LensEntry {
+                name: lens.name.clone(),
+                lens_id: lens.id,
+                model: model.clone(),
+                affine: lens.affine,
+                width: lens.width,
+                height: lens.height,
+                fov: lens.fov(),
+                circle_radius: None,
+                provenance: Provenance {
+                    kind: "nominal".into(),
+                    ..Provenance::default()
+                },
+                line: 0,
+            };
+            let back = LensCal::parse(Path::new("m"), &entry.to_toml()).unwrap();
+            let back = &back.entries[0];
+            assert_eq!(&back.model, model, "{}", lens.name);
+            assert_eq!(back.affine, lens.affine, "{}", lens.name);
+        }
+    }
+
+    #[test]
+    fn a_field_the_model_does_not_read_is_refused_naming_the_fields_it_has() {
+        let e = err(&GOOD.replace("model = \"kannala_brandt\"", "model = \"equidistant\""));
+        assert!(
+            e.starts_with(
+                "x/lens.cal:13: k: unknown field `k`: a lens of model `equidistant` has "
+            ),
+            "{e}"
+        );
+        assert!(e.contains("fx, fy, cx, cy"), "{e}");
+        let e = err(&GOOD.replace("fx = 300.0", "fx = 300.0\nxi = 0.1"));
+        assert!(
+            e.starts_with("x/lens.cal:10: xi: unknown field `xi`"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn an_entry_written_back_as_toml_parses_to_the_same_lens() {
         let entry = LensCal::parse(Path::new("a"), GOOD).unwrap().entries[0].clone();
         let again = LensCal::parse(Path::new("b"), &entry.to_toml())

@@ -17,6 +17,8 @@ pub mod planes;
 pub mod renderer;
 mod ring;
 pub mod shaders;
+#[cfg(test)]
+mod twins;
 
 pub use device::Gpu;
 pub use renderer::{RenderedFrame, Renderer, StageTimes};

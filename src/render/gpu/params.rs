@@ -54,10 +54,10 @@ pub struct GpuView {
 const _: () = assert!(size_of::<GpuView>() == 96);
 
 /// `KIND_*` in shaders/render.wgsl.
-const KIND_BLACK: u32 = 0;
-const KIND_RECTILINEAR: u32 = 1;
-const KIND_PANORAMA: u32 = 2;
-const KIND_FISHEYE: u32 = 3;
+pub(super) const KIND_BLACK: u32 = 0;
+pub(super) const KIND_RECTILINEAR: u32 = 1;
+pub(super) const KIND_PANORAMA: u32 = 2;
+pub(super) const KIND_FISHEYE: u32 = 3;
 
 fn packed<const N: usize>(coefficients: &[f64]) -> [[f32; 4]; N] {
     let mut out = [[0.0; 4]; N];
