@@ -2,6 +2,8 @@
 //! measurement in rendered frames.
 #![allow(dead_code)]
 
+pub mod direct;
+pub mod frames;
 pub mod serve;
 
 use digiview::geometry::rotation::yaw_pitch;

@@ -1,0 +1,84 @@
+//! The control protocol in-process: request frames straight into `Controller::handle`, as the
+//! server hands them over, on a live state built from the same flags `digiview serve` takes.
+//! For the parameter rules; the server itself (sockets, framing across reads, permissions by
+//! address, QUIT, load) is tested against a real `digiview serve`.
+
+use super::lens_cal;
+use clap::Parser;
+use digiview::cli::StateArgs;
+use digiview::control::Controller;
+use digiview::control::permissions::Permissions;
+use digiview::protocol::{Body, FRAME_LEN, Message, Param};
+use digiview::state::Live;
+use digiview::state::capture::NoVideo;
+use std::collections::VecDeque;
+use std::net::{IpAddr, Ipv4Addr};
+use std::sync::Arc;
+
+#[derive(Parser)]
+struct Flags {
+    #[command(flatten)]
+    state: StateArgs,
+}
+
+/// A client of a controller on a live state without video, from a loopback address.
+pub struct Direct {
+    pub controller: Controller,
+    /// Bytes of a frame not yet whole.
+    pending: Vec<u8>,
+    replies: VecDeque<Message>,
+}
+
+impl Direct {
+    /// The state `digiview serve --no-video` makes of these state flags (`--track ...`).
+    pub fn start(flags: &[&str]) -> Direct {
+        let flags = Flags::try_parse_from(std::iter::once("serve").chain(flags.iter().copied()))
+            .expect("valid flags");
+        let cal = lens_cal();
+        let state = flags.state.state(&cal).expect("a valid state");
+        let live = Live::new(state, &cal, Box::new(NoVideo)).expect("a valid state");
+        Direct {
+            controller: Controller::new(Arc::new(live), Permissions::default()),
+            pending: Vec::new(),
+            replies: VecDeque::new(),
+        }
+    }
+
+    /// Bytes as a TCP client writes them: every whole frame is handled, in order.
+    pub fn send_bytes(&mut self, bytes: &[u8]) {
+        self.pending.extend_from_slice(bytes);
+        let whole = self.pending.len() / FRAME_LEN * FRAME_LEN;
+        let frames: Vec<u8> = self.pending.drain(..whole).collect();
+        for frame in frames.chunks(FRAME_LEN) {
+            let outcome = self
+                .controller
+                .handle(frame, IpAddr::V4(Ipv4Addr::LOCALHOST));
+            for reply in outcome.replies {
+                // Each reply goes out as a frame, as the server sends it.
+                let back = Message::decode(&reply.encode()).expect("replies are valid frames");
+                self.replies.push_back(back);
+            }
+        }
+    }
+
+    pub fn send(&mut self, body: Body) {
+        self.send_bytes(&Message::new(body).encode());
+    }
+
+    pub fn recv(&mut self) -> Message {
+        self.replies.pop_front().expect("a reply")
+    }
+
+    /// One request, one reply.
+    pub fn ask(&mut self, body: Body) -> Body {
+        self.send(body);
+        self.recv().body
+    }
+
+    pub fn get(&mut self, query: Param) -> Param {
+        match self.ask(Body::Get(query)) {
+            Body::Current(p) => p,
+            other => panic!("GET {:?} answered {other:?}", query.param_type()),
+        }
+    }
+}
