@@ -4,6 +4,7 @@
 
 pub mod direct;
 pub mod frames;
+pub mod gpu;
 pub mod serve;
 
 use digiview::geometry::rotation::yaw_pitch;
