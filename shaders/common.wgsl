@@ -1,7 +1,9 @@
 // What every pass shares: the per-frame parameters (one small uniform buffer, rewritten each
-// frame) and BT.709 limited-range colour conversion, the twin of src/render/yuv.rs.
+// frame) and BT.709 limited-range colour conversion, the twin of src/frame/yuv.rs.
 //
-// Prepended to each pass's source (after lens.wgsl) by src/render/gpu/shaders.rs.
+// Prepended to each pass's source (after lens.wgsl) by src/render/gpu/shaders.rs. Every
+// constant and struct a pass shares with the Rust side is held to its Rust twin by
+// src/render/gpu/twins.rs.
 
 const FORMAT_RGBA: u32 = 0u;
 const FORMAT_I420: u32 = 1u;

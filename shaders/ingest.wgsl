@@ -2,12 +2,13 @@
 // raw bytes (RGBA8 or NV12, as one array of words; I420 arrives woven into NV12 by the copy
 // into the upload buffer), written as packed rows into the level buffer that the renderer then
 // copies into the planes' textures. Level 0 of each plane is copied straight from the frame
-// (src/render/gpu/renderer.rs), so nothing here is done per input pixel.
+// (src/render/gpu/input.rs), so nothing here is done per input pixel.
 //
-// On a software rasterizer the host makes the same bytes instead (SourcePlanes::make_levels in
-// src/render/gpu/planes.rs, which tests/gpu_render.rs holds to this pass and shaders/mip.wgsl).
+// On a software rasterizer the host makes the same bytes instead (SourcePlanes::make_levels
+// in src/render/gpu/planes/host_levels.rs, which tests/gpu_frames.rs holds to this pass and
+// shaders/mip.wgsl).
 //
-// The planes (src/render/gpu/planes.rs; src/render/mip.rs is the twin): RGBA, or for 4:2:0
+// The planes (src/render/gpu/planes/mod.rs; src/render/mip.rs is the twin): RGBA, or for 4:2:0
 // input the luma and the half-size chroma. Each plane's level k + 1 averages 2x2 texels of
 // its level k, per channel, in integer code values rounded half up.
 //
@@ -19,7 +20,8 @@
 
 override INPUT_FORMAT: u32 = 0u;
 
-// The regions the ingest writes.
+// The regions the ingest writes: twin of the Rust `IngestTargets`
+// (src/render/gpu/planes/mod.rs).
 struct Targets {
     // RGBA, or luma: levels 1 and 2.
     level1: Region,

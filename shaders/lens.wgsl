@@ -93,7 +93,7 @@ fn ocam_dpoly(x: f32) -> f32 {
 }
 
 // θ(r) = atan2(r, -pol(r)) inverted: the inverse polynomial's guess, then bracketed Newton
-// steps on the direct polynomial, as src/lens/ocam.rs does in f64.
+// steps on the direct polynomial, as src/lens/models/ocam.rs does in f64.
 fn ocam_r(theta: f32) -> f32 {
     let r_max = params.lens.limits.w;
     var lo = 0.0;

@@ -1,11 +1,11 @@
 // The packed mip levels the ingest and mip passes write into the level buffer (one row after
-// another per level, bytes as the textures hold them; src/render/gpu/planes.rs lays them out),
+// another per level, bytes as the textures hold them; src/render/gpu/planes/mod.rs lays them out),
 // and the 2x2 average both make them with.
 //
 // Prepended to those passes' sources by src/render/gpu/shaders.rs.
 
 // Where one level of one plane lies in the level buffer (bytes; offset and stride multiples of
-// 256, as texture copies need).
+// 256, as texture copies need): twin of the Rust `Region` (src/render/gpu/planes/mod.rs).
 struct Region {
     offset: u32,
     stride: u32,

@@ -3,6 +3,7 @@
 // texels under it (the last row or column of an odd level is dropped, as the textures' own
 // level sizes do). The renderer copies every level into its plane's texture afterwards.
 
+// One level from the one before; twin of the Rust `MipStep` (src/render/gpu/planes/mod.rs).
 struct Step {
     finer: Region,
     coarser: Region,

@@ -3,47 +3,25 @@
 // to write whole words of every plane. `draw` covers the frame and draws each block that lies
 // in one view (or none) with that view, named by the block table (src/render/gpu/blocks.rs),
 // projecting each of its rows at four pixels where a parabola through them fits the rest
-// (`run_of`); `draw_mixed` draws the listed blocks that straddle a view's or the frame's
-// edge, finding and projecting each pixel's view. Per frame only `params` and `views` change
+// (`run_of`, shaders/views.wgsl); `draw_mixed` draws the listed blocks that straddle a
+// view's or the frame's edge, finding and projecting each pixel's view. Per frame only `params` and `views` change
 // (`blocks` when the rectangles do); the input and output formats, the filter and the view
 // kinds present are overrides fixed with the pipeline.
 //
 // Filtering, as src/render/cpu.rs and src/render/mip.rs do it: a trilinear sample whose level
 // of detail is log2 of the larger fisheye-pixel step to the pixel's quad neighbours (x ^ 1,
 // y ^ 1), the derivatives a fragment shader would take. Each plane of the source has its own
-// texture and chain (src/render/gpu/planes.rs): RGBA; or luma, and Cb Cr pairs from half size,
-// filtered in Y Cb Cr and converted afterwards (for 4:2:0 output, not at all: `yuv_through`).
+// texture and chain (src/render/gpu/planes/mod.rs): RGBA; or luma, and Cb Cr pairs from half
+// size, filtered in Y Cb Cr and converted afterwards (for 4:2:0 output, not at all: `yuv_through`).
 // For 4:2:0 output, 4:2:0 chroma is sampled once per 2x2 quad of the output (per view in a
 // quad that straddles views), as the output keeps it; for RGBA output, once per pixel.
-
-const KIND_BLACK: u32 = 0u;
-const KIND_RECTILINEAR: u32 = 1u;
-const KIND_PANORAMA: u32 = 2u;
-const KIND_FISHEYE: u32 = 3u;
 
 const FILTER_MIP: u32 = 0u;
 const FILTER_BILINEAR: u32 = 1u;
 
 override INPUT_FORMAT: u32 = 0u;
-// The view kinds the frame has, a bit per KIND_*: code for the kinds it lacks is left out.
-override VIEW_KINDS: u32 = 0xfu;
 override OUTPUT_FORMAT: u32 = 0u;
 override FILTER: u32 = 0u;
-
-// Twin of the Rust `GpuView` (src/render/gpu/params.rs).
-struct View {
-    // x, y, w, h in output pixels.
-    rect: vec4u,
-    // KIND_*, unused ×3.
-    kind: vec4u,
-    // lens_from_view, by columns (xyz).
-    m0: vec4f,
-    m1: vec4f,
-    m2: vec4f,
-    // Rectilinear: focal, w/2, h/2. Panorama: radians per pixel, pitch, w/2, h/2.
-    // Fisheye: origin x, y, fisheye pixels per view pixel.
-    p: vec4f,
-}
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> views: array<View, MAX_VIEWS>;
@@ -57,59 +35,8 @@ struct View {
 // Chroma (Cb Cr), for 4:2:0 input.
 @group(0) @binding(6) var plane1: texture_2d<f32>;
 
-const NO_VIEW: i32 = -1;
+// A block the per-pixel dispatch draws (`MIXED` in src/render/gpu/blocks.rs).
 const MIXED: u32 = 0xfffffffeu;
-// MAX_VIEWS in src/render/gpu/params.rs.
-const MAX_VIEWS: u32 = 68u;
-
-fn contains(r: vec4u, x: u32, y: u32) -> bool {
-    return x >= r.x && y >= r.y && x < r.x + r.z && y < r.y + r.w;
-}
-
-// The view drawn at a pixel: the last one containing it (tiles cover views).
-fn view_at(x: u32, y: u32) -> i32 {
-    for (var i = i32(params.output.z) - 1; i >= 0; i--) {
-        if contains(views[i].rect, x, y) {
-            return i;
-        }
-    }
-    return NO_VIEW;
-}
-
-// The fisheye pixel seen at point p of view `vi` (xy) and whether anything is imaged (z):
-// FramePlan::fisheye_pixel. Written without branches on the view's kind: a software
-// rasterizer runs both sides of a branch whenever its lanes disagree, so one lens projection
-// serves the rectified kinds and selects pick the result. The code of kinds the frame lacks
-// (VIEW_KINDS) folds away when the pipeline is built.
-fn view_point(v: View, p: vec2f) -> vec3f {
-    let m = mat3x3f(v.m0.xyz, v.m1.xyz, v.m2.xyz);
-    let k = v.p;
-    let kind = v.kind.x;
-    let a = (p.x - k.z) * k.x;
-    let e = k.y - (p.y - k.w) * k.x;
-    let panorama = vec3f(cos(e) * cos(a), cos(e) * sin(a), -sin(e));
-    let rectilinear = vec3f(k.x, p.x - k.y, p.y - k.z);
-    let panoramas = (VIEW_KINDS & (1u << KIND_PANORAMA)) != 0u;
-    let rectified_kinds = (VIEW_KINDS & ((1u << KIND_RECTILINEAR) | (1u << KIND_PANORAMA))) != 0u;
-    let fisheyes = (VIEW_KINDS & (1u << KIND_FISHEYE)) != 0u;
-    let ray = select(rectilinear, panorama, panoramas && kind == KIND_PANORAMA);
-    let rectified = lens_project(m * ray);
-    let q = k.xy + p * k.z - 0.5;
-    let fisheye = vec3f(q, select(0.0, 1.0, lens_images(q)));
-    let drawn = select(rectified, fisheye, fisheyes && (kind == KIND_FISHEYE || !rectified_kinds));
-    return select(vec3f(0.0), drawn, kind != KIND_BLACK);
-}
-
-// View `vi` at output pixel (x, y); black where there is no view or the pixel is padding.
-fn view_pixel(vi: i32, x: u32, y: u32) -> vec3f {
-    let q = view_point(views[max(vi, 0)], view_xy(views[max(vi, 0)], x, y));
-    return select(vec3f(0.0), q, vi >= 0 && x < params.output.x);
-}
-
-// Output pixel (x, y)'s centre in view `v`'s own pixel coordinates.
-fn view_xy(v: View, x: u32, y: u32) -> vec2f {
-    return vec2f(f32(x) - f32(v.rect.x), f32(y) - f32(v.rect.y)) + 0.5;
-}
 
 // A pixel's level of detail, from where it lands (`q`) and where its quad neighbours in x and
 // y land. A neighbour drawn by another view, or black, does not count (src/render/cpu.rs
@@ -248,56 +175,6 @@ fn draw_quad(x0: u32, y0: u32) -> Quad {
         c3 = group_chroma(q3, l3, q0, l0, v0 == v3, q1, l1, v1 == v3, q2, l2, v2 == v3);
     }
     return Quad(colour(q0, l0, c0), colour(q1, l1, c1), colour(q2, l2, c2), colour(q3, l3, c3));
-}
-
-// Where one row of a block lands, pixel by pixel (columns 0 to 7).
-struct Run {
-    c0: vec3f,
-    c1: vec3f,
-    c2: vec3f,
-    c3: vec3f,
-    c4: vec3f,
-    c5: vec3f,
-    c6: vec3f,
-    c7: vec3f,
-}
-
-// Point x of the parabola through `a`, `b` and `c` at columns 0, 4 and 7.
-fn through(a: vec3f, b: vec3f, c: vec3f, x: f32) -> vec2f {
-    return a.xy * ((x - 4.0) * (x - 7.0) / 28.0) + b.xy * (x * (x - 7.0) / -12.0)
-        + c.xy * (x * (x - 4.0) / 21.0);
-}
-
-// The farthest column 2 of a run may land from the parabola through columns 0, 4 and 7 for
-// the run's other pixels to be put on it, in fisheye pixels.
-const RUN_TOLERANCE: f32 = 0.005;
-
-// Where the row of 8 pixels from `p` in view `v` lands: projected at columns 0, 2, 4 and 7
-// and, where all four are imaged and column 2 lies within RUN_TOLERANCE of the parabola
-// through the others, columns 1, 3, 5 and 6 put on that parabola; else every pixel
-// projected. Eight of a block's 16 projections go, and with them about a tenth of the draw's
-// time on lavapipe; measured against the exact projection over every lens model, crop mode
-// and fields of view up to 300°, no pixel put on a parabola lands more than 0.005 fisheye
-// pixels from where it projects (tests/gpu_render.rs, docs/decisions.md).
-fn run_of(v: View, p: vec2f) -> Run {
-    let c0 = view_point(v, p);
-    let c2 = view_point(v, p + vec2f(2.0, 0.0));
-    let c4 = view_point(v, p + vec2f(4.0, 0.0));
-    let c7 = view_point(v, p + vec2f(7.0, 0.0));
-    var r = Run(c0, c0, c2, c2, c4, c4, c4, c7);
-    let imaged = min(min(c0.z, c2.z), min(c4.z, c7.z)) > 0.0;
-    if imaged && distance(through(c0, c4, c7, 2.0), c2.xy) <= RUN_TOLERANCE {
-        r.c1 = vec3f(through(c0, c4, c7, 1.0), 1.0);
-        r.c3 = vec3f(through(c0, c4, c7, 3.0), 1.0);
-        r.c5 = vec3f(through(c0, c4, c7, 5.0), 1.0);
-        r.c6 = vec3f(through(c0, c4, c7, 6.0), 1.0);
-    } else {
-        r.c1 = view_point(v, p + vec2f(1.0, 0.0));
-        r.c3 = view_point(v, p + vec2f(3.0, 0.0));
-        r.c5 = view_point(v, p + vec2f(5.0, 0.0));
-        r.c6 = view_point(v, p + vec2f(6.0, 0.0));
-    }
-    return r;
 }
 
 // A quad that lies in one view, its pixels landing at q0 (x0, y0), q1 (x0+1, y0), q2 (x0,

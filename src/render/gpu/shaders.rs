@@ -10,6 +10,7 @@ pub const COMMON: &str = include_str!("../../../shaders/common.wgsl");
 pub const INGEST: &str = include_str!("../../../shaders/ingest.wgsl");
 pub const LEVELS: &str = include_str!("../../../shaders/levels.wgsl");
 pub const MIP: &str = include_str!("../../../shaders/mip.wgsl");
+pub const VIEWS: &str = include_str!("../../../shaders/views.wgsl");
 pub const RENDER: &str = include_str!("../../../shaders/render.wgsl");
 
 /// `radial_r(theta)`: the normalized radius of the model whose code is the LENS_MODEL
@@ -39,7 +40,7 @@ pub fn passes() -> [(&'static str, String); 3] {
         ("ingest", compose(&[LEVELS, INGEST].join("\n"))),
         // The mip pass reads no lens and no parameters.
         ("mip", [LEVELS, MIP].join("\n")),
-        ("render", compose(RENDER)),
+        ("render", compose(&[VIEWS, RENDER].join("\n"))),
     ]
 }
 
