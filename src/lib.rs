@@ -1,11 +1,16 @@
 //! DigiView: an onboard fisheye "virtual camera" video head.
 //!
-//! The modules follow the data's path: `lens` (fisheye models and lens.cal) and `geometry`
-//! (frames, attitudes, the ground) are the shared math; `layout` places views in the output
-//! frame; `state` is everything an operator can set; `scene` synthesises fisheye input and
-//! ground truth from a known world; `render` turns a fisheye frame into the output frame;
-//! `image_ops` holds the sampling and image metrics both sides share; `source` brings camera
-//! frames in, `stream` encodes and serves them, `head` runs the frame loop between them, and
+//! The modules follow the data's path. Shared below everything: `units` (angles and sizes as
+//! people write them), `geometry` (frames, attitudes, view orientation, the ground), `lens`
+//! (the lens models, lens.cal, importers), `layout` (where views sit in the output frame),
+//! `frame` (frames as bytes: pixel formats, plane layouts, YUV) and `image_ops` (sampling and
+//! image metrics). `state` is everything an operator can set and the live handle the frame
+//! loop snapshots once per frame. Then the path itself: `source` brings camera frames in,
+//! `render` turns a fisheye frame into the output frame (`gpu`, and the CPU reference),
+//! `stream` encodes and serves it, and `head` runs the frame loop between them; `gst` is the
+//! GStreamer plumbing the sources and the stream share, and `scene` synthesises fisheye input
+//! and ground truth from a known world. Beside the path, changing the live state: `protocol`
+//! (the control protocol's codec) and `control` (its request handling, server and client).
 //! `cli` is the command line.
 
 pub mod cli;
