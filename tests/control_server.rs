@@ -5,7 +5,7 @@
 
 mod common;
 use common::DEG;
-use common::frames::{MRAD, ack, verdict};
+use common::frames::{Client, MRAD, ack, verdict};
 use common::serve::{Serve, udp_exchange};
 use digiview::protocol::params::*;
 use digiview::protocol::{Body, Message, Param, ParamType, Verdict};

@@ -6,7 +6,7 @@
 mod common;
 use common::DEG;
 use common::direct::Direct;
-use common::frames::{MRAD, ack, verdict};
+use common::frames::{Client, MRAD, ack, verdict};
 use digiview::geometry::GeoPoint;
 use digiview::geometry::ground::{from_ned, to_ned};
 use digiview::protocol::params::*;

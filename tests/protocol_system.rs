@@ -6,7 +6,7 @@
 mod common;
 use common::DEG;
 use common::direct::Direct;
-use common::frames::{MRAD, ack, raw_frame, verdict};
+use common::frames::{Client, MRAD, ack, raw_frame, verdict};
 use digiview::geometry::GeoPoint;
 use digiview::geometry::ground::to_ned;
 use digiview::layout::layout;

@@ -3,12 +3,13 @@
 //! For the parameter rules; the server itself (sockets, framing across reads, permissions by
 //! address, QUIT, load) is tested against a real `digiview serve`.
 
+use super::frames::Client;
 use super::lens_cal;
 use clap::Parser;
 use digiview::cli::StateArgs;
 use digiview::control::Controller;
 use digiview::control::permissions::Permissions;
-use digiview::protocol::{Body, FRAME_LEN, Message, Param};
+use digiview::protocol::{FRAME_LEN, Message};
 use digiview::state::Live;
 use digiview::state::capture::NoVideo;
 use std::collections::VecDeque;
@@ -43,9 +44,11 @@ impl Direct {
             replies: VecDeque::new(),
         }
     }
+}
 
-    /// Bytes as a TCP client writes them: every whole frame is handled, in order.
-    pub fn send_bytes(&mut self, bytes: &[u8]) {
+impl Client for Direct {
+    /// Every whole frame is handled, in order; a partial one waits for the rest.
+    fn send_bytes(&mut self, bytes: &[u8]) {
         self.pending.extend_from_slice(bytes);
         let whole = self.pending.len() / FRAME_LEN * FRAME_LEN;
         let frames: Vec<u8> = self.pending.drain(..whole).collect();
@@ -61,24 +64,7 @@ impl Direct {
         }
     }
 
-    pub fn send(&mut self, body: Body) {
-        self.send_bytes(&Message::new(body).encode());
-    }
-
-    pub fn recv(&mut self) -> Message {
+    fn recv(&mut self) -> Message {
         self.replies.pop_front().expect("a reply")
-    }
-
-    /// One request, one reply.
-    pub fn ask(&mut self, body: Body) -> Body {
-        self.send(body);
-        self.recv().body
-    }
-
-    pub fn get(&mut self, query: Param) -> Param {
-        match self.ask(Body::Get(query)) {
-            Body::Current(p) => p,
-            other => panic!("GET {:?} answered {other:?}", query.param_type()),
-        }
     }
 }

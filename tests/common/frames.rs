@@ -1,6 +1,6 @@
 //! Protocol frames and replies the control tests build and expect.
 
-use digiview::protocol::{Body, FRAME_LEN, ParamType, Verdict, crc8};
+use digiview::protocol::{Body, FRAME_LEN, Message, Param, ParamType, Verdict, crc8};
 
 /// Milliradian fixed point: a value read back is within half a step.
 pub const MRAD: f64 = 0.0005 + 1e-9;
@@ -21,4 +21,30 @@ pub fn raw_frame(version: u8, message_type: u8, param_type: u8) -> [u8; FRAME_LE
     f[10] = param_type;
     f[75] = crc8(&f[..75]);
     f
+}
+
+/// A client of the control protocol: over a socket (`serve::Raw`) or in-process
+/// (`direct::Direct`).
+pub trait Client {
+    /// Bytes as a TCP client writes them.
+    fn send_bytes(&mut self, bytes: &[u8]);
+    /// The next reply.
+    fn recv(&mut self) -> Message;
+
+    fn send(&mut self, body: Body) {
+        self.send_bytes(&Message::new(body).encode());
+    }
+
+    /// One request, one reply.
+    fn ask(&mut self, body: Body) -> Body {
+        self.send(body);
+        self.recv().body
+    }
+
+    fn get(&mut self, query: Param) -> Param {
+        match self.ask(Body::Get(query)) {
+            Body::Current(p) => p,
+            other => panic!("GET {:?} answered {other:?}", query.param_type()),
+        }
+    }
 }

@@ -1,6 +1,7 @@
 //! `digiview serve` as a child process on an ephemeral port, and raw protocol clients.
 
-use digiview::protocol::{Body, FRAME_LEN, Message, Param};
+use super::frames::Client;
+use digiview::protocol::{FRAME_LEN, Message};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::path::Path;
@@ -132,32 +133,17 @@ impl Raw {
             .unwrap();
         Raw { stream }
     }
+}
 
-    pub fn send_bytes(&mut self, bytes: &[u8]) {
+impl Client for Raw {
+    fn send_bytes(&mut self, bytes: &[u8]) {
         self.stream.write_all(bytes).unwrap();
     }
 
-    pub fn send(&mut self, body: Body) {
-        self.send_bytes(&Message::new(body).encode());
-    }
-
-    pub fn recv(&mut self) -> Message {
+    fn recv(&mut self) -> Message {
         let mut f = [0u8; FRAME_LEN];
         self.stream.read_exact(&mut f).unwrap();
         Message::decode(&f).expect("the server's replies are valid frames")
-    }
-
-    /// One request, one reply.
-    pub fn ask(&mut self, body: Body) -> Body {
-        self.send(body);
-        self.recv().body
-    }
-
-    pub fn get(&mut self, query: Param) -> Param {
-        match self.ask(Body::Get(query)) {
-            Body::Current(p) => p,
-            other => panic!("GET {:?} answered {other:?}", query.param_type()),
-        }
     }
 }
 
