@@ -220,7 +220,7 @@ fn build(name: &str, pairs: &[String], base: Option<Param>) -> Result<Param> {
             );
         };
         let v = match field.unit {
-            Unit::Radians => crate::units::parse_angle(value).map_err(anyhow::Error::msg)?,
+            Unit::Radians => crate::units::parse_angle(value)?,
             Unit::Boxes => bail!("{kind} {key} is reported by GET; it cannot be sent"),
             _ => value
                 .trim()
