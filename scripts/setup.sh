@@ -39,10 +39,30 @@ if ((${#missing[@]} + ${#backports[@]})) && [ "$(id -u)" != 0 ]; then
   command -v sudo >/dev/null || { echo "setup: run as root (or install sudo) to install: ${missing[*]} ${backports[*]}" >&2; exit 1; }
   as_root=(sudo)
 fi
+# The archive this machine's apt already takes Debian 12 from (one-line sources or deb822),
+# of which bookworm-backports is another suite; empty where none is configured.
+bookworm_archive() {
+  grep -hsE '^[[:space:]]*deb[[:space:]]' /etc/apt/sources.list /etc/apt/sources.list.d/*.list |
+    sed -E 's/\[[^]]*\]//' | awk '$3 == "bookworm" { print $2; exit }'
+  awk 'BEGIN { RS = ""; FS = "\n" }
+    {
+      uris = ""; suites = ""
+      for (i = 1; i <= NF; i++) {
+        if ($i ~ /^URIs:/) { uris = $i; sub(/^URIs:[ \t]*/, "", uris) }
+        if ($i ~ /^Suites:/) { suites = " " $i " "; sub(/^ Suites:/, " ", suites) }
+      }
+      if (uris != "" && suites ~ /[ \t]bookworm[ \t]/) { split(uris, u, " "); print u[1]; exit }
+    }' /etc/apt/sources.list.d/*.sources 2>/dev/null
+}
 if ((${#backports[@]})) && ! grep -rqs '^[^#]*bookworm-backports' /etc/apt/sources.list /etc/apt/sources.list.d; then
-  echo "setup: adding Debian's bookworm-backports to apt's sources"
-  echo "deb http://deb.debian.org/debian bookworm-backports main" |
-    "${as_root[@]}" tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
+  archive=$(bookworm_archive | head -n 1)
+  if [ -n "$archive" ]; then
+    echo "setup: adding bookworm-backports of $archive to apt's sources"
+    echo "deb $archive bookworm-backports main" |
+      "${as_root[@]}" tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
+  else
+    echo "setup: apt has no Debian 12 archive configured to take bookworm-backports from" >&2
+  fi
 fi
 if ((${#missing[@]} + ${#backports[@]})); then
   echo "setup: installing ${missing[*]} ${backports[*]}"
