@@ -3,7 +3,7 @@
 //! rotationally symmetric in normalized coordinates. WGSL twin: `double_sphere_r`, reading
 //! (ξ, α) from `k`.
 
-use super::{Coefficients, ModelLimits, RadialModel};
+use super::{Coefficients, ModelLimits, RadialModel, Sample, sample_pinhole};
 use crate::lens::calfile::{Fields, TomlWriter};
 use crate::lens::{LensError, PixelAffine};
 
@@ -68,6 +68,17 @@ impl RadialModel for DoubleSphere {
         Coefficients {
             k: [self.xi, self.alpha, 0.0, 0.0],
             ..Coefficients::default()
+        }
+    }
+
+    fn sample() -> Sample<Self> {
+        Sample {
+            model: DoubleSphere {
+                xi: -0.22,
+                alpha: 0.58,
+            },
+            affine: sample_pinhole(180.0),
+            fov: 190f64.to_radians(),
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Equidistant ("f-theta") fisheye: r = θ, defined up to θ = π (the ray straight back). WGSL
 //! twin: `equidistant_r`.
 
-use super::{ModelLimits, RadialModel};
+use super::{ModelLimits, RadialModel, Sample, sample_pinhole};
 use crate::lens::calfile::Fields;
 use crate::lens::{LensError, PixelAffine};
 
@@ -25,5 +25,13 @@ impl RadialModel for Equidistant {
 
     fn theta_of_r(&self, r: f64, _: &ModelLimits) -> Option<f64> {
         (r >= 0.0).then_some(r)
+    }
+
+    fn sample() -> Sample<Self> {
+        Sample {
+            model: Equidistant,
+            affine: sample_pinhole(300.0),
+            fov: 190f64.to_radians(),
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! Equisolid-angle fisheye: r = 2 sin(θ/2), defined up to θ = π. WGSL twin: `equisolid_r`.
 
-use super::{ModelLimits, RadialModel};
+use super::{ModelLimits, RadialModel, Sample, sample_pinhole};
 use crate::lens::calfile::Fields;
 use crate::lens::{LensError, PixelAffine};
 
@@ -26,5 +26,13 @@ impl RadialModel for Equisolid {
         (0.0..=2.0 + 1e-9)
             .contains(&r)
             .then(|| 2.0 * (r / 2.0).min(1.0).asin())
+    }
+
+    fn sample() -> Sample<Self> {
+        Sample {
+            model: Equisolid,
+            affine: sample_pinhole(300.0),
+            fov: 190f64.to_radians(),
+        }
     }
 }

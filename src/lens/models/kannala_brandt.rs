@@ -6,7 +6,7 @@
 //! the inverse is unique on [0, θ_max].
 
 use super::solve::{first_fold, newton_monotone};
-use super::{Coefficients, ModelLimits, RadialModel};
+use super::{Coefficients, ModelLimits, RadialModel, Sample, sample_pinhole};
 use crate::lens::calfile::{Fields, TomlWriter};
 use crate::lens::{LensError, PixelAffine};
 
@@ -77,6 +77,16 @@ impl RadialModel for KannalaBrandt {
         Coefficients {
             k: self.k,
             ..Coefficients::default()
+        }
+    }
+
+    fn sample() -> Sample<Self> {
+        Sample {
+            model: KannalaBrandt {
+                k: [0.0423, -0.0126, 0.0031, -0.0004],
+            },
+            affine: sample_pinhole(290.0),
+            fov: 195f64.to_radians(),
         }
     }
 }

@@ -4,7 +4,8 @@
 //! the lens's (`PixelAffine`).
 //!
 //! A model is one file here holding a struct of its coefficients and its [`RadialModel`] impl
-//! (the f64 math, its lens.cal fields, what its WGSL twin reads), one WGSL function `NAME_r` in
+//! (the f64 math, its lens.cal fields, what its WGSL twin reads, a sample lens for the
+//! tests), one WGSL function `NAME_r` in
 //! shaders/lens.wgsl, and one line in `registry!` below, which declares its file, makes it a
 //! variant of [`Model`], gives it its code for the GPU's LENS_MODEL override (shaders.rs makes
 //! the WGSL dispatch from [`Model::NAMES`]), and makes lens.cal read and write it.
@@ -44,8 +45,23 @@ pub struct Coefficients<'a> {
     pub invpol: &'a [f64],
 }
 
+/// A lens of one model, as the tests take it (`crate::lens::samples`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sample<M> {
+    pub model: M,
+    pub affine: PixelAffine,
+    /// The valid field of view, radians.
+    pub fov: f64,
+}
+
+/// The pixel affine of the classic models' samples: focal length `f` (fy 0.2% longer), the
+/// principal point a little off the centre of a 1280x960 frame.
+pub fn sample_pinhole(f: f64) -> PixelAffine {
+    PixelAffine::pinhole(f, f * 1.002, 641.3, 479.2)
+}
+
 /// One lens model: its radial function both ways, where it is one-to-one, how lens.cal
-/// writes it and what the GPU reads of it.
+/// writes it, what the GPU reads of it, and a lens of it to test with.
 pub trait RadialModel: Sized {
     /// Its name in lens.cal; its WGSL twin is `NAME_r` in shaders/lens.wgsl.
     const NAME: &'static str;
@@ -65,6 +81,10 @@ pub trait RadialModel: Sized {
     fn coefficients(&self) -> Coefficients<'_> {
         Coefficients::default()
     }
+    /// A lens of this model in a 1280x960 frame, with coefficients typical of real
+    /// calibrations and near its widest field of view: every model test, the lens.cal round
+    /// trip and the GPU parity tests run on it.
+    fn sample() -> Sample<Self>;
 }
 
 /// Makes [`Model`] from the list of models, each `Name(file)` with `file.rs` holding the struct
@@ -143,6 +163,18 @@ macro_rules! registry {
                 match self {
                     $(Model::$variant(m) => m.coefficients(),)+
                 }
+            }
+
+            /// Every model's sample lens, by code.
+            pub fn samples() -> Vec<Sample<Model>> {
+                vec![$({
+                    let s = <$variant as RadialModel>::sample();
+                    Sample {
+                        model: Model::$variant(s.model),
+                        affine: s.affine,
+                        fov: s.fov,
+                    }
+                },)+]
             }
         }
     };

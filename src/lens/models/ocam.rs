@@ -8,7 +8,7 @@
 //! from the optical axis is θ = atan2(ρ, -pol(ρ)).
 
 use super::solve::{first_fold, newton_monotone};
-use super::{Coefficients, ModelLimits, RadialModel};
+use super::{Coefficients, ModelLimits, RadialModel, Sample};
 use crate::lens::calfile::{Fields, TomlWriter};
 use crate::lens::{LensError, PixelAffine};
 
@@ -120,6 +120,17 @@ impl RadialModel for Ocam {
             pol: &self.pol,
             invpol: &self.invpol,
             ..Coefficients::default()
+        }
+    }
+
+    fn sample() -> Sample<Self> {
+        Sample {
+            model: Ocam {
+                pol: vec![-190.0, 0.0, 1.1e-3, 2.0e-7, 1.0e-9],
+                invpol: vec![280.0, 180.0, 30.0],
+            },
+            affine: PixelAffine::ocam(1.0004, 0.0003, -0.0002, 478.6, 640.9),
+            fov: 195f64.to_radians(),
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Orthographic fisheye: r = sin θ, valid only for the front hemisphere. WGSL twin:
 //! `orthographic_r`.
 
-use super::{ModelLimits, RadialModel};
+use super::{ModelLimits, RadialModel, Sample, sample_pinhole};
 use crate::lens::calfile::Fields;
 use crate::lens::{LensError, PixelAffine};
 
@@ -25,5 +25,13 @@ impl RadialModel for Orthographic {
 
     fn theta_of_r(&self, r: f64, _: &ModelLimits) -> Option<f64> {
         (0.0..=1.0 + 1e-9).contains(&r).then(|| r.min(1.0).asin())
+    }
+
+    fn sample() -> Sample<Self> {
+        Sample {
+            model: Orthographic,
+            affine: sample_pinhole(470.0),
+            fov: 180f64.to_radians(),
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! Stereographic fisheye: r = 2 tan(θ/2). WGSL twin: `stereographic_r`.
 
-use super::{ModelLimits, RadialModel};
+use super::{ModelLimits, RadialModel, Sample, sample_pinhole};
 use crate::lens::calfile::Fields;
 use crate::lens::{LensError, PixelAffine};
 
@@ -27,5 +27,13 @@ impl RadialModel for Stereographic {
 
     fn theta_of_r(&self, r: f64, _: &ModelLimits) -> Option<f64> {
         (r >= 0.0).then(|| 2.0 * (r / 2.0).atan())
+    }
+
+    fn sample() -> Sample<Self> {
+        Sample {
+            model: Stereographic,
+            affine: sample_pinhole(220.0),
+            fov: 190f64.to_radians(),
+        }
     }
 }
