@@ -84,7 +84,7 @@ if ((${#backports[@]})); then
 fi
 
 if ! command -v cargo >/dev/null; then
-  echo "setup: no Rust toolchain: install Rust 1.95 or newer with rustup (https://rustup.rs)" >&2
+  echo "setup: no Rust toolchain: install Rust 1.95 or newer with rustup" >&2
   exit 1
 fi
 echo "setup: system packages present; $(cargo --version)"
