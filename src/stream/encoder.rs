@@ -241,6 +241,9 @@ impl Encoder {
                 layout.height,
             )
             .fps(gst::Fraction::new(fps as i32, 1))
+            // Said, not left to GStreamer's default, which is BT.601 below 720 lines: the
+            // stream's VUI then tells players the matrix the renderer really used.
+            .colorimetry(&bt709())
             .build()
             .map_err(StreamError::Caps)?
             .to_caps()
@@ -305,4 +308,14 @@ impl Drop for Encoder {
         let _ = self.src.end_of_stream();
         let _ = self.pipeline.set_state(gst::State::Null);
     }
+}
+
+/// BT.709 limited range, what the renderer writes (frame::yuv).
+fn bt709() -> gst_video::VideoColorimetry {
+    gst_video::VideoColorimetry::new(
+        gst_video::VideoColorRange::Range16_235,
+        gst_video::VideoColorMatrix::Bt709,
+        gst_video::VideoTransferFunction::Bt709,
+        gst_video::VideoColorPrimaries::Bt709,
+    )
 }

@@ -70,6 +70,12 @@ impl RtspConfig {
     }
 }
 
+/// The least step between two access units' timestamps: a millisecond, 90 ticks of the
+/// RTP clock, so that units the encoder hands over together still reach clients with
+/// timestamps that increase (a step under one tick, 11 µs, gives two frames the same RTP
+/// timestamp, which players take for one frame).
+const MIN_STEP_NS: u64 = 1_000_000;
+
 /// The media's appsrc while at least one client watches.
 struct Media {
     src: gst_app::AppSrc,
@@ -102,9 +108,13 @@ impl Rtsp {
         server.set_address(&cfg.address);
         server.set_service(&cfg.port.to_string());
         let factory = rtsp::RTSPMediaFactory::new();
+        // The access units already carry SPS and PPS before every key frame (the encoder's
+        // h264parse puts them there once per unit). Inserting them again here would put them
+        // before each slice of a key frame that has several (x264's sliced threads make two),
+        // and FFmpeg, VLC and most players then take each slice for a frame of its own.
         factory.set_launch(&format!(
             "( appsrc name=digiview_h264 is-live=true format=time min-latency=0 caps={H264_CAPS} \
-             ! h264parse ! rtph264pay name=pay0 pt=96 config-interval=-1 )"
+             ! rtph264pay name=pay0 pt=96 )"
         ));
         factory.set_shared(true);
         factory.set_latency(0);
@@ -221,7 +231,7 @@ impl Rtsp {
             if pts + *offset > now {
                 *offset = now - pts;
             }
-            let t = ((pts + *offset).max(0) as u64).max(m.last + 1_000);
+            let t = ((pts + *offset).max(0) as u64).max(m.last + MIN_STEP_NS);
             m.last = t;
             (m.src.clone(), gst::ClockTime::from_nseconds(t))
         };

@@ -21,9 +21,13 @@ use std::path::PathBuf;
 
 pub const DEG: f64 = std::f64::consts::PI / 180.0;
 
+/// The shipped lens.cal.
+pub fn lens_cal_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal")
+}
+
 pub fn lens_cal() -> LensCal {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
-    LensCal::load(&path).expect("the shipped lens.cal parses")
+    LensCal::load(&lens_cal_path()).expect("the shipped lens.cal parses")
 }
 
 /// A shipped lens scaled to a small fisheye frame (tests keep frames small).

@@ -4,7 +4,6 @@ use super::frames::Client;
 use digiview::protocol::{FRAME_LEN, Message};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
-use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
@@ -40,7 +39,7 @@ impl Serve {
 
     /// `log`: a RUST_LOG level for a piped stderr, else the test's choice (see below).
     fn launch(mode: &[&str], extra: &[&str], log: Option<&str>) -> Serve {
-        let cal = Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
+        let cal = super::lens_cal_path();
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["serve", "--control", "127.0.0.1:0"])
             .args(mode)
