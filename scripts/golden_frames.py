@@ -24,13 +24,27 @@ def frame(msg, param, fields, ts=0x0005F5E1_00C0FFEE):
     return head + bytes([crc8_bluetooth(head)]) + bytes(4)
 
 GET, SET, CUR = 2, 3, 4
+
+def video_output(layout, views):
+    fields = [(0, "H", 1920), (2, "H", 1080), (4, "B", 30), (5, "B", len(views) << 4 | layout),
+              (6, "B", 2)]
+    at = 7
+    for box in views + [(1800, 0, 120, 1080)]:
+        for i, n in enumerate(box):
+            fields.append((at + 2 * i, "H", n))
+        at += 8
+    return fields + [(at, "H", 120)]
+
 CASES = [
     ("SYSTEM_STATUS", CUR, 0, [(0, "B", 1), (1, "B", 0)]),
-    ("VIDEO_OUTPUT", CUR, 1, [
-        (0, "H", 1920), (2, "H", 1080), (4, "B", 30), (5, "B", 4), (6, "B", 2),
-        (7, "H", 30), (9, "H", 0), (11, "H", 540), (13, "H", 540),
-        (15, "H", 570), (17, "H", 0), (19, "H", 540), (21, "H", 540),
-        (39, "H", 1800), (41, "H", 0), (43, "H", 120), (45, "H", 1080), (47, "H", 120)]),
+    # VIDEO_OUTPUT replies at 1920x1080 with the overlay column at the right (mode 2): the
+    # high four bits of layout_mode @5 count the views, exactly that many boxes follow @7,
+    # then the overlay box and single_detection_size.
+    ("VIDEO_OUTPUT layout 0", CUR, 1, video_output(0, [(360, 0, 1080, 1080)])),
+    ("VIDEO_OUTPUT layout 1", CUR, 1, video_output(1, [(630, 0, 540, 540), (630, 540, 540, 540)])),
+    ("VIDEO_OUTPUT layout 4", CUR, 1, video_output(4, [
+        (360, 0, 540, 540), (900, 0, 540, 540), (360, 540, 540, 540), (900, 540, 540, 540)])),
+    ("VIDEO_OUTPUT layout 6", CUR, 1, video_output(6, [(0, 0, 1800, 1080)])),
     ("CAPTURE", CUR, 2, [(0, "B", 2), (1, "H", 7), (3, "H", 3)]),
     ("DETECTION", SET, 3, [
         (0, "B", 0), (1, "B", 2), (2, "B", 128), (3, "B", 102), (4, "H", 100), (6, "H", 500),
@@ -38,7 +52,7 @@ CASES = [
         (14, "B", 20)]),
     ("DETECTED_ROI", CUR, 4, [
         (0, "B", 1), (1, "B", 200), (2, "B", 3), (3, "i", -1571), (7, "i", -785), (11, "i", 100),
-        (15, "i", -1000), (19, "i", 58001234), (23, "i", 15000500), (27, "i", 100000),
+        (15, "i", -1000), (19, "i", 58001), (23, "i", -15001), (27, "i", 100000),
         (31, "i", 70711)]),
     ("LENS", SET, 5, [(0, "B", 2)]),
     ("CAM_EULER", SET, 6, [(0, "B", 2), (1, "B", 1), (2, "i", 785), (6, "i", -524), (10, "i", 0)]),
@@ -57,8 +71,6 @@ CASES = [
                                    (21, "B", 1)]),
     ("GET CAM_EULER", GET, 6, [(0, "B", 3)]),
 ]
-
-# views[0] = (30, 0, 540, 540), views[1] = (570, 0, 540, 540), views[2..4] unused (zero).
 
 if __name__ == "__main__":
     for name, msg, param, fields in CASES:

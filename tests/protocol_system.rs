@@ -8,10 +8,11 @@ use common::DEG;
 use common::direct::Direct;
 use common::frames::{Client, MRAD, ack, raw_frame, verdict};
 use digiview::geometry::GeoPoint;
-use digiview::geometry::ground::to_ned;
+use digiview::geometry::ground::from_ned;
 use digiview::layout::layout;
 use digiview::protocol::params::*;
 use digiview::protocol::{Body, FRAME_LEN, Message, Param, ParamType, Verdict};
+use glam::DVec3;
 
 #[test]
 fn every_get_answers_with_its_own_type() {
@@ -64,14 +65,12 @@ fn video_output_reports_the_rendered_rectangles_and_follows_the_seed_rules() {
         (1280, 720, 25, 3, 4)
     );
     let l = layout(1280, 720, 3, 4).unwrap();
-    for (i, b) in v.views.iter().enumerate() {
-        match l.views.get(i) {
-            Some((r, _)) => assert_eq!(
-                (b.x, b.y, b.w, b.h),
-                (r.x as u16, r.y as u16, r.w as u16, r.h as u16)
-            ),
-            None => assert_eq!(*b, Default::default(), "unused view {i} is zero"),
-        }
+    assert_eq!(v.views.len(), l.views.len(), "the layout's views, no more");
+    for (b, (r, _)) in v.views.iter().zip(&l.views) {
+        assert_eq!(
+            (b.x, b.y, b.w, b.h),
+            (r.x as u16, r.y as u16, r.w as u16, r.h as u16)
+        );
     }
     let o = l.overlay_box;
     let b = v.detection_overlay_box;
@@ -103,6 +102,65 @@ fn video_output_reports_the_rendered_rectangles_and_follows_the_seed_rules() {
     );
     set(&mut c, 1001, 701, 30, 0, 0);
     assert_eq!((get(&mut c).width, get(&mut c).height), (1000, 700));
+}
+
+/// Offsets in a frame of protocol.md's data offsets (the data area starts at byte 11).
+const DATA: usize = 11;
+
+fn u16_at(frame: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([frame[DATA + at], frame[DATA + at + 1]])
+}
+
+#[test]
+fn video_output_packs_only_the_layouts_views_as_the_original_header_does() {
+    let mut c = Direct::start(&["--size", "1920x1080", "--overlay", "2"]);
+    for (mode, views) in [(0u8, 1u8), (1, 2), (2, 2), (3, 3), (4, 4), (5, 4), (6, 1)] {
+        // A SET as an original client sends one back: with a view count in the high bits
+        // (here one that is not the layout's). The low four bits are the layout.
+        let mut set = Message::new(Body::Set(Param::VideoOutput(VideoOutput {
+            width: 1920,
+            height: 1080,
+            fps: 30,
+            detection_overlay_mode: 2,
+            ..Default::default()
+        })))
+        .encode();
+        set[DATA + 5] = 3 << 4 | mode;
+        set[75] = digiview::protocol::crc8(&set[..75]);
+        c.send_bytes(&set);
+        assert_eq!(c.recv().body, ack(ParamType::VideoOutput), "layout {mode}");
+
+        // The reply's bytes, read by protocol.md's offsets.
+        c.send(Body::Get(ParamType::VideoOutput.zeroed()));
+        let reply = c.recv().encode();
+        assert_eq!(
+            reply[DATA + 5],
+            views << 4 | mode,
+            "layout {mode}: views and mode"
+        );
+        let want = layout(1920, 1080, mode, 2).unwrap();
+        assert_eq!(want.views.len(), views as usize);
+        let boxes: Vec<_> = (0..=views as usize)
+            .map(|i| {
+                let at = 7 + 8 * i;
+                [0, 2, 4, 6].map(|f| u16_at(&reply, at + f) as u32)
+            })
+            .collect();
+        let rects = want.views.iter().map(|(r, _)| *r).chain([want.overlay_box]);
+        for (got, r) in boxes.iter().zip(rects) {
+            assert_eq!(*got, [r.x, r.y, r.w, r.h], "layout {mode}");
+        }
+        let size_at = 7 + 8 * (views as usize + 1);
+        assert_eq!(
+            u16_at(&reply, size_at),
+            120,
+            "layout {mode}: single_detection_size"
+        );
+        assert!(
+            reply[DATA + size_at + 2..75].iter().all(|&b| b == 0),
+            "layout {mode}: nothing after single_detection_size"
+        );
+    }
 }
 
 #[test]
@@ -385,21 +443,19 @@ fn detected_roi_254_and_255_send_one_reply_per_detection() {
         (r.altitude - 100.0).abs() < 0.002,
         "on the ground plane at home altitude"
     );
-    let ned = to_ned(
-        GeoPoint {
-            lat: 58.0,
-            lon: 15.0,
-            alt: 150.0,
-        },
-        GeoPoint {
-            lat: r.latitude,
-            lon: r.longitude,
-            alt: r.altitude,
-        },
-    );
-    assert!(
-        (ned.x - 50.0 / (40.0 * DEG).tan()).abs() < 0.15 && ned.y.abs() < 0.15,
-        "{ned}"
+    // The ground point is 50 m / tan 40° north of the vehicle; DETECTED_ROI carries it in
+    // thousandths of a degree (the original header's packing), rounded to the nearest.
+    let home = GeoPoint {
+        lat: 58.0,
+        lon: 15.0,
+        alt: 100.0,
+    };
+    let exact = from_ned(home, DVec3::new(50.0 / (40.0 * DEG).tan(), 0.0, 0.0));
+    let thousandths = |deg: f64| (deg * 1000.0).round() / 1000.0;
+    assert_eq!(
+        (r.latitude, r.longitude),
+        (thousandths(exact.lat), thousandths(exact.lon)),
+        "exact {exact:?}"
     );
     // Straight down is the optical axis.
     assert!(known[1].yaw_rel.abs() < MRAD && known[1].pitch_rel.abs() < MRAD);

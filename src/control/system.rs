@@ -4,10 +4,10 @@
 use super::Refusal;
 use crate::geometry::wrap_pi;
 use crate::layout::{LAYOUT_MODES, OVERLAY_MODES, Rect, TILE_SIZE, layout};
-use crate::protocol::BoundingBox;
 use crate::protocol::params::{
     CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
 };
+use crate::protocol::{BoundingBox, ViewBoxes};
 use crate::state::{FPS_RANGE, Live, MAX_OUTPUT, MIN_OUTPUT, State};
 
 pub const MAX_EXPOSURE_US: u32 = 40_000;
@@ -36,10 +36,7 @@ fn bbox(r: Rect) -> BoundingBox {
 pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
     let o = &state.output;
     let l = layout(o.width, o.height, o.layout, o.overlay).map_err(Refusal::data)?;
-    let mut views = [BoundingBox::default(); 4];
-    for (slot, (rect, _)) in views.iter_mut().zip(&l.views) {
-        *slot = bbox(*rect);
-    }
+    let views = ViewBoxes::new(l.views.iter().map(|(rect, _)| bbox(*rect)));
     Ok(VideoOutput {
         width: o.width as u16,
         height: o.height as u16,

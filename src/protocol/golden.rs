@@ -3,7 +3,7 @@
 //! decode to the intended values and encode back to the same 80 bytes.
 
 use super::params::*;
-use super::wire::BoundingBox;
+use super::wire::{BoundingBox, ViewBoxes};
 use super::{Body, Message, crc8};
 
 const FRAMES_LENS: &str = "ee ff c0 00 e1 f5 05 00 00 03 05 02 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 a4 00 00 00 00";
@@ -46,40 +46,61 @@ fn system_status() {
     );
 }
 
+fn bbox(x: u16, y: u16, w: u16, h: u16) -> BoundingBox {
+    BoundingBox { x, y, w, h }
+}
+
+/// A VIDEO_OUTPUT reply at 1920x1080 with the overlay column at the right.
+fn video_output(layout_mode: u8, views: &[BoundingBox]) -> Body {
+    Body::Current(Param::VideoOutput(VideoOutput {
+        width: 1920,
+        height: 1080,
+        fps: 30,
+        layout_mode,
+        detection_overlay_mode: 2,
+        views: ViewBoxes::new(views.iter().copied()),
+        detection_overlay_box: bbox(1800, 0, 120, 1080),
+        single_detection_size: 120,
+    }))
+}
+
 #[test]
-fn video_output() {
+fn video_output_layout_0() {
     golden(
-        "ee ff c0 00 e1 f5 05 00 00 04 01 80 07 38 04 1e 04 02 1e 00 00 00 1c 02 1c 02 3a 02 00 00 1c 02 1c 02 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 08 07 00 00 78 00 38 04 78 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 4c 00 00 00 00",
-        Body::Current(Param::VideoOutput(VideoOutput {
-            width: 1920,
-            height: 1080,
-            fps: 30,
-            layout_mode: 4,
-            detection_overlay_mode: 2,
-            views: [
-                BoundingBox {
-                    x: 30,
-                    y: 0,
-                    w: 540,
-                    h: 540,
-                },
-                BoundingBox {
-                    x: 570,
-                    y: 0,
-                    w: 540,
-                    h: 540,
-                },
-                BoundingBox::default(),
-                BoundingBox::default(),
+        "ee ff c0 00 e1 f5 05 00 00 04 01 80 07 38 04 1e 10 02 68 01 00 00 38 04 38 04 08 07 00 00 78 00 38 04 78 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 9f 00 00 00 00",
+        video_output(0, &[bbox(360, 0, 1080, 1080)]),
+    );
+}
+
+#[test]
+fn video_output_layout_1() {
+    golden(
+        "ee ff c0 00 e1 f5 05 00 00 04 01 80 07 38 04 1e 21 02 76 02 00 00 1c 02 1c 02 76 02 1c 02 1c 02 1c 02 08 07 00 00 78 00 38 04 78 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 9e 00 00 00 00",
+        video_output(1, &[bbox(630, 0, 540, 540), bbox(630, 540, 540, 540)]),
+    );
+}
+
+#[test]
+fn video_output_layout_4() {
+    golden(
+        "ee ff c0 00 e1 f5 05 00 00 04 01 80 07 38 04 1e 44 02 68 01 00 00 1c 02 1c 02 84 03 00 00 1c 02 1c 02 68 01 1c 02 1c 02 1c 02 84 03 1c 02 1c 02 1c 02 08 07 00 00 78 00 38 04 78 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 e3 00 00 00 00",
+        video_output(
+            4,
+            &[
+                bbox(360, 0, 540, 540),
+                bbox(900, 0, 540, 540),
+                bbox(360, 540, 540, 540),
+                bbox(900, 540, 540, 540),
             ],
-            detection_overlay_box: BoundingBox {
-                x: 1800,
-                y: 0,
-                w: 120,
-                h: 1080,
-            },
-            single_detection_size: 120,
-        })),
+        ),
+    );
+}
+
+#[test]
+fn video_output_layout_6() {
+    golden(
+        "ee ff c0 00 e1 f5 05 00 00 04 01 80 07 38 04 1e 16 02 00 00 00 00 08 07 38 04 08 07 00 00 78 00 38 04 78 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 b7 00 00 00 00",
+        video_output(6, &[bbox(0, 0, 1800, 1080)]),
     );
 }
 
@@ -120,7 +141,7 @@ fn detection() {
 #[test]
 fn detected_roi() {
     golden(
-        "ee ff c0 00 e1 f5 05 00 00 04 04 01 c8 03 dd f9 ff ff ef fc ff ff 64 00 00 00 18 fc ff ff 52 07 75 03 b4 e3 e4 00 a0 86 01 00 37 14 01 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 30 00 00 00 00",
+        "ee ff c0 00 e1 f5 05 00 00 04 04 01 c8 03 dd f9 ff ff ef fc ff ff 64 00 00 00 18 fc ff ff 91 e2 00 00 67 c5 ff ff a0 86 01 00 37 14 01 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 c5 00 00 00 00",
         Body::Current(Param::DetectedRoi(DetectedRoi {
             index: 1,
             score: 200,
@@ -129,8 +150,8 @@ fn detected_roi() {
             pitch_abs: -0.785,
             yaw_rel: 0.1,
             pitch_rel: -1.0,
-            latitude: 58.001234,
-            longitude: 15.0005,
+            latitude: 58.001,
+            longitude: -15.001,
             altitude: 100.0,
             distance: 70.711,
         })),

@@ -3,8 +3,8 @@
 //! and the field names the command-line client accepts all come from that one list.
 
 use super::wire::{
-    Angle, BoundingBox, DATA_LEN, Degrees, Fov, I8, Metres, Offset, Ratio, Reader, U8, U16, U32,
-    Unit, Views, Wire, Writer,
+    Angle, BoundingBox, CoarseDegrees, DATA_LEN, Degrees, Fov, I8, LayoutMode, Metres, Offset,
+    Ratio, Reader, U8, U16, U32, Unit, ViewBoxes, Views, Wire, Writer,
 };
 use serde::Serialize;
 
@@ -35,8 +35,8 @@ impl FromNumber for BoundingBox {
         None
     }
 }
-impl FromNumber for [BoundingBox; 4] {
-    fn from_number(_: f64) -> Option<[BoundingBox; 4]> {
+impl FromNumber for ViewBoxes {
+    fn from_number(_: f64) -> Option<ViewBoxes> {
         None
     }
 }
@@ -101,12 +101,13 @@ wire_struct!(SystemStatus {
     error: U8
 });
 wire_struct!(
-    /// A SET reads only width..detection_overlay_mode; the rest is filled by a GET reply.
+    /// A SET reads only width..detection_overlay_mode; the rest is filled by a GET reply, with
+    /// only the layout's views (their number in `layout_mode`'s high four bits on the wire).
     VideoOutput {
         width: U16,
         height: U16,
         fps: U8,
-        layout_mode: U8,
+        layout_mode: LayoutMode,
         detection_overlay_mode: U8,
         views: Views,
         detection_overlay_box: BoundingBox,
@@ -143,8 +144,8 @@ wire_struct!(
         pitch_abs: Angle,
         yaw_rel: Angle,
         pitch_rel: Angle,
-        latitude: Degrees,
-        longitude: Degrees,
+        latitude: CoarseDegrees,
+        longitude: CoarseDegrees,
         altitude: Metres,
         distance: Metres,
     }

@@ -101,26 +101,30 @@ pub fn annotate(frame: &[u8; FRAME_LEN]) -> String {
     }) = decoded
     {
         for (f, v) in fields(&p) {
-            if f.unit == Unit::Boxes && f.size > 8 {
-                // VIDEO_OUTPUT's views: one row per box.
-                for (i, chunk) in frame[at..at + f.size].chunks(8).enumerate() {
-                    let shown = show(Unit::Boxes, &v[i]);
+            if let Value::Array(boxes) = &v {
+                // VIDEO_OUTPUT's views: one row per box, as many as there are.
+                for (i, b) in boxes.iter().enumerate() {
+                    let shown = show(Unit::Boxes, b);
+                    let bytes = &frame[at + 8 * i..at + 8 * (i + 1)];
                     row(
                         &mut out,
                         at + 8 * i,
-                        chunk,
+                        bytes,
                         &format!("{}[{i}] = {shown}", f.name),
                     );
                 }
-            } else {
-                let shown = show(f.unit, &v);
-                row(
-                    &mut out,
-                    at,
-                    &frame[at..at + f.size],
-                    &format!("{} = {shown}", f.name),
+                at += 8 * boxes.len();
+                continue;
+            }
+            let mut what = format!("{} = {}", f.name, show(f.unit, &v));
+            if p.param_type() == ParamType::VideoOutput && f.name == "layout_mode" {
+                let _ = write!(
+                    what,
+                    " (low four bits); {} views (high four)",
+                    frame[at] >> 4
                 );
             }
+            row(&mut out, at, &frame[at..at + f.size], &what);
             at += f.size;
         }
     }

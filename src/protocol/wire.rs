@@ -132,6 +132,11 @@ fixed!(
     Degrees, i32, 1e6, Unit::Degrees
 );
 fixed!(
+    /// Latitude or longitude in degrees as i32 thousandths of a degree: DETECTED_ROI's, as
+    /// DigiView's original header packs it (about 110 m a unit).
+    CoarseDegrees, i32, 1000.0, Unit::Degrees
+);
+fixed!(
     /// Metres as i32 millimetres.
     Metres, i32, 1000.0, Unit::Metres
 );
@@ -168,20 +173,79 @@ impl Wire for BoundingBox {
     }
 }
 
-/// VIDEO_OUTPUT's four view rectangles.
+/// Where VIDEO_OUTPUT's `layout_mode` byte is: its high four bits count the view boxes.
+const LAYOUT_MODE_AT: usize = 5;
+
+/// VIDEO_OUTPUT's `layout_mode`, as DigiView's original header packs it: the mode in the low
+/// four bits. The high four hold the number of view boxes, which [`Views`] writes and reads;
+/// a SET's high bits are ignored (protocol.md, "What the original header does").
+pub struct LayoutMode;
+
+impl Wire for LayoutMode {
+    type Value = u8;
+    const UNIT: Unit = Unit::Integer;
+    const SIZE: usize = 1;
+    fn put(w: &mut Writer, v: u8) {
+        U8::put(w, v & 0x0F);
+    }
+    fn get(r: &mut Reader) -> u8 {
+        U8::get(r) & 0x0F
+    }
+}
+
+/// VIDEO_OUTPUT's view rectangles: as many as the layout shows, at most four.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ViewBoxes {
+    len: u8,
+    boxes: [BoundingBox; ViewBoxes::MAX],
+}
+
+impl ViewBoxes {
+    pub const MAX: usize = 4;
+
+    /// The first [`ViewBoxes::MAX`] of `boxes`.
+    pub fn new(boxes: impl IntoIterator<Item = BoundingBox>) -> ViewBoxes {
+        let mut v = ViewBoxes::default();
+        for b in boxes.into_iter().take(Self::MAX) {
+            v.boxes[v.len as usize] = b;
+            v.len += 1;
+        }
+        v
+    }
+}
+
+impl std::ops::Deref for ViewBoxes {
+    type Target = [BoundingBox];
+    fn deref(&self) -> &[BoundingBox] {
+        &self.boxes[..self.len as usize]
+    }
+}
+
+impl Serialize for ViewBoxes {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.iter())
+    }
+}
+
+/// VIDEO_OUTPUT's view boxes, packed as the original header packs them: only as many as the
+/// layout shows, one after another, their number in the high four bits of `layout_mode`.
+/// What follows them (the overlay box) moves up accordingly.
 pub struct Views;
 
 impl Wire for Views {
-    type Value = [BoundingBox; 4];
+    type Value = ViewBoxes;
     const UNIT: Unit = Unit::Boxes;
-    const SIZE: usize = 32;
-    fn put(w: &mut Writer, v: [BoundingBox; 4]) {
-        for b in v {
-            BoundingBox::put(w, b);
+    /// At most: four boxes.
+    const SIZE: usize = 8 * ViewBoxes::MAX;
+    fn put(w: &mut Writer, v: ViewBoxes) {
+        w.data[LAYOUT_MODE_AT] = (w.data[LAYOUT_MODE_AT] & 0x0F) | (v.len() as u8) << 4;
+        for b in v.iter() {
+            BoundingBox::put(w, *b);
         }
     }
-    fn get(r: &mut Reader) -> [BoundingBox; 4] {
-        std::array::from_fn(|_| BoundingBox::get(r))
+    fn get(r: &mut Reader) -> ViewBoxes {
+        let n = (r.data[LAYOUT_MODE_AT] >> 4) as usize;
+        ViewBoxes::new((0..n.min(ViewBoxes::MAX)).map(|_| BoundingBox::get(r)))
     }
 }
 
