@@ -103,12 +103,11 @@ fn attitude_at(base: &State, i: u32) -> State {
     s
 }
 
-pub fn bench(cal_path: &std::path::Path, args: BenchArgs) -> Result<()> {
+pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
     if args.frames == 0 {
         bail!("--frames must be at least 1");
     }
-    let cal = LensCal::load(cal_path)?;
-    let mut base = args.state.state(&cal)?;
+    let mut base = args.state.state(cal)?;
     if base.tracked.is_empty() {
         // Four detections so the overlay's tiles are drawn, not left black.
         base.tracked = (0..4)
@@ -121,7 +120,7 @@ pub fn bench(cal_path: &std::path::Path, args: BenchArgs) -> Result<()> {
             })
             .collect();
     }
-    let lens = Lenses::new(&cal).for_frame(base.lens, args.input_size, base.sensor.roi())?;
+    let lens = Lenses::new(cal).for_frame(base.lens, args.input_size, base.sensor.roi())?;
     let input_layout = PlaneLayout::tight(args.input_format, args.input_size.0, args.input_size.1)?;
     let bar = spinner(&format!(
         "synthesising the {}x{} fisheye input",

@@ -1,10 +1,11 @@
 //! `digiview lens list|show|check|import`.
 
+use super::locate;
 use crate::lens::check::check;
 use crate::lens::import::{Format, ImportOptions, import};
 use crate::lens::{LensCal, LensEntry};
 use crate::units::{deg, parse_angle};
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 use clap::Subcommand;
 use std::path::{Path, PathBuf};
 
@@ -40,10 +41,10 @@ pub enum LensCommand {
     },
 }
 
-pub fn run(path: &Path, cmd: LensCommand) -> Result<()> {
+pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
     match cmd {
         LensCommand::List => {
-            let cal = LensCal::load(path)?;
+            let (cal, _) = locate::lens_cal(flag)?;
             println!(
                 "{:<10} {:>3}  {:<15} {:>10} {:>10} {:>9}  provenance",
                 "name", "id", "model", "frame", "fov", "circle"
@@ -63,14 +64,14 @@ pub fn run(path: &Path, cmd: LensCommand) -> Result<()> {
             }
         }
         LensCommand::Show { lens } => {
-            let cal = LensCal::load(path)?;
+            let (cal, _) = locate::lens_cal(flag)?;
             let e = cal.find(&lens)?;
             let l = e.lens();
             println!(
                 "# {} (lens_id {}), {}:{}",
                 e.name,
                 e.lens_id,
-                path.display(),
+                cal.path.display(),
                 e.line
             );
             println!(
@@ -92,7 +93,7 @@ pub fn run(path: &Path, cmd: LensCommand) -> Result<()> {
             print!("{}", e.to_toml());
         }
         LensCommand::Check { lenses } => {
-            let cal = LensCal::load(path)?;
+            let (cal, _) = locate::lens_cal(flag)?;
             let chosen: Vec<&LensEntry> = if lenses.is_empty() {
                 cal.entries.iter().collect()
             } else {
@@ -139,7 +140,21 @@ pub fn run(path: &Path, cmd: LensCommand) -> Result<()> {
                 print!("{text}");
                 return Ok(());
             }
-            append(path, &entry, &text, replace)?;
+            // Into the lens.cal in use; in place of the built-in one, a new file in the
+            // user's config directory that starts as its copy.
+            let (_, origin) = locate::lens_cal(flag)?;
+            let (path, old) = match origin.path() {
+                Some(p) => (p.to_path_buf(), std::fs::read_to_string(p)?),
+                None => {
+                    let dir = locate::user_config_dir()
+                        .ok_or_else(|| anyhow!("no lens.cal to add to, and no home directory"))?
+                        .join("digiview");
+                    std::fs::create_dir_all(&dir)?;
+                    let text = locate::built_in_lens_cal_text().to_string();
+                    (dir.join("lens.cal"), text)
+                }
+            };
+            append(&path, &old, &entry, &text, replace)?;
             eprintln!(
                 "added {} (lens_id {}) to {}",
                 entry.name,
@@ -153,14 +168,13 @@ pub fn run(path: &Path, cmd: LensCommand) -> Result<()> {
 
 /// Appends an entry to lens.cal (replacing a clashing one if asked), and only writes a file
 /// that parses.
-fn append(path: &Path, entry: &LensEntry, text: &str, replace: bool) -> Result<()> {
-    let old = std::fs::read_to_string(path).unwrap_or_default();
-    let cal = LensCal::parse(path, &old)?;
+fn append(path: &Path, old: &str, entry: &LensEntry, text: &str, replace: bool) -> Result<()> {
+    let cal = LensCal::parse(path, old)?;
     let clash = cal
         .entries
         .iter()
         .find(|e| e.name.eq_ignore_ascii_case(&entry.name) || e.lens_id == entry.lens_id);
-    let mut body = old.clone();
+    let mut body = old.to_string();
     if let Some(c) = clash {
         if !replace {
             bail!(
@@ -171,7 +185,7 @@ fn append(path: &Path, entry: &LensEntry, text: &str, replace: bool) -> Result<(
                 c.line
             );
         }
-        body = remove_table(&old, c.line);
+        body = remove_table(old, c.line);
     }
     if !body.ends_with('\n') && !body.is_empty() {
         body.push('\n');

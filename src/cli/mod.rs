@@ -4,6 +4,7 @@
 mod bench_cmd;
 mod ctl_cmd;
 mod lens_cmd;
+pub mod locate;
 mod render_cmd;
 mod render_video;
 mod serve_cmd;
@@ -20,14 +21,11 @@ use std::path::PathBuf;
     about = "Onboard fisheye virtual-camera video head"
 )]
 pub struct Cli {
-    /// The lens calibration file.
-    #[arg(
-        long,
-        global = true,
-        env = "DIGIVIEW_LENS_CAL",
-        default_value = "lens-cal/lens.cal"
-    )]
-    pub lens_cal: PathBuf,
+    /// The lens calibration file. Without it: $DIGIVIEW_LENS_CAL, else the first of
+    /// ./lens.cal, ./lens-cal/lens.cal, ~/.config/digiview/lens.cal, /etc/digiview/lens.cal,
+    /// else the lens.cal built into the binary (the log says which).
+    #[arg(long, global = true)]
+    pub lens_cal: Option<PathBuf>,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -147,12 +145,13 @@ impl StateArgs {
 }
 
 pub fn run(cli: Cli) -> Result<()> {
+    let lens_cal = || locate::lens_cal(cli.lens_cal.as_deref()).map(|(cal, _)| cal);
     match cli.command {
-        Command::Lens(cmd) => lens_cmd::run(&cli.lens_cal, cmd),
-        Command::Render(args) => render_cmd::render(&cli.lens_cal, args),
-        Command::Synth(args) => render_cmd::synth(&cli.lens_cal, args),
-        Command::Bench(args) => bench_cmd::bench(&cli.lens_cal, args),
-        Command::Serve(args) => serve_cmd::serve(&cli.lens_cal, args),
+        Command::Lens(cmd) => lens_cmd::run(cli.lens_cal.as_deref(), cmd),
+        Command::Render(args) => render_cmd::render(&lens_cal()?, args),
+        Command::Synth(args) => render_cmd::synth(&lens_cal()?, args),
+        Command::Bench(args) => bench_cmd::bench(&lens_cal()?, args),
+        Command::Serve(args) => serve_cmd::serve(&lens_cal()?, args),
         Command::Ctl(args) => ctl_cmd::run(args),
     }
 }

@@ -85,16 +85,15 @@ fn is_pattern(path: &Path) -> bool {
     path.to_string_lossy().contains('%')
 }
 
-pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
-    let cal = LensCal::load(cal_path)?;
-    let state = args.state.state(&cal)?;
+pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
+    let state = args.state.state(cal)?;
     if is_pattern(&args.input) || !is_image(&args.input) {
         if args.backend == Backend::Cpu {
             anyhow::bail!(
                 "the CPU reference renders single images; videos and sequences use --backend gpu"
             );
         }
-        return super::render_video::render_video(&cal, &state, &args.video());
+        return super::render_video::render_video(cal, &state, &args.video());
     }
     if is_pattern(&args.out) || !is_image(&args.out) {
         anyhow::bail!(
@@ -106,7 +105,7 @@ pub fn render(cal_path: &Path, args: RenderArgs) -> Result<()> {
     let input = image::open(&args.input)
         .with_context(|| format!("reading {}", args.input.display()))?
         .to_rgb8();
-    let lens = Lenses::new(&cal).for_frame(state.lens, input.dimensions(), state.sensor.roi())?;
+    let lens = Lenses::new(cal).for_frame(state.lens, input.dimensions(), state.sensor.roi())?;
     let plan = FramePlan::new(&state, &lens)?;
     let out = match args.backend {
         Backend::Cpu => {
@@ -137,15 +136,14 @@ impl RenderArgs {
     }
 }
 
-pub fn synth(cal_path: &Path, args: SynthArgs) -> Result<()> {
-    let cal = LensCal::load(cal_path)?;
+pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
     let mut state_args = args.state.clone();
     // Without --truth, --size names the fisheye frame (as in `synth --size 3840x2160`).
     let mut sensor = args.sensor;
     if !args.truth && args.equirect.is_none() && sensor.is_none() {
         sensor = state_args.size.take();
     }
-    let mut state = state_args.state(&cal)?;
+    let mut state = state_args.state(cal)?;
     if let Some((w, h)) = sensor {
         (state.sensor.width, state.sensor.height) = (w, h);
     }
@@ -158,7 +156,7 @@ pub fn synth(cal_path: &Path, args: SynthArgs) -> Result<()> {
         Box::new(PanoramaWorld::new(img))
     };
     let sensor = (state.sensor.width, state.sensor.height);
-    let lens = Lenses::new(&cal).for_frame(state.lens, sensor, state.sensor.roi())?;
+    let lens = Lenses::new(cal).for_frame(state.lens, sensor, state.sensor.roi())?;
     let bar = spinner("synthesising");
     let img = if let Some((w, h)) = args.equirect {
         equirect(world.as_ref(), &state, w, h)

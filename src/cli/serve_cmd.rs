@@ -18,13 +18,15 @@ use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use std::io::Write;
 use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
-    /// A TOML configuration file (docs/serve.md lists every key and default); flags override it.
+    /// A TOML configuration file (docs/serve.md lists every key and default); flags override
+    /// it. Without it: $DIGIVIEW_CONFIG, else the first digiview.toml in the working
+    /// directory, ~/.config/digiview, /etc/digiview, else the defaults.
     #[arg(long)]
     config: Option<PathBuf>,
     /// Run only the control server on the live state: no camera, renderer or encoder.
@@ -63,10 +65,7 @@ pub struct ServeArgs {
 
 /// The configuration file with the flags applied.
 fn config(args: &ServeArgs) -> Result<Config> {
-    let mut cfg = match &args.config {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
-    };
+    let (mut cfg, _) = super::locate::config(args.config.as_deref())?;
     if let Some(s) = &args.source {
         cfg.source = s.clone();
     }
@@ -105,16 +104,15 @@ fn cap_malloc_arenas() {
     }
 }
 
-pub fn serve(lens_cal: &Path, args: ServeArgs) -> Result<()> {
+pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     if !args.no_video && std::env::var_os("MALLOC_ARENA_MAX").is_none() {
         cap_malloc_arenas();
     }
     let cfg = config(&args)?;
-    let cal = LensCal::load(lens_cal)?;
     let mut state_args = args.state.clone();
     state_args.state = state_args.state.or(cfg.state.clone());
     state_args.lens = state_args.lens.or(cfg.lens.clone());
-    let state = state_args.state(&cal)?;
+    let state = state_args.state(cal)?;
     let permissions = Permissions {
         set: match &args.allow_set {
             Some(a) => a.clone(),
@@ -145,7 +143,7 @@ pub fn serve(lens_cal: &Path, args: ServeArgs) -> Result<()> {
     } else {
         Box::new(capture.clone())
     };
-    let live = Arc::new(Live::new(state, &cal, hook)?);
+    let live = Arc::new(Live::new(state, cal, hook)?);
     let controller = Arc::new(Controller::new(live.clone(), permissions));
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
