@@ -12,6 +12,8 @@ packages=(
   libgstreamer1.0-dev libgstreamer-plugins-base1.0-dev libgstrtspserver-1.0-dev
   gstreamer1.0-plugins-base gstreamer1.0-plugins-good gstreamer1.0-plugins-bad
   gstreamer1.0-plugins-ugly gstreamer1.0-libav gstreamer1.0-tools
+  # rtspclientsink: publishing the stream to a relay (serve --publish rtsp://...).
+  gstreamer1.0-rtsp
   # ffprobe and ffplay: a second RTSP client in the tests, and FFmpeg's v360 for comparison.
   ffmpeg
 )

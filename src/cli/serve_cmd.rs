@@ -13,7 +13,7 @@ use crate::head::config::Config;
 use crate::lens::LensCal;
 use crate::state::Live;
 use crate::state::capture::{Capturer, NoVideo};
-use crate::stream::Rtsp;
+use crate::stream::{Publisher, Rtsp};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use std::io::Write;
@@ -21,6 +21,7 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use tracing::info;
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
@@ -47,6 +48,10 @@ pub struct ServeArgs {
     /// The RTSP port (0 picks a free port).
     #[arg(long)]
     rtsp_port: Option<u16>,
+    /// Also push the stream to a relay: rtsp://HOST:PORT/PATH (RTSP RECORD) or
+    /// srt://HOST:PORT (repeatable; replaces the config's `publish`).
+    #[arg(long = "publish", value_name = "URL")]
+    publish: Vec<String>,
     /// Where stills and recordings go.
     #[arg(long)]
     capture_dir: Option<PathBuf>,
@@ -74,6 +79,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if let Some(p) = args.rtsp_port {
         cfg.rtsp.port = p;
+    }
+    if !args.publish.is_empty() {
+        cfg.publish = args.publish.clone();
     }
     if let Some(d) = &args.capture_dir {
         cfg.capture.dir = d.clone();
@@ -168,7 +176,23 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
             a => a,
         };
         println!("rtsp serving rtsp://{host}:{}{}", rtsp.port(), rtsp.path());
-        let head = Head::new(cfg, live.clone(), capture, Arc::new(rtsp), key_wanted);
+        let publishers = cfg
+            .publish_targets()?
+            .into_iter()
+            .map(|target| {
+                let wanted = key_wanted.clone();
+                info!("publishing to {}", target.url);
+                Publisher::start(target, move || wanted.store(true, Ordering::Relaxed))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let head = Head::new(
+            cfg,
+            live.clone(),
+            capture,
+            Arc::new(rtsp),
+            publishers,
+            key_wanted,
+        );
         let running = head.clone();
         let stop_all = shutdown.clone();
         let thread = std::thread::Builder::new()

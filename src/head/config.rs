@@ -4,6 +4,8 @@
 
 use crate::frame::PixelFormat;
 use crate::source::SpecError;
+use crate::stream::PublishTarget;
+use crate::stream::publish::PublishError;
 use crate::stream::rtsp::RtspConfigError;
 use crate::stream::{EncoderConfig, RtspConfig};
 use serde::{Deserialize, Serialize};
@@ -28,6 +30,9 @@ pub struct Config {
     pub encoder: EncoderConfig,
     pub capture: CaptureConfig,
     pub mavlink: MavlinkConfig,
+    /// Relays to publish the stream to: `rtsp://HOST:PORT/PATH` (RTSP RECORD) or
+    /// `srt://HOST:PORT` (MPEG-TS over SRT).
+    pub publish: Vec<String>,
     /// Seconds between the one-line health summaries in the log (0: none).
     pub health_interval_s: f64,
 }
@@ -46,6 +51,7 @@ impl Default for Config {
             encoder: EncoderConfig::default(),
             capture: CaptureConfig::default(),
             mavlink: MavlinkConfig::default(),
+            publish: Vec::new(),
             health_interval_s: 10.0,
         }
     }
@@ -175,6 +181,8 @@ pub enum ConfigError {
     Source(#[from] SpecError),
     #[error(transparent)]
     Rtsp(#[from] RtspConfigError),
+    #[error(transparent)]
+    Publish(#[from] PublishError),
     /// A value outside its range: the key, the value and the range.
     #[error("{0}")]
     Range(String),
@@ -185,6 +193,11 @@ fn out_of_range(message: String) -> Result<(), ConfigError> {
 }
 
 impl Config {
+    /// The relays of `publish`, checked.
+    pub fn publish_targets(&self) -> Result<Vec<PublishTarget>, PublishError> {
+        self.publish.iter().map(|u| u.parse()).collect()
+    }
+
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
             path: path.into(),
@@ -228,6 +241,7 @@ impl Config {
             return out_of_range(format!("demo fps {} is outside 1..=120", d.fps));
         }
         self.rtsp.check()?;
+        self.publish_targets()?;
         if !(self.encoder.bitrate_kbps >= 100 && self.encoder.bitrate_kbps <= 100_000) {
             return out_of_range(format!(
                 "encoder bitrate_kbps {} is outside 100..=100000",

@@ -38,12 +38,17 @@ fn health(signal: bool, source_failed: bool, had_a_frame: bool) -> Option<bool> 
 }
 
 impl Head {
-    /// The encoder's sink: every access unit to the clients and the recording.
+    /// The encoder's sink: every access unit to the clients, the recording and the relays.
     fn encoder(self: &Arc<Head>, fps: u32) -> Result<Encoder, HeadError> {
         let head = self.clone();
         let encoder = Encoder::new(&self.cfg.encoder, fps, move |au: AccessUnit| {
             head.rtsp.push(&au.buffer);
             head.capture.on_access_unit(&au);
+            for p in &head.publishers {
+                if p.push(&au) {
+                    head.key_wanted.store(true, Ordering::Relaxed);
+                }
+            }
             if let Some(t) = au.encode_time {
                 head.stats.encoded.fetch_add(1, Ordering::Relaxed);
                 head.stats

@@ -1,5 +1,6 @@
 //! The health log: one line every `health_interval_s` with frames in and out, frames dropped
-//! and where, render and encode times, RTSP clients and why the source is down, if it is.
+//! and where, render and encode times, RTSP clients, relays taking the stream, and why the
+//! source is down, if it is.
 
 use super::Head;
 use std::sync::atomic::Ordering;
@@ -36,7 +37,7 @@ impl Head {
             let encoded = now.4 - last.4;
             info!(
                 "health: in {:.1} fps, out {:.1} fps, dropped {} (renderer behind) + {} \
-                 (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients{}",
+                 (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients{}{}",
                 (now.1.received - last.1.received) as f64 / secs,
                 out as f64 / secs,
                 now.1.dropped - last.1.dropped,
@@ -44,6 +45,13 @@ impl Head {
                 (now.3 - last.3) as f64 / 1000.0 / out.max(1) as f64,
                 (now.5 - last.5) as f64 / 1000.0 / encoded.max(1) as f64,
                 self.rtsp.clients(),
+                match self.publishers.len() {
+                    0 => String::new(),
+                    n => format!(
+                        ", publishing to {} of {n} relays",
+                        self.publishers.iter().filter(|p| p.connected()).count()
+                    ),
+                },
                 match self.source_error() {
                     Some(e) => format!(", source down: {e}"),
                     None => String::new(),

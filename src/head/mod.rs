@@ -3,7 +3,7 @@
 //! GStreamer, or the demo) puts frames in a newest-wins slot; the frame loop (`frame_loop`,
 //! paced by `pacing`) takes the newest, renders it with the live state and the attitude at its
 //! capture time (`telemetry`), and feeds the encoder, whose access units go to the RTSP
-//! clients and the recorder (`capture`). Output size and rate follow the live state's
+//! clients, the recorder (`capture`) and the relays it publishes to. Output size and rate follow the live state's
 //! VIDEO_OUTPUT at each frame. A failed source is retried with back-off while a "no signal"
 //! frame is streamed; a failed encoder or GPU is rebuilt; `health` logs a summary line.
 
@@ -21,7 +21,7 @@ use crate::lens::LensError;
 use crate::render::gpu::GpuError;
 use crate::source::{FrameSlot, SourceSpec, SpecError};
 use crate::state::Live;
-use crate::stream::{Rtsp, StreamError};
+use crate::stream::{Publisher, Rtsp, StreamError};
 use capture::Capture;
 use config::Config;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -52,6 +52,8 @@ pub struct Head {
     pub capture: Arc<Capture>,
     pub telemetry: Arc<Telemetry>,
     pub rtsp: Arc<Rtsp>,
+    /// The relays the stream is published to.
+    pub publishers: Vec<Publisher>,
     pub slot: Arc<FrameSlot>,
     pub stop: Arc<AtomicBool>,
     /// Set by the RTSP server when a client joins: the encoder owes it a key frame.
@@ -77,6 +79,7 @@ impl Head {
         live: Arc<Live>,
         capture: Arc<Capture>,
         rtsp: Arc<Rtsp>,
+        publishers: Vec<Publisher>,
         key_wanted: Arc<AtomicBool>,
     ) -> Arc<Head> {
         Arc::new(Head {
@@ -85,6 +88,7 @@ impl Head {
             capture,
             telemetry: Arc::default(),
             rtsp,
+            publishers,
             slot: Arc::default(),
             stop: Arc::default(),
             key_wanted,

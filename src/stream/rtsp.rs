@@ -4,7 +4,7 @@
 //! client that vanishes is the server's business and costs the frame path nothing. Optional
 //! basic authentication.
 
-use super::{H264_CAPS, StreamError};
+use super::{H264_CAPS, Restamp, StreamError};
 use gstreamer as gst;
 use gstreamer::glib;
 use gstreamer::prelude::*;
@@ -70,18 +70,10 @@ impl RtspConfig {
     }
 }
 
-/// The least step between two access units' timestamps: a millisecond, 90 ticks of the
-/// RTP clock, so that units the encoder hands over together still reach clients with
-/// timestamps that increase (a step under one tick, 11 µs, gives two frames the same RTP
-/// timestamp, which players take for one frame).
-const MIN_STEP_NS: u64 = 1_000_000;
-
 /// The media's appsrc while at least one client watches.
 struct Media {
     src: gst_app::AppSrc,
-    /// Encoder timestamps + offset = the media's running time (ns).
-    offset: Option<i128>,
-    last: u64,
+    clock: Restamp,
 }
 
 type MediaSrc = Arc<Mutex<Option<Media>>>;
@@ -131,8 +123,7 @@ impl Rtsp {
                     .and_then(|e| e.downcast::<gst_app::AppSrc>().ok());
                 *media.lock().unwrap_or_else(|e| e.into_inner()) = src.map(|src| Media {
                     src,
-                    offset: None,
-                    last: 0,
+                    clock: Restamp::default(),
                 });
                 let gone = media.clone();
                 m.connect_unprepared(move |_| {
@@ -215,32 +206,19 @@ impl Rtsp {
 
     /// Hands one access unit to the watching clients (nothing happens when none watch).
     pub fn push(&self, au: &gst::Buffer) {
-        let (src, pts) = {
+        let (src, buffer) = {
             let mut media = self.media.lock().unwrap_or_else(|e| e.into_inner());
             let Some(m) = media.as_mut() else {
                 return;
             };
-            let (Some(pts), Some(now)) = (au.pts(), m.src.current_running_time()) else {
+            let Some(now) = m.src.current_running_time() else {
                 return;
             };
-            // The encoder's spacing, shifted onto the media's clock, but never ahead of now:
-            // the server's sinks would hold an early unit back, which is latency. A unit that
-            // comes out of the encoder sooner than those before moves the offset down.
-            let (pts, now) = (pts.nseconds() as i128, now.nseconds() as i128);
-            let offset = m.offset.get_or_insert(now - pts);
-            if pts + *offset > now {
-                *offset = now - pts;
-            }
-            let t = ((pts + *offset).max(0) as u64).max(m.last + MIN_STEP_NS);
-            m.last = t;
-            (m.src.clone(), gst::ClockTime::from_nseconds(t))
+            let Some(buffer) = m.clock.restamped(au, now) else {
+                return;
+            };
+            (m.src.clone(), buffer)
         };
-        let mut buffer = au.copy();
-        {
-            let b = buffer.make_mut();
-            b.set_pts(pts);
-            b.set_dts(pts);
-        }
         let _ = src.push_buffer(buffer);
     }
 }

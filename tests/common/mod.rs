@@ -5,6 +5,7 @@
 pub mod direct;
 pub mod frames;
 pub mod gpu;
+pub mod relay;
 pub mod serve;
 
 use digiview::geometry::rotation::yaw_pitch;
