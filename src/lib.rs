@@ -10,9 +10,11 @@
 //! `stream` encodes and serves it, and `head` runs the frame loop between them; `gst` is the
 //! GStreamer plumbing the sources and the stream share, and `scene` synthesises fisheye input
 //! and ground truth from a known world. Beside the path, changing the live state: `protocol`
-//! (the control protocol's codec) and `control` (its request handling, server and client).
+//! (the control protocol's codec) and `control` (its request handling, server and client),
+//! and `autopilot` (the MAVLink link the vehicle's attitude and position come in on).
 //! `cli` is the command line.
 
+pub mod autopilot;
 pub mod cli;
 pub mod control;
 pub mod frame;

@@ -4,12 +4,14 @@
 //! server alone on the live state, so the protocol can be exercised on any machine.
 
 use super::StateArgs;
+use crate::autopilot::Link;
 use crate::control::Controller;
 use crate::control::permissions::{Allow, Permissions};
 use crate::control::server::{self, Shutdown};
 use crate::head::Head;
 use crate::head::capture::Capture;
 use crate::head::config::Config;
+use crate::head::telemetry::Telemetry;
 use crate::lens::LensCal;
 use crate::state::Live;
 use crate::state::capture::{Capturer, NoVideo};
@@ -52,6 +54,10 @@ pub struct ServeArgs {
     /// srt://HOST:PORT (repeatable; replaces the config's `publish`).
     #[arg(long = "publish", value_name = "URL")]
     publish: Vec<String>,
+    /// The autopilot link: udpin:ADDR:PORT, udpout:HOST:PORT, tcpin:ADDR:PORT,
+    /// tcpout:HOST:PORT, serial:DEVICE:BAUD, or off (docs/mavlink.md).
+    #[arg(long, value_name = "ENDPOINT")]
+    mavlink: Option<String>,
     /// Where stills and recordings go.
     #[arg(long)]
     capture_dir: Option<PathBuf>,
@@ -79,6 +85,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if let Some(p) = args.rtsp_port {
         cfg.rtsp.port = p;
+    }
+    if let Some(m) = &args.mavlink {
+        cfg.mavlink.endpoint = m.clone();
     }
     if !args.publish.is_empty() {
         cfg.publish = args.publish.clone();
@@ -152,6 +161,8 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         Box::new(capture.clone())
     };
     let live = Arc::new(Live::new(state, cal, hook)?);
+    let telemetry = Arc::new(Telemetry::default());
+    let _link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone())?;
     let controller = Arc::new(Controller::new(live.clone(), permissions));
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -191,6 +202,7 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
             capture,
             Arc::new(rtsp),
             publishers,
+            telemetry,
             key_wanted,
         );
         let running = head.clone();

@@ -149,15 +149,24 @@ impl Default for CaptureConfig {
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MavlinkConfig {
-    /// The autopilot link (read by the MAVLink bridge, a later release; kept so configs
-    /// written now stay valid).
+    /// The autopilot link (docs/mavlink.md): `udpin:ADDR:PORT`, `udpout:HOST:PORT`,
+    /// `tcpin:ADDR:PORT`, `tcpout:HOST:PORT`, `serial:DEVICE:BAUD`, or `off`.
     pub endpoint: String,
+    /// Take the autopilot from this system id only (default: the first autopilot heard).
+    pub system_id: Option<u8>,
+    /// The ATTITUDE rate asked of the autopilot, Hz.
+    pub attitude_hz: f64,
+    /// The GLOBAL_POSITION_INT rate asked of the autopilot, Hz.
+    pub position_hz: f64,
 }
 
 impl Default for MavlinkConfig {
     fn default() -> Self {
         MavlinkConfig {
             endpoint: "udpin:0.0.0.0:14550".into(),
+            system_id: None,
+            attitude_hz: 100.0,
+            position_hz: 10.0,
         }
     }
 }
@@ -183,6 +192,8 @@ pub enum ConfigError {
     Rtsp(#[from] RtspConfigError),
     #[error(transparent)]
     Publish(#[from] PublishError),
+    #[error(transparent)]
+    Mavlink(#[from] crate::autopilot::EndpointError),
     /// A value outside its range: the key, the value and the range.
     #[error("{0}")]
     Range(String),
@@ -242,6 +253,17 @@ impl Config {
         }
         self.rtsp.check()?;
         self.publish_targets()?;
+        self.mavlink
+            .endpoint
+            .parse::<crate::autopilot::Endpoint>()?;
+        for (key, hz) in [
+            ("attitude_hz", self.mavlink.attitude_hz),
+            ("position_hz", self.mavlink.position_hz),
+        ] {
+            if !(0.1..=500.0).contains(&hz) {
+                return out_of_range(format!("mavlink {key} {hz} is outside 0.1..=500"));
+            }
+        }
         if !(self.encoder.bitrate_kbps >= 100 && self.encoder.bitrate_kbps <= 100_000) {
             return out_of_range(format!(
                 "encoder bitrate_kbps {} is outside 100..=100000",

@@ -80,13 +80,14 @@ impl Head {
         capture: Arc<Capture>,
         rtsp: Arc<Rtsp>,
         publishers: Vec<Publisher>,
+        telemetry: Arc<Telemetry>,
         key_wanted: Arc<AtomicBool>,
     ) -> Arc<Head> {
         Arc::new(Head {
             cfg,
             live,
             capture,
-            telemetry: Arc::default(),
+            telemetry,
             rtsp,
             publishers,
             slot: Arc::default(),

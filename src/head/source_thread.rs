@@ -111,8 +111,7 @@ impl Head {
             let captured_us = clock_us();
             let t = start.elapsed().as_secs_f64();
             let (attitude, position) = flight.pose(t);
-            self.telemetry.attitude(captured_us, attitude);
-            self.telemetry.position(position);
+            self.telemetry.simulated(captured_us, attitude, position);
             let stamp = d.stamp.then_some((captured_us / 1000) as u32);
             let data = camera.frame(attitude, &position, t, stamp);
             self.slot.put(Frame {

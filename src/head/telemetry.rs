@@ -4,14 +4,21 @@
 
 use crate::geometry::attitude::AttitudeTrack;
 use crate::geometry::{Euler, GeoPosition};
+use crate::source::clock_us;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Attitude samples kept: a few seconds at autopilot rates.
 const SAMPLES: usize = 512;
 
+/// An autopilot heard within this long (µs) keeps the demo's simulated flight out.
+const EXTERNAL_US: u64 = 1_000_000;
+
 pub struct Telemetry {
     track: Mutex<AttitudeTrack>,
     position: Mutex<Option<GeoPosition>>,
+    /// Local time of the autopilot's newest attitude (0: none).
+    external_us: AtomicU64,
 }
 
 impl Default for Telemetry {
@@ -19,6 +26,7 @@ impl Default for Telemetry {
         Telemetry {
             track: Mutex::new(AttitudeTrack::new(SAMPLES)),
             position: Mutex::new(None),
+            external_us: AtomicU64::new(0),
         }
     }
 }
@@ -30,6 +38,23 @@ impl Telemetry {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .push(t_us, attitude);
+    }
+
+    /// An attitude from the autopilot, measured at `t_us`.
+    pub fn external_attitude(&self, t_us: u64, attitude: Euler) {
+        self.external_us.store(clock_us(), Ordering::Relaxed);
+        self.attitude(t_us, attitude);
+    }
+
+    /// The demo's simulated flight at `t_us`: taken only while no autopilot feeds the
+    /// telemetry, so the two never mix.
+    pub fn simulated(&self, t_us: u64, attitude: Euler, position: GeoPosition) {
+        let external = self.external_us.load(Ordering::Relaxed);
+        if external != 0 && clock_us().saturating_sub(external) < EXTERNAL_US {
+            return;
+        }
+        self.attitude(t_us, attitude);
+        self.position(position);
     }
 
     pub fn position(&self, position: GeoPosition) {

@@ -11,7 +11,7 @@ use super::capture::Capturer;
 use super::{Invalid, State};
 use crate::lens::{LensCal, Lenses};
 use arc_swap::ArcSwap;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// SYSTEM_STATUS values.
@@ -35,6 +35,8 @@ pub enum Failure {
     Encoder = 2,
     /// The GPU device was lost or a render failed; it is being rebuilt.
     Gpu = 3,
+    /// The autopilot's attitude stopped coming (none for 0.5 s): the views hold the last.
+    Attitude = 4,
 }
 
 pub struct Live {
@@ -43,6 +45,8 @@ pub struct Live {
     lenses: Lenses,
     status: AtomicU8,
     failure: AtomicU8,
+    /// The autopilot's attitude is stale; reported while nothing worse is.
+    attitude_lost: AtomicBool,
     capture: Box<dyn Capturer>,
 }
 
@@ -63,6 +67,7 @@ impl Live {
             lenses,
             status: AtomicU8::new(RunStatus::Idle as u8),
             failure: AtomicU8::new(Failure::None as u8),
+            attitude_lost: AtomicBool::new(false),
             capture,
         })
     }
@@ -91,7 +96,11 @@ impl Live {
         &self.lenses
     }
 
+    /// The run's status: error while anything failed, the attitude included.
     pub fn status(&self) -> RunStatus {
+        if self.attitude_lost.load(Ordering::Relaxed) {
+            return RunStatus::Error;
+        }
         match self.status.load(Ordering::Relaxed) {
             0 => RunStatus::Idle,
             1 => RunStatus::Running,
@@ -114,9 +123,17 @@ impl Live {
         self.status.store(RunStatus::Error as u8, Ordering::Relaxed);
     }
 
-    /// SYSTEM_STATUS's error byte.
+    /// SYSTEM_STATUS's error byte: a failed stage first, else a stale attitude.
     pub fn failure(&self) -> u8 {
-        self.failure.load(Ordering::Relaxed)
+        match self.failure.load(Ordering::Relaxed) {
+            0 if self.attitude_lost.load(Ordering::Relaxed) => Failure::Attitude as u8,
+            f => f,
+        }
+    }
+
+    /// Whether the autopilot's attitude is stale (the views hold the last one).
+    pub fn set_attitude_lost(&self, lost: bool) {
+        self.attitude_lost.store(lost, Ordering::Relaxed);
     }
 
     pub fn capture(&self) -> &dyn Capturer {

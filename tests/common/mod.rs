@@ -2,6 +2,7 @@
 //! measurement in rendered frames.
 #![allow(dead_code)]
 
+pub mod autopilot;
 pub mod direct;
 pub mod frames;
 pub mod gpu;

@@ -40,9 +40,16 @@ impl Serve {
     /// `log`: a RUST_LOG level for a piped stderr, else the test's choice (see below).
     fn launch(mode: &[&str], extra: &[&str], log: Option<&str>) -> Serve {
         let cal = super::lens_cal_path();
+        // No autopilot link unless the test asks for one (the default port is one per host).
+        let link: &[&str] = if extra.contains(&"--mavlink") {
+            &[]
+        } else {
+            &["--mavlink", "off"]
+        };
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["serve", "--control", "127.0.0.1:0"])
             .args(mode)
+            .args(link)
             .args(extra)
             .env("DIGIVIEW_LENS_CAL", cal)
             // DIGIVIEW_TEST_LOG=info shows the server's log while debugging a test.

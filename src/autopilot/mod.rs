@@ -1,0 +1,435 @@
+//! The autopilot link, beside the frame path: MAVLink 2 (MAVLink 1 read too, common dialect)
+//! from ArduPilot or PX4 over UDP, TCP or a serial port. It feeds the vehicle's attitude, on
+//! the frame's own clock (`clock`), into the telemetry the frame loop renders each frame
+//! with, and the attitude and position into the live state the control protocol reads
+//! (`vehicle` makes sense of the messages). Its threads never touch the frame loop: a
+//! receiving thread reopens the link with back-off whenever it fails, a sending thread says
+//! DigiView is there (HEARTBEAT), asks the autopilot for the rates it needs, and watches for
+//! the attitude going stale.
+
+pub mod clock;
+pub mod vehicle;
+
+use crate::head::config::MavlinkConfig;
+use crate::head::telemetry::Telemetry;
+use crate::source::clock_us;
+use crate::state::{Invalid, Live};
+use mavlink::dialects::common::{
+    COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavState,
+    MavType,
+};
+use mavlink::{MavConnection, MavHeader};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use tracing::{info, warn};
+use vehicle::{Update, Vehicle};
+
+/// No attitude for this long and the views hold the last one, reported.
+pub const STALE: Duration = Duration::from_millis(500);
+/// How often the link's state is logged, and when first.
+const REPORT_EVERY: Duration = Duration::from_secs(30);
+const FIRST_REPORT: Duration = Duration::from_secs(3);
+/// DigiView's own component on the link (MAV_COMP_ID_ONBOARD_COMPUTER).
+const OWN_COMPONENT: u8 = 191;
+/// The live state's vehicle is brought up to date at most this often (the frames take the
+/// attitude from the telemetry at every sample).
+const LIVE_EVERY: Duration = Duration::from_millis(50);
+
+/// Where the link goes: `off`, or an address the `mavlink` crate opens.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Endpoint {
+    Off,
+    Address(String),
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum EndpointError {
+    #[error(
+        "mavlink endpoint {0:?}: use udpin:ADDR:PORT, udpout:HOST:PORT, tcpin:ADDR:PORT, \\
+         tcpout:HOST:PORT, serial:DEVICE:BAUD or off"
+    )]
+    Form(String),
+    #[error("mavlink endpoint {0:?}: {1}")]
+    Part(String, &'static str),
+}
+
+impl std::str::FromStr for Endpoint {
+    type Err = EndpointError;
+    fn from_str(s: &str) -> Result<Endpoint, EndpointError> {
+        if s.eq_ignore_ascii_case("off") {
+            return Ok(Endpoint::Off);
+        }
+        let form = || EndpointError::Form(s.to_string());
+        let (kind, rest) = s.split_once(':').ok_or_else(form)?;
+        let (head, tail) = rest.rsplit_once(':').ok_or_else(form)?;
+        match kind {
+            "udpin" | "udpout" | "tcpin" | "tcpout" => {
+                if head.is_empty() {
+                    return Err(EndpointError::Part(s.into(), "no address"));
+                }
+                tail.parse::<u16>()
+                    .map_err(|_| EndpointError::Part(s.into(), "the port is not 0..=65535"))?;
+            }
+            "serial" => {
+                if head.is_empty() {
+                    return Err(EndpointError::Part(s.into(), "no device"));
+                }
+                match tail.parse::<u32>() {
+                    Ok(b) if b > 0 => {}
+                    _ => {
+                        return Err(EndpointError::Part(
+                            s.into(),
+                            "the baud rate is not a number",
+                        ));
+                    }
+                }
+            }
+            _ => return Err(form()),
+        }
+        mavlink::ConnectionAddress::parse_address(s).map_err(|_| form())?;
+        Ok(Endpoint::Address(s.to_string()))
+    }
+}
+
+type Connection = Arc<dyn MavConnection<MavMessage> + Send + Sync>;
+
+/// What the link knows now, for the health line and the docs' `ctl`.
+#[derive(Default)]
+pub struct LinkStatus {
+    pub messages: AtomicU64,
+    /// Local time of the newest attitude sample, µs (0: none yet).
+    pub attitude_us: AtomicU64,
+    pub attitudes: AtomicU64,
+    pub autopilot: Mutex<Option<(u8, u8)>>,
+    pub clock: Mutex<clock::ClockState>,
+    pub connected: AtomicBool,
+}
+
+/// The running link; dropping it stops its threads.
+pub struct Link {
+    pub status: Arc<LinkStatus>,
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+/// What both threads share.
+struct Shared {
+    address: String,
+    cfg: MavlinkConfig,
+    live: Arc<Live>,
+    telemetry: Arc<Telemetry>,
+    status: Arc<LinkStatus>,
+    connection: Mutex<Option<Connection>>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Link {
+    /// Starts the link of `cfg` (None when it is off).
+    pub fn start(
+        cfg: &MavlinkConfig,
+        live: Arc<Live>,
+        telemetry: Arc<Telemetry>,
+    ) -> Result<Option<Link>, EndpointError> {
+        let Endpoint::Address(address) = cfg.endpoint.parse()? else {
+            return Ok(None);
+        };
+        let status = Arc::new(LinkStatus::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let shared = Arc::new(Shared {
+            address,
+            cfg: cfg.clone(),
+            live,
+            telemetry,
+            status: status.clone(),
+            connection: Mutex::new(None),
+            stop: stop.clone(),
+        });
+        let mut threads = vec![];
+        for (name, run) in [
+            ("mavlink-rx", receive as fn(&Shared)),
+            ("mavlink-tx", send as fn(&Shared)),
+        ] {
+            let shared = shared.clone();
+            if let Ok(t) = std::thread::Builder::new()
+                .name(name.into())
+                .spawn(move || run(&shared))
+            {
+                threads.push(t);
+            }
+        }
+        info!("mavlink: {}", cfg.endpoint);
+        Ok(Some(Link {
+            status,
+            stop,
+            threads,
+        }))
+    }
+}
+
+impl Drop for Link {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        // A receiving thread blocked on a silent link is left to end with the process.
+        for t in self.threads.drain(..) {
+            if t.is_finished() {
+                let _ = t.join();
+            }
+        }
+    }
+}
+
+/// Opens the link, reads it until it fails, again with back-off (1 s doubling to 10 s).
+fn receive(shared: &Shared) {
+    let mut backoff = Duration::from_secs(1);
+    let mut vehicle = Vehicle::new(shared.cfg.system_id);
+    while !shared.stop.load(Ordering::Relaxed) {
+        let connection: Connection = match mavlink::connect::<MavMessage>(&shared.address) {
+            Ok(c) => Arc::from(c),
+            Err(e) => {
+                warn!(
+                    "mavlink {}: {e}; retrying in {} s",
+                    shared.address,
+                    backoff.as_secs()
+                );
+                std::thread::sleep(backoff);
+                backoff = (backoff * 2).min(Duration::from_secs(10));
+                continue;
+            }
+        };
+        *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
+        shared.status.connected.store(true, Ordering::Relaxed);
+        let opened = Instant::now();
+        let mut last_live = Instant::now() - LIVE_EVERY;
+        let error = loop {
+            if shared.stop.load(Ordering::Relaxed) {
+                return;
+            }
+            match connection.recv() {
+                Ok((header, msg)) => {
+                    apply(shared, &mut vehicle, &header, &msg, &mut last_live);
+                }
+                Err(mavlink::error::MessageReadError::Io(e))
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
+                    ) => {}
+                Err(mavlink::error::MessageReadError::Io(e)) => break e.to_string(),
+                // A frame that does not parse (unknown id, bad field): skipped.
+                Err(_) => {}
+            }
+        };
+        *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        shared.status.connected.store(false, Ordering::Relaxed);
+        if opened.elapsed() > Duration::from_secs(10) {
+            backoff = Duration::from_secs(1);
+        }
+        warn!(
+            "mavlink {}: {error}; reopening in {} s",
+            shared.address,
+            backoff.as_secs()
+        );
+        std::thread::sleep(backoff);
+        backoff = (backoff * 2).min(Duration::from_secs(10));
+    }
+}
+
+/// One message: into the telemetry and, at most every [`LIVE_EVERY`], the live state.
+fn apply(
+    shared: &Shared,
+    vehicle: &mut Vehicle,
+    header: &MavHeader,
+    msg: &MavMessage,
+    last_live: &mut Instant,
+) {
+    let status = &shared.status;
+    status.messages.fetch_add(1, Ordering::Relaxed);
+    let Some(update) = vehicle.handle(header, msg, clock_us()) else {
+        return;
+    };
+    match update {
+        Update::Found(system, component) => {
+            info!("mavlink: the autopilot is system {system}, component {component}");
+            *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) = Some((system, component));
+        }
+        Update::Attitude { t_us, attitude } => {
+            shared.telemetry.external_attitude(t_us, attitude);
+            status.attitude_us.fetch_max(t_us, Ordering::Relaxed);
+            status.attitudes.fetch_add(1, Ordering::Relaxed);
+            *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
+            if last_live.elapsed() >= LIVE_EVERY {
+                *last_live = Instant::now();
+                let _ = shared.live.update(|s| {
+                    (
+                        s.vehicle.attitude.yaw,
+                        s.vehicle.attitude.pitch,
+                        s.vehicle.attitude.roll,
+                    ) = (attitude.yaw, attitude.pitch, attitude.roll);
+                    Ok::<_, Invalid>(())
+                });
+            }
+        }
+        Update::Position(p) => {
+            shared.telemetry.position(p);
+            let _ = shared.live.update(|s| {
+                s.vehicle.position = p;
+                Ok::<_, Invalid>(())
+            });
+        }
+    }
+}
+
+/// Every 100 ms: HEARTBEAT each second, the rate requests, and the attitude's staleness.
+fn send(shared: &Shared) {
+    let mut beat = Instant::now() - Duration::from_secs(1);
+    let mut asked: Option<Instant> = None;
+    let mut counted = (Instant::now(), 0u64);
+    let mut lost = false;
+    // The first report comes soon after the start, so the log shows the mapping settled.
+    let mut next_report = Instant::now() + FIRST_REPORT;
+    let mut reported = (Instant::now(), 0u64);
+    while !shared.stop.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(100));
+        if Instant::now() >= next_report {
+            next_report += REPORT_EVERY;
+            reported = report(&shared.status, reported);
+        }
+        let connection = shared
+            .connection
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        let autopilot = *shared
+            .status
+            .autopilot
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        if let Some(c) = &connection {
+            let system = autopilot.map_or(1, |a| a.0);
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: OWN_COMPONENT,
+                sequence: 0,
+            };
+            if beat.elapsed() >= Duration::from_secs(1) {
+                beat = Instant::now();
+                let _ = c.send(&header, &heartbeat());
+            }
+            // Ask for the rates when the autopilot is found, and again every 10 s while the
+            // attitude comes at less than half the rate asked.
+            if let Some((system, component)) = autopilot {
+                let rate = {
+                    let n = shared.status.attitudes.load(Ordering::Relaxed);
+                    let hz = (n - counted.1) as f64 / counted.0.elapsed().as_secs_f64().max(1e-3);
+                    if counted.0.elapsed() >= Duration::from_secs(5) {
+                        counted = (Instant::now(), n);
+                    }
+                    hz
+                };
+                let due = asked.is_none_or(|t| {
+                    t.elapsed() >= Duration::from_secs(10) && rate < shared.cfg.attitude_hz / 2.0
+                });
+                if due {
+                    asked = Some(Instant::now());
+                    for (id, hz) in [(30, shared.cfg.attitude_hz), (33, shared.cfg.position_hz)] {
+                        let _ = c.send(&header, &message_interval(system, component, id, hz));
+                    }
+                }
+            }
+        }
+        let newest = shared.status.attitude_us.load(Ordering::Relaxed);
+        let stale = newest != 0 && clock_us().saturating_sub(newest) > STALE.as_micros() as u64;
+        if stale != lost {
+            lost = stale;
+            shared.live.set_attitude_lost(stale);
+            if stale {
+                warn!(
+                    "mavlink: no attitude for {} ms: the views hold the last one",
+                    STALE.as_millis()
+                );
+            } else {
+                info!("mavlink: attitude again");
+            }
+        }
+    }
+}
+
+/// The link's state in one log line: the autopilot, the attitude rate, the clock mapping.
+fn report(status: &LinkStatus, (since, before): (Instant, u64)) -> (Instant, u64) {
+    let n = status.attitudes.load(Ordering::Relaxed);
+    let hz = (n - before) as f64 / since.elapsed().as_secs_f64();
+    let c = *status.clock.lock().unwrap_or_else(|e| e.into_inner());
+    match *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) {
+        Some((system, component)) => info!(
+            "mavlink: autopilot {system}/{component}, attitude {hz:.0} Hz, clock: autopilot + \
+             {:.3} s (drift {:+.0} ppm over {:.1} s, {} samples, {} reboots)",
+            c.offset_us as f64 / 1e6,
+            c.drift_ppm,
+            c.span_us as f64 / 1e6,
+            c.samples,
+            c.resets
+        ),
+        None => info!(
+            "mavlink: no autopilot heard yet ({} messages)",
+            status.messages.load(Ordering::Relaxed)
+        ),
+    }
+    (Instant::now(), n)
+}
+
+fn heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+/// MAV_CMD_SET_MESSAGE_INTERVAL: message `id` every 1/`hz` s.
+fn message_interval(system: u8, component: u8, id: u32, hz: f64) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+        target_system: system,
+        target_component: component,
+        param1: id as f32,
+        param2: (1e6 / hz) as f32,
+        ..Default::default()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn endpoints_are_checked() {
+        for ok in [
+            "udpin:0.0.0.0:14550",
+            "udpout:192.168.1.10:14550",
+            "tcpin:0.0.0.0:5760",
+            "tcpout:127.0.0.1:5760",
+            "serial:/dev/ttyAMA0:921600",
+        ] {
+            assert_eq!(ok.parse(), Ok(Endpoint::Address(ok.into())), "{ok}");
+        }
+        assert_eq!("off".parse(), Ok(Endpoint::Off));
+        for bad in [
+            "udp:1.2.3.4:5",
+            "udpin:0.0.0.0",
+            "udpin:0.0.0.0:99999",
+            "tcpout::5760",
+            "serial:/dev/ttyS0:fast",
+            "serial:/dev/ttyS0",
+            "file:log.tlog",
+            "",
+        ] {
+            assert!(bad.parse::<Endpoint>().is_err(), "{bad}");
+        }
+    }
+}

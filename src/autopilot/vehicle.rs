@@ -1,0 +1,240 @@
+//! What the autopilot's messages say about the vehicle: which component is the autopilot (the
+//! first HEARTBEAT with an autopilot type, or the configured system id), its attitude
+//! (ATTITUDE_QUATERNION when it comes, else ATTITUDE) at the local time it was measured, its
+//! position (GLOBAL_POSITION_INT) and its home altitude (HOME_POSITION, else the position's
+//! relative altitude). Pure: messages in, updates out; the link applies them.
+
+use super::clock::BootClock;
+use crate::geometry::{Euler, GeoPosition};
+use glam::{DQuat, EulerRot};
+use mavlink::MavHeader;
+use mavlink::dialects::common::{MavAutopilot, MavMessage, MavType};
+
+/// After an ATTITUDE_QUATERNION, ATTITUDE is ignored for this long (µs): the quaternion is
+/// the better of the two when an autopilot sends both.
+const PREFER_QUATERNION_US: u64 = 1_000_000;
+
+/// What one message changes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Update {
+    /// The autopilot was found: system and component id.
+    Found(u8, u8),
+    /// The attitude measured at local time `t_us`.
+    Attitude {
+        t_us: u64,
+        attitude: Euler,
+    },
+    Position(GeoPosition),
+}
+
+#[derive(Debug, Default)]
+pub struct Vehicle {
+    /// The system id to take the autopilot from (None: the first that says it is one).
+    want_system: Option<u8>,
+    autopilot: Option<(u8, u8)>,
+    pub clock: BootClock,
+    quaternion_at: Option<u64>,
+    home_alt: Option<f64>,
+}
+
+impl Vehicle {
+    pub fn new(want_system: Option<u8>) -> Vehicle {
+        Vehicle {
+            want_system,
+            ..Vehicle::default()
+        }
+    }
+
+    /// The autopilot's system and component id, once found.
+    pub fn autopilot(&self) -> Option<(u8, u8)> {
+        self.autopilot
+    }
+
+    /// One message from `header`'s component, received at local time `now_us`.
+    pub fn handle(&mut self, header: &MavHeader, msg: &MavMessage, now_us: u64) -> Option<Update> {
+        // System ids above 255 (an extension some routers use) are no autopilot of ours.
+        let Ok(system) = u8::try_from(header.system_id) else {
+            return None;
+        };
+        let from = (system, header.component_id);
+        if let MavMessage::HEARTBEAT(h) = msg {
+            let is_autopilot = h.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
+                && !matches!(
+                    h.mavtype,
+                    MavType::MAV_TYPE_GCS | MavType::MAV_TYPE_ONBOARD_CONTROLLER
+                );
+            if self.autopilot.is_none()
+                && is_autopilot
+                && self.want_system.is_none_or(|s| s == from.0)
+            {
+                self.autopilot = Some(from);
+                return Some(Update::Found(from.0, from.1));
+            }
+            return None;
+        }
+        if self.autopilot != Some(from) {
+            return None;
+        }
+        match msg {
+            MavMessage::ATTITUDE_QUATERNION(a) => {
+                let t_us = self.stamp(a.time_boot_ms, now_us)?;
+                self.quaternion_at = Some(now_us);
+                let q = DQuat::from_xyzw(a.q2 as f64, a.q3 as f64, a.q4 as f64, a.q1 as f64);
+                if !q.is_finite() || q.length() < 0.5 {
+                    return None;
+                }
+                let (yaw, pitch, roll) = q.normalize().to_euler(EulerRot::ZYX);
+                Some(Update::Attitude {
+                    t_us,
+                    attitude: Euler::new(yaw, pitch, roll),
+                })
+            }
+            MavMessage::ATTITUDE(a) => {
+                let t_us = self.stamp(a.time_boot_ms, now_us)?;
+                if self
+                    .quaternion_at
+                    .is_some_and(|q| now_us.saturating_sub(q) < PREFER_QUATERNION_US)
+                {
+                    return None;
+                }
+                let e = Euler::new(a.yaw as f64, a.pitch as f64, a.roll as f64);
+                [e.yaw, e.pitch, e.roll]
+                    .iter()
+                    .all(|v| v.is_finite())
+                    .then_some(Update::Attitude { t_us, attitude: e })
+            }
+            MavMessage::GLOBAL_POSITION_INT(p) => {
+                self.stamp(p.time_boot_ms, now_us);
+                let alt = p.alt as f64 / 1000.0;
+                let relative = p.relative_alt as f64 / 1000.0;
+                Some(Update::Position(GeoPosition {
+                    lat: p.lat as f64 * 1e-7,
+                    lon: p.lon as f64 * 1e-7,
+                    alt,
+                    relative_alt: self.home_alt.map_or(relative, |h| alt - h),
+                }))
+            }
+            MavMessage::HOME_POSITION(h) => {
+                self.home_alt = Some(h.altitude as f64 / 1000.0);
+                None
+            }
+            _ => None,
+        }
+    }
+
+    /// The local time of the autopilot's `time_boot_ms`, after observing it.
+    fn stamp(&mut self, time_boot_ms: u32, now_us: u64) -> Option<u64> {
+        let remote = time_boot_ms as u64 * 1000;
+        self.clock.observe(remote, now_us);
+        self.clock.to_local(remote)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mavlink::dialects::common::*;
+
+    fn header(system_id: u8, component_id: u8) -> MavHeader {
+        MavHeader {
+            system_id: system_id.into(),
+            component_id,
+            sequence: 0,
+        }
+    }
+
+    fn heartbeat(autopilot: MavAutopilot, mavtype: MavType) -> MavMessage {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            autopilot,
+            mavtype,
+            ..Default::default()
+        })
+    }
+
+    #[test]
+    fn the_autopilot_is_the_first_heartbeat_with_an_autopilot_type_and_only_it_counts() {
+        let mut v = Vehicle::new(None);
+        let att = MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: 1000,
+            yaw: 0.5,
+            ..Default::default()
+        });
+        assert_eq!(
+            v.handle(&header(1, 1), &att, 5_000_000),
+            None,
+            "not yet found"
+        );
+        let gcs = heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID, MavType::MAV_TYPE_GCS);
+        assert_eq!(v.handle(&header(255, 190), &gcs, 5_000_000), None);
+        let ap = heartbeat(
+            MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            MavType::MAV_TYPE_QUADROTOR,
+        );
+        assert_eq!(
+            v.handle(&header(1, 1), &ap, 5_000_000),
+            Some(Update::Found(1, 1))
+        );
+        assert_eq!(
+            v.handle(&header(2, 1), &ap, 5_000_000),
+            None,
+            "a second one"
+        );
+        assert_eq!(
+            v.handle(&header(2, 1), &att, 5_000_000),
+            None,
+            "from another system"
+        );
+        match v.handle(&header(1, 1), &att, 5_010_000) {
+            Some(Update::Attitude { t_us, attitude }) => {
+                assert_eq!(t_us, 5_010_000, "the first message maps to its arrival");
+                assert_eq!(attitude.yaw, 0.5);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_configured_system_id_is_waited_for_and_the_quaternion_is_preferred() {
+        let mut v = Vehicle::new(Some(7));
+        let ap = heartbeat(
+            MavAutopilot::MAV_AUTOPILOT_PX4,
+            MavType::MAV_TYPE_FIXED_WING,
+        );
+        assert_eq!(v.handle(&header(1, 1), &ap, 0), None);
+        assert_eq!(v.handle(&header(7, 1), &ap, 0), Some(Update::Found(7, 1)));
+        // A quarter turn about the vertical (yaw 90°): w = cos 45°, z = sin 45°.
+        let s = std::f32::consts::FRAC_1_SQRT_2;
+        let q = MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
+            time_boot_ms: 10,
+            q1: s,
+            q4: s,
+            ..Default::default()
+        });
+        match v.handle(&header(7, 1), &q, 100_000) {
+            Some(Update::Attitude { attitude, .. }) => {
+                assert!((attitude.yaw - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+                assert!(attitude.pitch.abs() < 1e-6 && attitude.roll.abs() < 1e-6);
+            }
+            other => panic!("{other:?}"),
+        }
+        let att = MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: 20,
+            ..Default::default()
+        });
+        assert_eq!(
+            v.handle(&header(7, 1), &att, 110_000),
+            None,
+            "ATTITUDE after a quaternion"
+        );
+        let bad = MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
+            time_boot_ms: 30,
+            q1: f32::NAN,
+            ..Default::default()
+        });
+        assert_eq!(
+            v.handle(&header(7, 1), &bad, 120_000),
+            None,
+            "NaN is not an attitude"
+        );
+    }
+}

@@ -1,0 +1,170 @@
+//! The autopilot link end to end: `digiview serve` takes a simulated autopilot's attitude
+//! over real MAVLink on UDP (its own boot clock, 0 to 20 ms of random delay) into the live
+//! state the control protocol reads; attitude stopping is reported and recovers; hostile
+//! bytes on the link change nothing.
+
+mod common;
+
+use common::autopilot::{SimAutopilot, attitude, frame, free_udp_port};
+use common::serve::Serve;
+use digiview::control::client::Client;
+use digiview::protocol::params::CamOffset;
+use digiview::protocol::{Param, ParamType};
+use glam::DVec3;
+use std::f64::consts::PI;
+use std::net::UdpSocket;
+use std::time::{Duration, Instant};
+
+const DEG: f64 = PI / 180.0;
+
+/// Yawing at 90°/s, level.
+fn turning(t: f64) -> DVec3 {
+    DVec3::new(wrap(90.0 * DEG * t), 0.0, 0.0)
+}
+
+fn wrap(a: f64) -> f64 {
+    (a + PI).rem_euclid(2.0 * PI) - PI
+}
+
+/// `serve --no-video` listening for the autopilot on a free UDP port; camera 0 unlocked
+/// (fixed to the vehicle), looking ahead and 30° down.
+fn serve_with_link() -> (Serve, u16, Client) {
+    let port = free_udp_port();
+    let serve = Serve::start(&[
+        "--mavlink",
+        &format!("udpin:127.0.0.1:{port}"),
+        "--cam",
+        "0:yaw=0deg,pitch=-30deg,lock=0",
+    ]);
+    let ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    (serve, port, ctl)
+}
+
+/// The world yaw of camera 0's centre (CAM_OFFSET GET, frame_rel 0).
+fn centre_yaw(ctl: &mut Client) -> f64 {
+    match ctl.get_one(Param::CamOffset(CamOffset::default())).unwrap() {
+        Param::CamOffset(o) => o.yaw,
+        other => panic!("{other:?}"),
+    }
+}
+
+fn status(ctl: &mut Client) -> (u8, u8) {
+    match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
+        Param::SystemStatus(s) => (s.status, s.error),
+        other => panic!("{other:?}"),
+    }
+}
+
+/// The largest |CAM_OFFSET yaw − the autopilot's yaw| over `n` readings 100 ms apart.
+fn worst_following(ctl: &mut Client, sim: &SimAutopilot, n: usize) -> f64 {
+    let mut worst: f64 = 0.0;
+    for _ in 0..n {
+        let got = centre_yaw(ctl);
+        let want = turning(sim.start.elapsed().as_secs_f64()).x;
+        worst = worst.max(wrap(got - want).abs());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    worst
+}
+
+fn until(limit: Duration, what: &str, mut test: impl FnMut() -> bool) {
+    let t = Instant::now();
+    while !test() {
+        assert!(t.elapsed() < limit, "{what} within {limit:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_reported() {
+    let (_serve, port, mut ctl) = serve_with_link();
+    let sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
+    until(Duration::from_secs(5), "the attitude arrives", || {
+        centre_yaw(&mut ctl).abs() > 1e-3
+    });
+    // The live state is brought up to date 20 times a second: at 90°/s the reading trails
+    // the autopilot by at most 50 ms of turn plus the link's delay.
+    let worst = worst_following(&mut ctl, &sim, 20);
+    eprintln!("following the autopilot: worst {:.2}°", worst / DEG);
+    assert!(worst < 8.0 * DEG, "worst {:.1}°", worst / DEG);
+
+    sim.silent.store(true, std::sync::atomic::Ordering::Relaxed);
+    let t = Instant::now();
+    until(Duration::from_secs(2), "a stale attitude reported", || {
+        status(&mut ctl) == (3, 4)
+    });
+    assert!(
+        t.elapsed() >= Duration::from_millis(400),
+        "not before 0.5 s"
+    );
+    let held = centre_yaw(&mut ctl);
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(
+        centre_yaw(&mut ctl),
+        held,
+        "the views hold the last attitude"
+    );
+    sim.silent
+        .store(false, std::sync::atomic::Ordering::Relaxed);
+    until(Duration::from_secs(2), "the status back", || {
+        status(&mut ctl) == (0, 0)
+    });
+    let worst = worst_following(&mut ctl, &sim, 10);
+    assert!(
+        worst < 8.0 * DEG,
+        "after recovery: worst {:.1}°",
+        worst / DEG
+    );
+}
+
+#[test]
+fn hostile_bytes_on_the_link_change_nothing() {
+    let (_serve, port, mut ctl) = serve_with_link();
+    let sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
+    until(Duration::from_secs(5), "the attitude arrives", || {
+        centre_yaw(&mut ctl).abs() > 1e-3
+    });
+    let hostile = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let to = format!("127.0.0.1:{port}");
+    // Another system claiming the vehicle points south; a bad CRC; a cut frame; an unknown
+    // message id; random bytes: a stream of them for two seconds, 10,000 datagrams a second.
+    let t = Instant::now();
+    let wrong = attitude(Duration::from_secs(1), DVec3::new(PI - 0.01, 0.0, 0.0));
+    let other_system = frame(9, &wrong);
+    let mut bad_crc = frame(1, &wrong);
+    let end = bad_crc.len() - 1;
+    bad_crc[end] ^= 0xff;
+    let cut = frame(1, &wrong)[..12].to_vec();
+    // A message id the common dialect lacks (its checksum cannot be checked: dropped too).
+    let mut unknown = frame(1, &wrong);
+    unknown[7] = 0xf0;
+    unknown[8] = 0xf0;
+    let mut seed = 1u64;
+    let mut sent = 0u64;
+    while t.elapsed() < Duration::from_secs(2) {
+        for datagram in [&other_system, &bad_crc, &cut, &unknown] {
+            hostile.send_to(datagram, &to).unwrap();
+        }
+        let noise: Vec<u8> = (0..64)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                seed as u8
+            })
+            .collect();
+        hostile.send_to(&noise, &to).unwrap();
+        sent += 5;
+        if sent.is_multiple_of(50) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+    eprintln!("{sent} hostile datagrams in 2 s");
+    let worst = worst_following(&mut ctl, &sim, 10);
+    assert!(
+        worst < 8.0 * DEG,
+        "after the flood: worst {:.1}°",
+        worst / DEG
+    );
+    assert_eq!(status(&mut ctl), (0, 0));
+}

@@ -1,0 +1,148 @@
+//! A simulated autopilot, written with the `mavlink` crate as a flight controller's MAVLink
+//! would be: HEARTBEAT at 1 Hz and ATTITUDE at 200 Hz stamped with its own boot clock (booted
+//! 3.7 s before the test's), each message delivered after 0 to 20 ms of random delay, so
+//! they arrive jittered and now and then out of order. The vehicle's attitude is a function
+//! of time the test gives; it can fall silent, and hostile bytes can be sent beside it.
+
+use glam::DVec3;
+use mavlink::dialects::common::*;
+use mavlink::{MavConnection, MavHeader};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::net::UdpSocket;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// The vehicle's (yaw, pitch, roll) in radians at `t` seconds after the start.
+pub type Flight = fn(f64) -> DVec3;
+
+pub struct SimAutopilot {
+    pub start: Instant,
+    /// While set, no ATTITUDE is sent (HEARTBEAT goes on).
+    pub silent: Arc<AtomicBool>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+/// A small deterministic generator (xorshift) for the delays.
+struct Rng(u64);
+impl Rng {
+    fn unit(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+const BOOTED_BEFORE: Duration = Duration::from_millis(3700);
+
+impl SimAutopilot {
+    /// Sends to `to` (`udpout:127.0.0.1:PORT`) from system 1, component 1.
+    pub fn start(to: &str, flight: Flight) -> SimAutopilot {
+        let link = mavlink::connect::<MavMessage>(to).expect("the simulated autopilot's link");
+        let start = Instant::now();
+        let silent = Arc::new(AtomicBool::new(false));
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (silent, stop) = (silent.clone(), stop.clone());
+            std::thread::spawn(move || {
+                let header = MavHeader {
+                    system_id: 1,
+                    component_id: 1,
+                    sequence: 0,
+                };
+                let mut rng = Rng(0x5eed);
+                // (delivery time, sequence) → message; the sequence keeps equal times in order.
+                let mut queue: BinaryHeap<Reverse<(Instant, u64)>> = BinaryHeap::new();
+                let mut pending = std::collections::HashMap::new();
+                let (mut n, mut next_att, mut next_beat) = (0u64, start, start);
+                while !stop.load(Ordering::Relaxed) {
+                    let now = Instant::now();
+                    let mut made = vec![];
+                    if now >= next_beat {
+                        next_beat += Duration::from_secs(1);
+                        made.push(heartbeat());
+                    }
+                    while next_att <= now {
+                        let t = next_att - start;
+                        next_att += Duration::from_millis(5);
+                        if !silent.load(Ordering::Relaxed) {
+                            made.push(attitude(t, flight(t.as_secs_f64())));
+                        }
+                    }
+                    for m in made {
+                        let at = now + Duration::from_secs_f64(rng.unit() * 0.020);
+                        queue.push(Reverse((at, n)));
+                        pending.insert(n, m);
+                        n += 1;
+                    }
+                    while queue.peek().is_some_and(|Reverse((at, _))| *at <= now) {
+                        let Reverse((_, k)) = queue.pop().unwrap();
+                        let _ = link.send(&header, &pending.remove(&k).unwrap());
+                    }
+                    std::thread::sleep(Duration::from_micros(500));
+                }
+            })
+        };
+        SimAutopilot {
+            start,
+            silent,
+            stop,
+            thread: Some(thread),
+        }
+    }
+}
+
+impl Drop for SimAutopilot {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+        ..Default::default()
+    })
+}
+
+/// ATTITUDE at `t` after the start: the autopilot's clock reads `t` + [`BOOTED_BEFORE`].
+pub fn attitude(t: Duration, ypr: DVec3) -> MavMessage {
+    MavMessage::ATTITUDE(ATTITUDE_DATA {
+        time_boot_ms: (t + BOOTED_BEFORE).as_millis() as u32,
+        yaw: ypr.x as f32,
+        pitch: ypr.y as f32,
+        roll: ypr.z as f32,
+        ..Default::default()
+    })
+}
+
+/// A MAVLink 2 frame of `msg` from `system`, as bytes (to corrupt or send raw).
+pub fn frame(system: u8, msg: &MavMessage) -> Vec<u8> {
+    let mut out = vec![];
+    let header = MavHeader {
+        system_id: system.into(),
+        component_id: 1,
+        sequence: 7,
+    };
+    mavlink::write_versioned_msg(&mut out, mavlink::MavlinkVersion::V2, header, msg).unwrap();
+    out
+}
+
+/// A UDP port free now.
+pub fn free_udp_port() -> u16 {
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
