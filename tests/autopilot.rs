@@ -168,3 +168,34 @@ fn hostile_bytes_on_the_link_change_nothing() {
     );
     assert_eq!(status(&mut ctl), (0, 0));
 }
+
+#[test]
+fn a_tcp_autopilot_that_goes_away_and_comes_back_is_followed_again() {
+    let port = free_udp_port();
+    let serve = Serve::start(&[
+        "--mavlink",
+        &format!("tcpout:127.0.0.1:{port}"),
+        "--cam",
+        "0:yaw=0deg,pitch=-30deg,lock=0",
+    ]);
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    // The autopilot's TCP server comes up after DigiView started trying, goes away, and
+    // comes back on the same port.
+    std::thread::sleep(Duration::from_millis(500));
+    for round in 0..2 {
+        let sim = SimAutopilot::start(&format!("tcpin:127.0.0.1:{port}"), turning);
+        until(Duration::from_secs(15), "the attitude arrives", || {
+            worst_following(&mut ctl, &sim, 1) < 8.0 * DEG
+        });
+        let worst = worst_following(&mut ctl, &sim, 10);
+        assert!(
+            worst < 8.0 * DEG,
+            "round {round}: worst {:.1}°",
+            worst / DEG
+        );
+        drop(sim);
+        until(Duration::from_secs(2), "the loss reported", || {
+            status(&mut ctl) == (3, 4)
+        });
+    }
+}

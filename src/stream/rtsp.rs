@@ -1,8 +1,9 @@
-//! The RTSP server (gst-rtsp-server): one shared media at `rtsp://HOST:PORT/PATH` fed with the
-//! encoder's access units through an appsrc, so any number of clients watch one encode. A
-//! joining client gets a key frame at once (the caller is told to ask the encoder for one); a
-//! client that vanishes is the server's business and costs the frame path nothing. Optional
-//! basic authentication.
+//! The RTSP server (gst-rtsp-server) at `rtsp://HOST:PORT/PATH`: each client gets a media of
+//! its own, an appsrc fed with the encoder's access units, so any number of clients watch one
+//! encode. A client's stream starts at a key frame: one is asked of the encoder when it joins
+//! (the caller is told) and the units before it are not sent to that client, so every
+//! player's first frame decodes whole. A client that vanishes is the server's business and
+//! costs the frame path nothing. Optional basic authentication.
 
 use super::{H264_CAPS, Restamp, StreamError};
 use gstreamer as gst;
@@ -70,18 +71,19 @@ impl RtspConfig {
     }
 }
 
-/// The media's appsrc while at least one client watches.
+/// One client's media: its appsrc, its clock, and whether it still waits for a key frame.
 struct Media {
     src: gst_app::AppSrc,
     clock: Restamp,
+    started: bool,
 }
 
-type MediaSrc = Arc<Mutex<Option<Media>>>;
+type Medias = Arc<Mutex<Vec<Media>>>;
 
 pub struct Rtsp {
     main_loop: glib::MainLoop,
     thread: Option<JoinHandle<()>>,
-    media: MediaSrc,
+    medias: Medias,
     clients: Arc<AtomicUsize>,
     port: u16,
     path: String,
@@ -108,27 +110,31 @@ impl Rtsp {
             "( appsrc name=digiview_h264 is-live=true format=time min-latency=0 caps={H264_CAPS} \
              ! rtph264pay name=pay0 pt=96 )"
         ));
-        factory.set_shared(true);
+        // A media per client: each starts at its own key frame (a shared one would send a
+        // joining client the delta frames before it, which players report as errors).
+        factory.set_shared(false);
         factory.set_latency(0);
-        let media: MediaSrc = Arc::default();
+        let medias: Medias = Arc::default();
         {
-            let media = media.clone();
+            let medias = medias.clone();
             let on_join = on_join.clone();
             factory.connect_media_configure(move |_, m| {
-                let src = m
+                let Some(src) = m
                     .element()
                     .downcast::<gst::Bin>()
                     .ok()
                     .and_then(|bin| bin.by_name_recurse_up("digiview_h264"))
-                    .and_then(|e| e.downcast::<gst_app::AppSrc>().ok());
-                *media.lock().unwrap_or_else(|e| e.into_inner()) = src.map(|src| Media {
-                    src,
+                    .and_then(|e| e.downcast::<gst_app::AppSrc>().ok())
+                else {
+                    return;
+                };
+                lock(&medias).push(Media {
+                    src: src.clone(),
                     clock: Restamp::default(),
+                    started: false,
                 });
-                let gone = media.clone();
-                m.connect_unprepared(move |_| {
-                    *gone.lock().unwrap_or_else(|e| e.into_inner()) = None;
-                });
+                let gone = medias.clone();
+                m.connect_unprepared(move |_| lock(&gone).retain(|m| m.src != src));
                 on_join();
             });
         }
@@ -183,7 +189,7 @@ impl Rtsp {
         Ok(Rtsp {
             main_loop,
             thread: Some(thread),
-            media,
+            medias,
             clients,
             port,
             path: cfg.path.clone(),
@@ -204,23 +210,29 @@ impl Rtsp {
         self.clients.load(Ordering::Relaxed)
     }
 
-    /// Hands one access unit to the watching clients (nothing happens when none watch).
+    /// Hands one access unit to the watching clients (nothing happens when none watch); a
+    /// client that has not had a key frame yet gets none before one.
     pub fn push(&self, au: &gst::Buffer) {
-        let (src, buffer) = {
-            let mut media = self.media.lock().unwrap_or_else(|e| e.into_inner());
-            let Some(m) = media.as_mut() else {
-                return;
-            };
-            let Some(now) = m.src.current_running_time() else {
-                return;
-            };
-            let Some(buffer) = m.clock.restamped(au, now) else {
-                return;
-            };
-            (m.src.clone(), buffer)
-        };
-        let _ = src.push_buffer(buffer);
+        let key = !au.flags().contains(gst::BufferFlags::DELTA_UNIT);
+        let ready: Vec<_> = lock(&self.medias)
+            .iter_mut()
+            .filter_map(|m| {
+                m.started |= key;
+                if !m.started {
+                    return None;
+                }
+                let now = m.src.current_running_time()?;
+                Some((m.src.clone(), m.clock.restamped(au, now)?))
+            })
+            .collect();
+        for (src, buffer) in ready {
+            let _ = src.push_buffer(buffer);
+        }
     }
+}
+
+fn lock(medias: &Medias) -> std::sync::MutexGuard<'_, Vec<Media>> {
+    medias.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl Drop for Rtsp {
