@@ -29,13 +29,21 @@ fn wrap(a: f64) -> f64 {
 /// `serve --no-video` listening for the autopilot on a free UDP port; camera 0 unlocked
 /// (fixed to the vehicle), looking ahead and 30° down.
 fn serve_with_link() -> (Serve, u16, Client) {
+    serve_with(&[])
+}
+
+/// As [`serve_with_link`], with `extra` flags.
+fn serve_with(extra: &[&str]) -> (Serve, u16, Client) {
     let port = free_udp_port();
-    let serve = Serve::start(&[
+    let link = format!("udpin:127.0.0.1:{port}");
+    let mut args = vec![
         "--mavlink",
-        &format!("udpin:127.0.0.1:{port}"),
+        &link,
         "--cam",
         "0:yaw=0deg,pitch=-30deg,lock=0",
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let serve = Serve::start(&args);
     let ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
     (serve, port, ctl)
 }
@@ -198,4 +206,38 @@ fn a_tcp_autopilot_that_goes_away_and_comes_back_is_followed_again() {
             status(&mut ctl) == (3, 4)
         });
     }
+}
+
+#[test]
+fn with_signing_only_signed_messages_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        "[mavlink]\nsigning_key = \"correct horse battery staple\"\n",
+    )
+    .unwrap();
+    let (_serve, port, mut ctl) = serve_with(&["--config", config.to_str().unwrap()]);
+    let key = digiview::autopilot::signing_key("correct horse battery staple");
+
+    // Unsigned, and signed with another key: nothing is taken, not even the HEARTBEAT.
+    for other in [None, Some(digiview::autopilot::signing_key("wrong"))] {
+        let sim = SimAutopilot::start_signed(&format!("udpout:127.0.0.1:{port}"), turning, other);
+        std::thread::sleep(Duration::from_millis(1500));
+        assert_eq!(
+            centre_yaw(&mut ctl),
+            0.0,
+            "{other:?}: the attitude did not move"
+        );
+        drop(sim);
+    }
+
+    let sim = SimAutopilot::start_signed(&format!("udpout:127.0.0.1:{port}"), turning, Some(key));
+    until(
+        Duration::from_secs(5),
+        "the signed attitude arrives",
+        || centre_yaw(&mut ctl).abs() > 1e-3,
+    );
+    let worst = worst_following(&mut ctl, &sim, 10);
+    assert!(worst < 8.0 * DEG, "signed: worst {:.1}°", worst / DEG);
 }

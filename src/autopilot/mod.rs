@@ -18,7 +18,10 @@ use mavlink::dialects::common::{
     COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavState,
     MavType,
 };
-use mavlink::{MavConnection, MavHeader};
+use mavlink::{
+    MAVLinkMessageRaw, MAVLinkV2MessageRaw, MavConnection, MavHeader, Message, SigningConfig,
+    SigningData,
+};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -95,10 +98,25 @@ impl std::str::FromStr for Endpoint {
 
 type Connection = Arc<dyn MavConnection<MavMessage> + Send + Sync>;
 
+/// The 32-byte signing key of `signing_key`: 64 hex digits as they are, anything else a
+/// passphrase hashed with SHA-256 (as MAVProxy's `signing setup` and Mission Planner do).
+pub fn signing_key(text: &str) -> [u8; 32] {
+    let hex = |i: usize| u8::from_str_radix(text.get(2 * i..2 * i + 2)?, 16).ok();
+    if text.len() == 64 {
+        if let Some(bytes) = (0..32).map(hex).collect::<Option<Vec<u8>>>() {
+            return bytes.try_into().expect("32 bytes");
+        }
+    }
+    use sha2::Digest;
+    sha2::Sha256::digest(text.as_bytes()).into()
+}
+
 /// What the link knows now, for the health line and the docs' `ctl`.
 #[derive(Default)]
 pub struct LinkStatus {
     pub messages: AtomicU64,
+    /// With signing on: messages ignored for a missing or wrong signature.
+    pub unsigned: AtomicU64,
     /// Local time of the newest attitude sample, µs (0: none yet).
     pub attitude_us: AtomicU64,
     pub attitudes: AtomicU64,
@@ -122,6 +140,8 @@ struct Shared {
     telemetry: Arc<Telemetry>,
     status: Arc<LinkStatus>,
     connection: Mutex<Option<Connection>>,
+    /// With signing on: the key, checking what comes in and signing what goes out.
+    signing: Option<SigningData>,
     stop: Arc<AtomicBool>,
 }
 
@@ -144,6 +164,9 @@ impl Link {
             telemetry,
             status: status.clone(),
             connection: Mutex::new(None),
+            signing: cfg.signing_key.as_deref().map(|k| {
+                SigningData::from_config(SigningConfig::new(signing_key(k), 0, true, false))
+            }),
             stop: stop.clone(),
         });
         let mut threads = vec![];
@@ -206,9 +229,11 @@ fn receive(shared: &Shared) {
             if shared.stop.load(Ordering::Relaxed) {
                 return;
             }
-            match connection.recv() {
-                Ok((header, msg)) => {
-                    apply(shared, &mut vehicle, &header, &msg, &mut last_live);
+            match connection.recv_raw() {
+                Ok(raw) => {
+                    if let Some((header, msg)) = accept(shared, &raw) {
+                        apply(shared, &mut vehicle, &header, &msg, &mut last_live);
+                    }
                 }
                 Err(mavlink::error::MessageReadError::Io(e))
                     if matches!(
@@ -235,6 +260,40 @@ fn receive(shared: &Shared) {
         std::thread::sleep(backoff);
         backoff = (backoff * 2).min(Duration::from_secs(10));
     }
+}
+
+/// A frame's header and message, if it passes signing (when on) and parses.
+fn accept(shared: &Shared, raw: &MAVLinkMessageRaw) -> Option<(MavHeader, MavMessage)> {
+    if let Some(signing) = &shared.signing {
+        let signed = match raw {
+            MAVLinkMessageRaw::V2(v2) => signing.verify_signature(v2),
+            MAVLinkMessageRaw::V1(_) => false,
+        };
+        if !signed {
+            shared.status.unsigned.fetch_add(1, Ordering::Relaxed);
+            return None;
+        }
+    }
+    let msg = MavMessage::parse(raw.version(), raw.message_id(), raw.payload()).ok()?;
+    let header = MavHeader {
+        system_id: raw.system_id(),
+        component_id: raw.component_id(),
+        sequence: raw.sequence(),
+    };
+    Some((header, msg))
+}
+
+/// `msg` on `connection`, signed when signing is on.
+fn send_one(shared: &Shared, connection: &Connection, header: MavHeader, msg: &MavMessage) {
+    let _ = match &shared.signing {
+        Some(signing) => {
+            let mut raw = MAVLinkV2MessageRaw::new();
+            raw.serialize_message_for_signing(header, msg);
+            signing.sign_message(&mut raw);
+            connection.send_raw(&MAVLinkMessageRaw::V2(raw))
+        }
+        None => connection.send(&header, msg),
+    };
 }
 
 /// One message: into the telemetry and, at most every [`LIVE_EVERY`], the live state.
@@ -316,7 +375,7 @@ fn send(shared: &Shared) {
             };
             if beat.elapsed() >= Duration::from_secs(1) {
                 beat = Instant::now();
-                let _ = c.send(&header, &heartbeat());
+                send_one(shared, c, header, &heartbeat());
             }
             // Ask for the rates when the autopilot is found, and again every 10 s while the
             // attitude comes at less than half the rate asked.
@@ -335,7 +394,12 @@ fn send(shared: &Shared) {
                 if due {
                     asked = Some(Instant::now());
                     for (id, hz) in [(30, shared.cfg.attitude_hz), (33, shared.cfg.position_hz)] {
-                        let _ = c.send(&header, &message_interval(system, component, id, hz));
+                        send_one(
+                            shared,
+                            c,
+                            header,
+                            &message_interval(system, component, id, hz),
+                        );
                     }
                 }
             }
@@ -365,12 +429,14 @@ fn report(status: &LinkStatus, (since, before): (Instant, u64)) -> (Instant, u64
     match *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) {
         Some((system, component)) => info!(
             "mavlink: autopilot {system}/{component}, attitude {hz:.0} Hz, clock: autopilot + \
-             {:.3} s (drift {:+.0} ppm over {:.1} s, {} samples, {} reboots)",
+             {:.3} s (drift {:+.0} ppm over {:.1} s, {} samples, {} reboots), {} unsigned or \
+             badly signed ignored",
             c.offset_us as f64 / 1e6,
             c.drift_ppm,
             c.span_us as f64 / 1e6,
             c.samples,
-            c.resets
+            c.resets,
+            status.unsigned.load(Ordering::Relaxed)
         ),
         None => info!(
             "mavlink: no autopilot heard yet ({} messages)",
@@ -406,6 +472,14 @@ fn message_interval(system: u8, component: u8, id: u32, hz: f64) -> MavMessage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_signing_key_is_64_hex_digits_or_a_passphrase() {
+        let hex = "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff";
+        assert_eq!(signing_key(hex)[..4], [0x00, 0x11, 0x22, 0x33]);
+        // SHA-256("abc"), the standard's own test vector.
+        assert_eq!(signing_key("abc")[..4], [0xba, 0x78, 0x16, 0xbf]);
+    }
 
     #[test]
     fn endpoints_are_checked() {

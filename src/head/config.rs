@@ -158,6 +158,10 @@ pub struct MavlinkConfig {
     pub attitude_hz: f64,
     /// The GLOBAL_POSITION_INT rate asked of the autopilot, Hz.
     pub position_hz: f64,
+    /// MAVLink 2 signing: 64 hex digits (the 32-byte key), or a passphrase whose SHA-256 is
+    /// the key. With it, unsigned and badly signed messages are ignored (and counted), and
+    /// DigiView signs what it sends.
+    pub signing_key: Option<String>,
 }
 
 impl Default for MavlinkConfig {
@@ -167,6 +171,7 @@ impl Default for MavlinkConfig {
             system_id: None,
             attitude_hz: 100.0,
             position_hz: 10.0,
+            signing_key: None,
         }
     }
 }

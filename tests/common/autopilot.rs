@@ -42,7 +42,13 @@ const BOOTED_BEFORE: Duration = Duration::from_millis(3700);
 impl SimAutopilot {
     /// Sends to `to` (`udpout:127.0.0.1:PORT`) from system 1, component 1.
     pub fn start(to: &str, flight: Flight) -> SimAutopilot {
-        let link = mavlink::connect::<MavMessage>(to).expect("the simulated autopilot's link");
+        SimAutopilot::start_signed(to, flight, None)
+    }
+
+    /// As [`SimAutopilot::start`], signing every message with `key` when given.
+    pub fn start_signed(to: &str, flight: Flight, key: Option<[u8; 32]>) -> SimAutopilot {
+        let mut link = mavlink::connect::<MavMessage>(to).expect("the simulated autopilot's link");
+        link.setup_signing(key.map(|k| mavlink::SigningConfig::new(k, 0, true, false)));
         let start = Instant::now();
         let silent = Arc::new(AtomicBool::new(false));
         let stop = Arc::new(AtomicBool::new(false));
