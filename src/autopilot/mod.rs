@@ -102,10 +102,10 @@ type Connection = Arc<dyn MavConnection<MavMessage> + Send + Sync>;
 /// passphrase hashed with SHA-256 (as MAVProxy's `signing setup` and Mission Planner do).
 pub fn signing_key(text: &str) -> [u8; 32] {
     let hex = |i: usize| u8::from_str_radix(text.get(2 * i..2 * i + 2)?, 16).ok();
-    if text.len() == 64 {
-        if let Some(bytes) = (0..32).map(hex).collect::<Option<Vec<u8>>>() {
-            return bytes.try_into().expect("32 bytes");
-        }
+    if text.len() == 64
+        && let Some(bytes) = (0..32).map(hex).collect::<Option<Vec<u8>>>()
+    {
+        return bytes.try_into().expect("32 bytes");
     }
     use sha2::Digest;
     sha2::Sha256::digest(text.as_bytes()).into()
