@@ -241,3 +241,43 @@ fn with_signing_only_signed_messages_count() {
     let worst = worst_following(&mut ctl, &sim, 10);
     assert!(worst < 8.0 * DEG, "signed: worst {:.1}°", worst / DEG);
 }
+
+/// Waits until camera 0's centre looks along `yaw` (± 3°), the demo's flight's heading.
+fn until_yaw(ctl: &mut Client, yaw: f64, what: &str) {
+    until(Duration::from_secs(10), what, || {
+        wrap(centre_yaw(ctl) - yaw).abs() < 3.0 * DEG
+    });
+}
+
+#[test]
+fn sim_autopilot_flies_the_demo_circle_into_a_running_serve() {
+    let (_serve, port, mut ctl) = serve_with_link();
+    let mut sim = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["sim-autopilot", "--to", &format!("udpout:127.0.0.1:{port}")])
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // The circle starts heading east (90°) and turns 4° a second.
+    until_yaw(&mut ctl, 90.0 * DEG, "the simulated autopilot's heading");
+    let _ = sim.kill();
+    let _ = sim.wait();
+}
+
+#[test]
+fn the_demo_flies_through_the_mavlink_link_when_it_listens() {
+    let port = free_udp_port();
+    let serve = Serve::start_video(&[
+        "--mavlink",
+        &format!("udpin:127.0.0.1:{port}"),
+        "--demo-size",
+        "640x480",
+        "--size",
+        "640x480",
+        "--cam",
+        "0:yaw=0deg,pitch=-30deg,lock=0",
+    ]);
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    // Only the link writes the vehicle into the live state: the heading the protocol reports
+    // is the demo's, so it came over MAVLink.
+    until_yaw(&mut ctl, 90.0 * DEG, "the demo's heading over the link");
+}

@@ -8,6 +8,7 @@
 //! the attitude going stale.
 
 pub mod clock;
+pub mod sim;
 pub mod vehicle;
 
 use crate::head::config::MavlinkConfig;

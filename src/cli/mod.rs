@@ -8,6 +8,7 @@ pub mod locate;
 mod render_cmd;
 mod render_video;
 mod serve_cmd;
+mod sim_cmd;
 
 use crate::state::State;
 use anyhow::{Context, Result};
@@ -45,6 +46,8 @@ pub enum Command {
     Serve(serve_cmd::ServeArgs),
     /// Talk to a running server over the control protocol: get, set, watch, quit.
     Ctl(ctl_cmd::CtlArgs),
+    /// Send the demo's flight as a MAVLink autopilot, to try a setup without a drone.
+    SimAutopilot(sim_cmd::SimArgs),
 }
 
 /// Which renderer `render` and `bench` use.
@@ -153,6 +156,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bench(args) => bench_cmd::bench(&lens_cal()?, args),
         Command::Serve(args) => serve_cmd::serve(&lens_cal()?, args),
         Command::Ctl(args) => ctl_cmd::run(args),
+        Command::SimAutopilot(args) => sim_cmd::sim_autopilot(args),
     }
 }
 

@@ -3,6 +3,7 @@
 //! fails. Frames go to the head's newest-wins slot.
 
 use super::{Head, HeadError};
+use crate::autopilot::sim::SimAutopilot;
 use crate::frame::{Frame, PlaneLayout};
 use crate::source::demo::{DemoCamera, Flight};
 use crate::source::{Ended, SourceSpec, backoff, clock_us};
@@ -92,6 +93,17 @@ impl Head {
         );
         let period = Duration::from_secs_f64(1.0 / d.fps as f64);
         let start = Instant::now();
+        // The flight goes to the frames through the MAVLink link, as a real autopilot's would,
+        // where the link listens on this machine; else straight into the telemetry.
+        let _autopilot = demo_link(&self.cfg.mavlink.endpoint).map(|to| {
+            info!("source: the demo's flight is a simulated autopilot sending to {to}");
+            SimAutopilot::start(
+                &to,
+                flight.clone(),
+                start,
+                self.cfg.mavlink.attitude_hz.max(100.0),
+            )
+        });
         let mut next = start;
         while !self.stop.load(Ordering::Relaxed) {
             let now = Instant::now();
@@ -121,5 +133,17 @@ impl Head {
             });
         }
         Ok(())
+    }
+}
+
+/// Where the demo's simulated autopilot sends so that the link hears it: the link's own port
+/// on this machine when it listens (udpin, tcpin); None when it is off or goes elsewhere.
+fn demo_link(endpoint: &str) -> Option<String> {
+    let (kind, rest) = endpoint.split_once(':')?;
+    let (_, port) = rest.rsplit_once(':')?;
+    match kind {
+        "udpin" => Some(format!("udpout:127.0.0.1:{port}")),
+        "tcpin" => Some(format!("tcpout:127.0.0.1:{port}")),
+        _ => None,
     }
 }

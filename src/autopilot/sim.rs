@@ -1,0 +1,146 @@
+//! A simulated autopilot: the demo's flight sent as a flight controller sends it (HEARTBEAT
+//! each second, ATTITUDE at the rate asked, GLOBAL_POSITION_INT at 10 Hz and HOME_POSITION
+//! each second, stamped with its own boot clock), so that everything downstream of the link,
+//! the parser and the clock mapping included, runs without a drone, and a ground station
+//! pointed at it sees a vehicle flying the demo's circle. `digiview sim-autopilot` runs it.
+
+use crate::geometry::rotation::wrap_pi;
+use crate::source::demo::Flight;
+use mavlink::dialects::common::{
+    ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, HOME_POSITION_DATA, MavAutopilot,
+    MavMessage, MavModeFlag, MavState, MavType,
+};
+use mavlink::{MavConnection, MavHeader};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use tracing::warn;
+
+/// The simulated vehicle's system id.
+pub const SYSTEM: u8 = 1;
+
+pub struct SimAutopilot {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl SimAutopilot {
+    /// Sends `flight`, its time counted from `start`, to `to` (a MAVLink endpoint), ATTITUDE at
+    /// `rate_hz`. A link that cannot be opened (or fails) is retried every second.
+    pub fn start(to: &str, flight: Flight, start: Instant, rate_hz: f64) -> SimAutopilot {
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (to, stop) = (to.to_string(), stop.clone());
+            std::thread::Builder::new()
+                .name("sim-autopilot".into())
+                .spawn(move || run(&to, &flight, start, rate_hz, &stop))
+                .ok()
+        };
+        SimAutopilot { stop, thread }
+    }
+}
+
+impl Drop for SimAutopilot {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBool) {
+    let period = Duration::from_secs_f64(1.0 / rate_hz.clamp(1.0, 1000.0));
+    let header = MavHeader {
+        system_id: SYSTEM.into(),
+        component_id: 1,
+        sequence: 0,
+    };
+    while !stop.load(Ordering::Relaxed) {
+        let link = match mavlink::connect::<MavMessage>(to) {
+            Ok(l) => l,
+            Err(e) => {
+                warn!("sim-autopilot {to}: {e}; retrying in 1 s");
+                std::thread::sleep(Duration::from_secs(1));
+                continue;
+            }
+        };
+        let (mut next, mut position_at, mut beat_at) = (Instant::now(), start, start);
+        while !stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            if now < next {
+                std::thread::sleep(next - now);
+            }
+            next += period;
+            let t = start.elapsed();
+            let mut out = vec![attitude(flight, t)];
+            if t >= beat_at.duration_since(start) {
+                beat_at += Duration::from_secs(1);
+                out.push(heartbeat());
+                out.push(home(flight));
+            }
+            if t >= position_at.duration_since(start) {
+                position_at += Duration::from_millis(100);
+                out.push(position(flight, t));
+            }
+            if out.iter().any(|m| link.send(&header, m).is_err()) {
+                // Nobody listening yet (a refused UDP send) costs nothing; a broken TCP link
+                // is reopened.
+                if to.starts_with("tcp") {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+fn heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_QUADROTOR,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_GENERIC,
+        base_mode: MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED,
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+fn boot_ms(t: Duration) -> u32 {
+    t.as_millis() as u32
+}
+
+fn attitude(flight: &Flight, t: Duration) -> MavMessage {
+    let (a, _) = flight.pose(t.as_secs_f64());
+    MavMessage::ATTITUDE(ATTITUDE_DATA {
+        time_boot_ms: boot_ms(t),
+        roll: a.roll as f32,
+        pitch: a.pitch as f32,
+        yaw: a.yaw as f32,
+        ..Default::default()
+    })
+}
+
+fn position(flight: &Flight, t: Duration) -> MavMessage {
+    let (a, p) = flight.pose(t.as_secs_f64());
+    MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+        time_boot_ms: boot_ms(t),
+        lat: (p.lat * 1e7).round() as i32,
+        lon: (p.lon * 1e7).round() as i32,
+        alt: (p.alt * 1000.0).round() as i32,
+        relative_alt: (p.relative_alt * 1000.0).round() as i32,
+        hdg: (wrap_pi(a.yaw).to_degrees().rem_euclid(360.0) * 100.0) as u16,
+        ..Default::default()
+    })
+}
+
+fn home(flight: &Flight) -> MavMessage {
+    let p = flight.hover;
+    MavMessage::HOME_POSITION(HOME_POSITION_DATA {
+        latitude: (p.lat * 1e7).round() as i32,
+        longitude: (p.lon * 1e7).round() as i32,
+        altitude: ((p.alt - p.relative_alt) * 1000.0).round() as i32,
+        q: [1.0, 0.0, 0.0, 0.0],
+        ..Default::default()
+    })
+}
