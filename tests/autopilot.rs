@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::autopilot::{SimAutopilot, attitude, frame, free_udp_port};
+use common::autopilot::{SimAutopilot, attitude, clock_s, frame, free_udp_port};
 use common::serve::Serve;
 use digiview::control::client::Client;
 use digiview::protocol::params::CamOffset;
@@ -63,12 +63,13 @@ fn status(ctl: &mut Client) -> (u8, u8) {
     }
 }
 
-/// The largest |CAM_OFFSET yaw − the autopilot's yaw| over `n` readings 100 ms apart.
-fn worst_following(ctl: &mut Client, sim: &SimAutopilot, n: usize) -> f64 {
+/// The largest |CAM_OFFSET yaw − the simulated autopilot's yaw| over `n` readings 100 ms
+/// apart.
+fn worst_following(ctl: &mut Client, n: usize) -> f64 {
     let mut worst: f64 = 0.0;
     for _ in 0..n {
         let got = centre_yaw(ctl);
-        let want = turning(sim.start.elapsed().as_secs_f64()).x;
+        let want = turning(clock_s()).x;
         worst = worst.max(wrap(got - want).abs());
         std::thread::sleep(Duration::from_millis(100));
     }
@@ -92,7 +93,7 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
     });
     // The live state is brought up to date 20 times a second: at 90°/s the reading trails
     // the autopilot by at most 50 ms of turn plus the link's delay.
-    let worst = worst_following(&mut ctl, &sim, 20);
+    let worst = worst_following(&mut ctl, 20);
     eprintln!("following the autopilot: worst {:.2}°", worst / DEG);
     assert!(worst < 8.0 * DEG, "worst {:.1}°", worst / DEG);
 
@@ -117,7 +118,7 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
     until(Duration::from_secs(2), "the status back", || {
         status(&mut ctl) == (0, 0)
     });
-    let worst = worst_following(&mut ctl, &sim, 10);
+    let worst = worst_following(&mut ctl, 10);
     assert!(
         worst < 8.0 * DEG,
         "after recovery: worst {:.1}°",
@@ -128,7 +129,7 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
 #[test]
 fn hostile_bytes_on_the_link_change_nothing() {
     let (_serve, port, mut ctl) = serve_with_link();
-    let sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
+    let _sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
     until(Duration::from_secs(5), "the attitude arrives", || {
         centre_yaw(&mut ctl).abs() > 1e-3
     });
@@ -168,7 +169,7 @@ fn hostile_bytes_on_the_link_change_nothing() {
         }
     }
     eprintln!("{sent} hostile datagrams in 2 s");
-    let worst = worst_following(&mut ctl, &sim, 10);
+    let worst = worst_following(&mut ctl, 10);
     assert!(
         worst < 8.0 * DEG,
         "after the flood: worst {:.1}°",
@@ -193,9 +194,9 @@ fn a_tcp_autopilot_that_goes_away_and_comes_back_is_followed_again() {
     for round in 0..2 {
         let sim = SimAutopilot::start(&format!("tcpin:127.0.0.1:{port}"), turning);
         until(Duration::from_secs(15), "the attitude arrives", || {
-            worst_following(&mut ctl, &sim, 1) < 8.0 * DEG
+            worst_following(&mut ctl, 1) < 8.0 * DEG
         });
-        let worst = worst_following(&mut ctl, &sim, 10);
+        let worst = worst_following(&mut ctl, 10);
         assert!(
             worst < 8.0 * DEG,
             "round {round}: worst {:.1}°",
@@ -232,13 +233,13 @@ fn with_signing_only_signed_messages_count() {
         drop(sim);
     }
 
-    let sim = SimAutopilot::start_signed(&format!("udpout:127.0.0.1:{port}"), turning, Some(key));
+    let _sim = SimAutopilot::start_signed(&format!("udpout:127.0.0.1:{port}"), turning, Some(key));
     until(
         Duration::from_secs(5),
         "the signed attitude arrives",
         || centre_yaw(&mut ctl).abs() > 1e-3,
     );
-    let worst = worst_following(&mut ctl, &sim, 10);
+    let worst = worst_following(&mut ctl, 10);
     assert!(worst < 8.0 * DEG, "signed: worst {:.1}°", worst / DEG);
 }
 

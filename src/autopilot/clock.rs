@@ -5,10 +5,11 @@
 //! Every message stamped `remote` by the autopilot and received at `local` gives an offset
 //! `local - remote` = the clocks' true offset + the transport delay, and delays are never
 //! negative, so the lowest offsets are the truest. The offsets are kept as the lowest one per
-//! half second of the autopilot's time over the last ten seconds; with two seconds of them,
+//! half second of the autopilot's time over the last ten seconds; once they span five seconds,
 //! the clocks' drift is the slope of a least-squares line through those minima (at most
-//! 200 ppm: more is the delays' noise), and the line is then lowered onto the lowest of them. Before that, the lowest offset seen serves. An
-//! autopilot whose clock jumps back (it rebooted) starts the mapping afresh.
+//! 100 ppm: more is the delays' noise; crystals drift by tens), and the line is then lowered
+//! onto the lowest of them. Before that, the lowest offset seen serves. An autopilot whose
+//! clock jumps back (it rebooted) starts the mapping afresh.
 
 use std::collections::VecDeque;
 
@@ -16,9 +17,9 @@ use std::collections::VecDeque;
 const BUCKET_US: u64 = 500_000;
 const BUCKETS: usize = 20;
 /// Minima spanning this much estimate the drift.
-const DRIFT_SPAN_US: u64 = 2_000_000;
-/// The largest drift believed, as a rate (200 ppm).
-const MAX_DRIFT: f64 = 200e-6;
+const DRIFT_SPAN_US: u64 = 5_000_000;
+/// The largest drift believed, as a rate (100 ppm).
+const MAX_DRIFT: f64 = 100e-6;
 /// The autopilot's clock going back by more than this is a reboot.
 const REBOOT_US: u64 = 1_000_000;
 
@@ -206,12 +207,12 @@ mod tests {
     fn the_drift_is_estimated_and_a_reboot_starts_afresh() {
         let mut c = BootClock::default();
         for i in 0..2000u64 {
-            // 100 ppm slow against us, no delay.
+            // 60 ppm slow against us, no delay.
             let remote = i * 5000;
-            c.observe(remote, 10_000_000 + (remote as f64 * (1.0 + 100e-6)) as u64);
+            c.observe(remote, 10_000_000 + (remote as f64 * (1.0 + 60e-6)) as u64);
         }
         let s = c.state();
-        assert!((s.drift_ppm - 100.0).abs() < 5.0, "{s:?}");
+        assert!((s.drift_ppm - 60.0).abs() < 5.0, "{s:?}");
         c.observe(1000, 50_000_000);
         assert_eq!(c.state().resets, 1);
         assert_eq!(c.state().samples, 1);

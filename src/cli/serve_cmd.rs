@@ -161,7 +161,7 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         Box::new(capture.clone())
     };
     let live = Arc::new(Live::new(state, cal, hook)?);
-    let telemetry = Arc::new(Telemetry::default());
+    let telemetry = Arc::new(Telemetry::new(cfg.mavlink.attitude_sample));
     let _link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone())?;
     let controller = Arc::new(Controller::new(live.clone(), permissions));
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -42,6 +42,7 @@ pub fn sim_autopilot(args: SimArgs) -> Result<()> {
         hover: state.vehicle.position,
         attitude: state.vehicle.attitude.euler(),
         motion: !args.hover,
+        spin: false,
         radius: 30.0,
         lap: 90.0,
     };

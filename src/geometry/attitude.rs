@@ -33,6 +33,11 @@ impl AttitudeTrack {
         }
     }
 
+    /// The newest sample, whatever its time.
+    pub fn latest(&self) -> Option<Euler> {
+        self.samples.back().map(|&(_, q)| Euler::from_quat(q))
+    }
+
     pub fn len(&self) -> usize {
         self.samples.len()
     }

@@ -66,6 +66,9 @@ pub struct DemoConfig {
     pub fps: u32,
     /// Fly a circle (true) or hover at the state's attitude and position (false).
     pub motion: bool,
+    /// Hover yawing 90°/s and rolling ±20° at 1 Hz, by the monotonic clock (for tests with a
+    /// simulated autopilot that reports the same; the demo then sends no flight of its own).
+    pub spin: bool,
     /// The layout frames arrive in, as a camera's would.
     pub format: PixelFormat,
     /// Draw each frame's capture time (ms) as a barcode at the image centre, for
@@ -80,6 +83,7 @@ impl Default for DemoConfig {
             height: 720,
             fps: 30,
             motion: true,
+            spin: false,
             format: PixelFormat::Nv12,
             stamp: false,
         }
@@ -162,6 +166,18 @@ pub struct MavlinkConfig {
     /// the key. With it, unsigned and badly signed messages are ignored (and counted), and
     /// DigiView signs what it sends.
     pub signing_key: Option<String>,
+    /// Which attitude a frame is rendered with: `interpolated` (slerp at its capture time)
+    /// or `latest` (the newest sample when it is rendered; only to see what interpolation
+    /// is worth).
+    pub attitude_sample: AttitudeSample,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AttitudeSample {
+    #[default]
+    Interpolated,
+    Latest,
 }
 
 impl Default for MavlinkConfig {
@@ -172,6 +188,7 @@ impl Default for MavlinkConfig {
             attitude_hz: 100.0,
             position_hz: 10.0,
             signing_key: None,
+            attitude_sample: AttitudeSample::Interpolated,
         }
     }
 }

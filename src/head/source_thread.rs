@@ -76,6 +76,7 @@ impl Head {
             hover: state.vehicle.position,
             attitude: state.vehicle.attitude.euler(),
             motion: d.motion,
+            spin: d.spin,
             radius: 30.0,
             lap: 90.0,
         };
@@ -85,17 +86,20 @@ impl Head {
             d.height,
             d.format,
             d.fps,
-            if d.motion {
-                "flying a circle"
-            } else {
-                "hovering"
+            match (d.spin, d.motion) {
+                (true, _) => "spinning (yaw 90°/s, roll ±20° at 1 Hz)",
+                (false, true) => "flying a circle",
+                (false, false) => "hovering",
             }
         );
         let period = Duration::from_secs_f64(1.0 / d.fps as f64);
         let start = Instant::now();
         // The flight goes to the frames through the MAVLink link, as a real autopilot's would,
         // where the link listens on this machine; else straight into the telemetry.
-        let _autopilot = demo_link(&self.cfg.mavlink.endpoint).map(|to| {
+        let link = (!d.spin)
+            .then(|| demo_link(&self.cfg.mavlink.endpoint))
+            .flatten();
+        let _autopilot = link.map(|to| {
             info!("source: the demo's flight is a simulated autopilot sending to {to}");
             SimAutopilot::start(
                 &to,
@@ -122,7 +126,7 @@ impl Head {
             }
             let captured_us = clock_us();
             let t = start.elapsed().as_secs_f64();
-            let (attitude, position) = flight.pose(t);
+            let (attitude, position) = flight.pose_at(t, captured_us as f64 / 1e6);
             self.telemetry.simulated(captured_us, attitude, position);
             let stamp = d.stamp.then_some((captured_us / 1000) as u32);
             let data = camera.frame(attitude, &position, t, stamp);

@@ -2,6 +2,7 @@
 //! the demo's simulated flight) and the latest position, so each frame is rendered with the
 //! attitude at its own capture time.
 
+use super::config::AttitudeSample;
 use crate::geometry::attitude::AttitudeTrack;
 use crate::geometry::{Euler, GeoPosition};
 use crate::source::clock_us;
@@ -15,6 +16,7 @@ const SAMPLES: usize = 512;
 const EXTERNAL_US: u64 = 1_000_000;
 
 pub struct Telemetry {
+    sample: AttitudeSample,
     track: Mutex<AttitudeTrack>,
     position: Mutex<Option<GeoPosition>>,
     /// Local time of the autopilot's newest attitude (0: none).
@@ -23,15 +25,20 @@ pub struct Telemetry {
 
 impl Default for Telemetry {
     fn default() -> Self {
+        Telemetry::new(AttitudeSample::Interpolated)
+    }
+}
+
+impl Telemetry {
+    pub fn new(sample: AttitudeSample) -> Self {
         Telemetry {
+            sample,
             track: Mutex::new(AttitudeTrack::new(SAMPLES)),
             position: Mutex::new(None),
             external_us: AtomicU64::new(0),
         }
     }
-}
 
-impl Telemetry {
     /// An attitude measured at `t_us` (the sources' clock, [`crate::source::clock_us`]).
     pub fn attitude(&self, t_us: u64, attitude: Euler) {
         self.track
@@ -63,11 +70,12 @@ impl Telemetry {
 
     /// The attitude at `t_us` (None before any sample) and the latest position.
     pub fn at(&self, t_us: u64) -> (Option<Euler>, Option<GeoPosition>) {
-        let attitude = self
-            .track
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .at(t_us);
+        let track = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        let attitude = match self.sample {
+            AttitudeSample::Interpolated => track.at(t_us),
+            AttitudeSample::Latest => track.latest(),
+        };
+        drop(track);
         let position = *self.position.lock().unwrap_or_else(|e| e.into_inner());
         (attitude, position)
     }

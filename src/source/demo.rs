@@ -25,12 +25,24 @@ pub struct Flight {
     pub hover: GeoPosition,
     pub attitude: Euler,
     pub motion: bool,
+    /// Instead: hover, yawing 90°/s and rolling ±20° at 1 Hz, as a function of the monotonic
+    /// clock itself, so an autopilot simulated elsewhere can report the very same attitude.
+    pub spin: bool,
     /// Circle radius, metres, and seconds per lap.
     pub radius: f64,
     pub lap: f64,
 }
 
 impl Flight {
+    /// The vehicle's attitude and position at `t` seconds from the flight's start, which is
+    /// `clock_s` on the monotonic clock ([`crate::source::clock_us`] in seconds).
+    pub fn pose_at(&self, t: f64, clock_s: f64) -> (Euler, GeoPosition) {
+        if self.spin {
+            return (spin(self.attitude, clock_s), self.hover);
+        }
+        self.pose(t)
+    }
+
     /// The vehicle's attitude and position at `t` seconds.
     pub fn pose(&self, t: f64) -> (Euler, GeoPosition) {
         if !self.motion {
@@ -53,6 +65,16 @@ impl Flight {
             roll: 8f64.to_radians(),
         };
         (attitude, position)
+    }
+}
+
+/// The spinning attitude at `clock_s` on the monotonic clock: `base` turned 90°/s in yaw,
+/// rolled 20° · sin(2π · clock_s).
+pub fn spin(base: Euler, clock_s: f64) -> Euler {
+    Euler {
+        yaw: crate::geometry::rotation::wrap_pi(base.yaw + (90f64.to_radians() * clock_s) % TAU),
+        pitch: base.pitch,
+        roll: base.roll + 20f64.to_radians() * (TAU * clock_s.fract()).sin(),
     }
 }
 
@@ -255,6 +277,7 @@ mod tests {
             hover,
             attitude: Euler::new(0.3, 0.0, 0.0),
             motion: true,
+            spin: false,
             radius: 30.0,
             lap: 90.0,
         };
@@ -280,6 +303,7 @@ mod tests {
         }
         let still = Flight {
             motion: false,
+            spin: false,
             ..flight.clone()
         };
         assert_eq!(still.pose(12.0), (Euler::new(0.3, 0.0, 0.0), hover));

@@ -15,8 +15,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-/// The vehicle's (yaw, pitch, roll) in radians at `t` seconds after the start.
+/// The vehicle's (yaw, pitch, roll) in radians at `t`, seconds on the monotonic clock that
+/// DigiView stamps frames with ([`clock_s`]).
 pub type Flight = fn(f64) -> DVec3;
+
+/// The monotonic clock of frames' capture times, in seconds.
+pub fn clock_s() -> f64 {
+    digiview::source::clock_us() as f64 / 1e6
+}
 
 pub struct SimAutopilot {
     pub start: Instant,
@@ -50,6 +56,7 @@ impl SimAutopilot {
         let mut link = mavlink::connect::<MavMessage>(to).expect("the simulated autopilot's link");
         link.setup_signing(key.map(|k| mavlink::SigningConfig::new(k, 0, true, false)));
         let start = Instant::now();
+        let start_s = clock_s();
         let silent = Arc::new(AtomicBool::new(false));
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
@@ -76,7 +83,7 @@ impl SimAutopilot {
                         let t = next_att - start;
                         next_att += Duration::from_millis(5);
                         if !silent.load(Ordering::Relaxed) {
-                            made.push(attitude(t, flight(t.as_secs_f64())));
+                            made.push(attitude(t, flight(start_s + t.as_secs_f64())));
                         }
                     }
                     for m in made {

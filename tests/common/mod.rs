@@ -8,6 +8,7 @@ pub mod frames;
 pub mod gpu;
 pub mod relay;
 pub mod serve;
+pub mod viewer;
 
 use digiview::geometry::rotation::yaw_pitch;
 use digiview::image_ops::{centroid, pixel};
