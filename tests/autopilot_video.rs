@@ -112,7 +112,6 @@ fn summary(what: &str, errors: &[f64], fps: f64) -> (f64, f64) {
 }
 
 #[test]
-#[ignore = "intermittent: about one run in five misregisters a whole run (median 12 px or no landmark found); run with --ignored while issue 19 finds why"]
 fn with_all_axes_locked_the_ground_stays_put_while_the_autopilot_reports_a_spin() {
     let _serial = serial();
     let (errors, fps) = landmark_errors("interpolated", 31, |_| {});
@@ -175,7 +174,6 @@ fn flood(port: u16) {
 }
 
 #[test]
-#[ignore = "intermittent: about one run in five misregisters a whole run (median 12 px or no landmark found); run with --ignored while issue 19 finds why"]
 fn a_flood_on_the_link_leaves_the_video_and_the_attitude_right() {
     let _serial = serial();
     // The frames decoded over the flood's 10 s (about 20 fps here).

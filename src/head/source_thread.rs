@@ -5,6 +5,7 @@
 use super::{Head, HeadError};
 use crate::autopilot::sim::SimAutopilot;
 use crate::frame::{Frame, PlaneLayout};
+use crate::geometry::Euler;
 use crate::source::demo::{DemoCamera, Flight};
 use crate::source::{Ended, SourceSpec, backoff, clock_us};
 use std::sync::atomic::Ordering;
@@ -74,7 +75,13 @@ impl Head {
         let camera = DemoCamera::new(&lens, layout, state.mount.euler());
         let flight = Flight {
             hover: state.vehicle.position,
-            attitude: state.vehicle.attitude.euler(),
+            // Spinning is about level and north, by the clock alone: never about an attitude
+            // an autopilot may already have written into the live state.
+            attitude: if d.spin {
+                Euler::default()
+            } else {
+                state.vehicle.attitude.euler()
+            },
             motion: d.motion,
             spin: d.spin,
             radius: 30.0,
