@@ -17,6 +17,15 @@ use std::time::{Duration, Instant};
 
 const DEG: f64 = PI / 180.0;
 
+/// The tests here each run `serve` and a 200 Hz simulated autopilot and check how closely
+/// the attitude follows: one at a time on the 2 cores, so the lag they see is the link's,
+/// not the scheduler's.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// Yawing at 90°/s, level.
 fn turning(t: f64) -> DVec3 {
     DVec3::new(wrap(90.0 * DEG * t), 0.0, 0.0)
@@ -34,8 +43,14 @@ fn serve_with_link() -> (Serve, u16, Client) {
 
 /// As [`serve_with_link`], with `extra` flags.
 fn serve_with(extra: &[&str]) -> (Serve, u16, Client) {
+    serve_on("udpin", Serve::start, extra)
+}
+
+/// `start` (`serve --no-video` or with video) with the link's endpoint of `kind` on a free
+/// port of 127.0.0.1, camera 0 unlocked, looking ahead and 30° down, and `extra` flags.
+fn serve_on(kind: &str, start: fn(&[&str]) -> Serve, extra: &[&str]) -> (Serve, u16, Client) {
     let port = free_udp_port();
-    let link = format!("udpin:127.0.0.1:{port}");
+    let link = format!("{kind}:127.0.0.1:{port}");
     let mut args = vec![
         "--mavlink",
         &link,
@@ -43,7 +58,7 @@ fn serve_with(extra: &[&str]) -> (Serve, u16, Client) {
         "0:yaw=0deg,pitch=-30deg,lock=0",
     ];
     args.extend_from_slice(extra);
-    let serve = Serve::start(&args);
+    let serve = start(&args);
     let ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
     (serve, port, ctl)
 }
@@ -86,6 +101,7 @@ fn until(limit: Duration, what: &str, mut test: impl FnMut() -> bool) {
 
 #[test]
 fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_reported() {
+    let _serial = serial();
     let (_serve, port, mut ctl) = serve_with_link();
     let sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
     until(Duration::from_secs(5), "the attitude arrives", || {
@@ -128,6 +144,7 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
 
 #[test]
 fn hostile_bytes_on_the_link_change_nothing() {
+    let _serial = serial();
     let (_serve, port, mut ctl) = serve_with_link();
     let _sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
     until(Duration::from_secs(5), "the attitude arrives", || {
@@ -180,14 +197,8 @@ fn hostile_bytes_on_the_link_change_nothing() {
 
 #[test]
 fn a_tcp_autopilot_that_goes_away_and_comes_back_is_followed_again() {
-    let port = free_udp_port();
-    let serve = Serve::start(&[
-        "--mavlink",
-        &format!("tcpout:127.0.0.1:{port}"),
-        "--cam",
-        "0:yaw=0deg,pitch=-30deg,lock=0",
-    ]);
-    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let _serial = serial();
+    let (_serve, port, mut ctl) = serve_on("tcpout", Serve::start, &[]);
     // The autopilot's TCP server comes up after DigiView started trying, goes away, and
     // comes back on the same port.
     std::thread::sleep(Duration::from_millis(500));
@@ -211,6 +222,7 @@ fn a_tcp_autopilot_that_goes_away_and_comes_back_is_followed_again() {
 
 #[test]
 fn with_signing_only_signed_messages_count() {
+    let _serial = serial();
     let dir = tempfile::tempdir().unwrap();
     let config = dir.path().join("digiview.toml");
     std::fs::write(
@@ -252,6 +264,7 @@ fn until_yaw(ctl: &mut Client, yaw: f64, what: &str) {
 
 #[test]
 fn sim_autopilot_flies_the_demo_circle_into_a_running_serve() {
+    let _serial = serial();
     let (_serve, port, mut ctl) = serve_with_link();
     let mut sim = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
         .args(["sim-autopilot", "--to", &format!("udpout:127.0.0.1:{port}")])
@@ -266,18 +279,9 @@ fn sim_autopilot_flies_the_demo_circle_into_a_running_serve() {
 
 #[test]
 fn the_demo_flies_through_the_mavlink_link_when_it_listens() {
-    let port = free_udp_port();
-    let serve = Serve::start_video(&[
-        "--mavlink",
-        &format!("udpin:127.0.0.1:{port}"),
-        "--demo-size",
-        "640x480",
-        "--size",
-        "640x480",
-        "--cam",
-        "0:yaw=0deg,pitch=-30deg,lock=0",
-    ]);
-    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let _serial = serial();
+    let size = ["--demo-size", "640x480", "--size", "640x480"];
+    let (_serve, _, mut ctl) = serve_on("udpin", Serve::start_video, &size);
     // Only the link writes the vehicle into the live state: the heading the protocol reports
     // is the demo's, so it came over MAVLink.
     until_yaw(&mut ctl, 90.0 * DEG, "the demo's heading over the link");

@@ -97,6 +97,23 @@ impl std::str::FromStr for Endpoint {
     }
 }
 
+impl Endpoint {
+    /// Where a peer on this machine sends to be heard by this endpoint: its own port on
+    /// loopback when it listens (udpin, tcpin); None when it is off or goes elsewhere.
+    pub fn loopback_peer(&self) -> Option<String> {
+        let Endpoint::Address(a) = self else {
+            return None;
+        };
+        let (kind, rest) = a.split_once(':')?;
+        let (_, port) = rest.rsplit_once(':')?;
+        match kind {
+            "udpin" => Some(format!("udpout:127.0.0.1:{port}")),
+            "tcpin" => Some(format!("tcpout:127.0.0.1:{port}")),
+            _ => None,
+        }
+    }
+}
+
 type Connection = Arc<dyn MavConnection<MavMessage> + Send + Sync>;
 
 /// The 32-byte signing key of `signing_key`: 64 hex digits as they are, anything else a
@@ -204,63 +221,65 @@ impl Drop for Link {
     }
 }
 
-/// Opens the link, reads it until it fails, again with back-off (1 s doubling to 10 s).
+/// Opens the link, reads it until it fails, again with back-off (1 s doubling to 10 s, back
+/// to 1 s after a link that held 10 s).
 fn receive(shared: &Shared) {
     let mut backoff = Duration::from_secs(1);
     let mut vehicle = Vehicle::new(shared.cfg.system_id);
     while !shared.stop.load(Ordering::Relaxed) {
-        let connection: Connection = match mavlink::connect::<MavMessage>(&shared.address) {
-            Ok(c) => Arc::from(c),
-            Err(e) => {
-                warn!(
-                    "mavlink {}: {e}; retrying in {} s",
-                    shared.address,
-                    backoff.as_secs()
-                );
-                std::thread::sleep(backoff);
-                backoff = (backoff * 2).min(Duration::from_secs(10));
-                continue;
-            }
-        };
-        *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
-        shared.status.connected.store(true, Ordering::Relaxed);
-        let opened = Instant::now();
-        let mut last_live = Instant::now() - LIVE_EVERY;
-        let error = loop {
-            if shared.stop.load(Ordering::Relaxed) {
-                return;
-            }
-            match connection.recv_raw() {
-                Ok(raw) => {
-                    if let Some((header, msg)) = accept(shared, &raw) {
-                        apply(shared, &mut vehicle, &header, &msg, &mut last_live);
-                    }
+        let why = match mavlink::connect::<MavMessage>(&shared.address) {
+            Ok(c) => {
+                let opened = Instant::now();
+                let Some(why) = read(shared, Arc::from(c), &mut vehicle) else {
+                    return;
+                };
+                if opened.elapsed() > Duration::from_secs(10) {
+                    backoff = Duration::from_secs(1);
                 }
-                Err(mavlink::error::MessageReadError::Io(e))
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::Interrupted
-                    ) => {}
-                Err(mavlink::error::MessageReadError::Io(e)) => break e.to_string(),
-                // A frame that does not parse (unknown id, bad field): skipped.
-                Err(_) => {}
+                why
             }
+            Err(e) => e.to_string(),
         };
-        *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = None;
-        shared.status.connected.store(false, Ordering::Relaxed);
-        if opened.elapsed() > Duration::from_secs(10) {
-            backoff = Duration::from_secs(1);
-        }
         warn!(
-            "mavlink {}: {error}; reopening in {} s",
+            "mavlink {}: {why}; retrying in {} s",
             shared.address,
             backoff.as_secs()
         );
         std::thread::sleep(backoff);
         backoff = (backoff * 2).min(Duration::from_secs(10));
     }
+}
+
+/// Reads an open link until it fails (why) or the link stops (None).
+fn read(shared: &Shared, connection: Connection, vehicle: &mut Vehicle) -> Option<String> {
+    *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
+    shared.status.connected.store(true, Ordering::Relaxed);
+    let mut last_live = Instant::now() - LIVE_EVERY;
+    let why = loop {
+        if shared.stop.load(Ordering::Relaxed) {
+            break None;
+        }
+        match connection.recv_raw() {
+            Ok(raw) => {
+                if let Some((header, msg)) = accept(shared, &raw) {
+                    apply(shared, vehicle, &header, &msg, &mut last_live);
+                }
+            }
+            Err(mavlink::error::MessageReadError::Io(e))
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock
+                        | std::io::ErrorKind::TimedOut
+                        | std::io::ErrorKind::Interrupted
+                ) => {}
+            Err(mavlink::error::MessageReadError::Io(e)) => break Some(e.to_string()),
+            // A frame that does not parse (unknown id, bad field): skipped.
+            Err(_) => {}
+        }
+    };
+    *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    shared.status.connected.store(false, Ordering::Relaxed);
+    why
 }
 
 /// A frame's header and message, if it passes signing (when on) and parses.
@@ -494,6 +513,17 @@ mod tests {
             assert_eq!(ok.parse(), Ok(Endpoint::Address(ok.into())), "{ok}");
         }
         assert_eq!("off".parse(), Ok(Endpoint::Off));
+        let peer = |e: &str| e.parse::<Endpoint>().unwrap().loopback_peer();
+        assert_eq!(
+            peer("udpin:0.0.0.0:14550").as_deref(),
+            Some("udpout:127.0.0.1:14550")
+        );
+        assert_eq!(
+            peer("tcpin:0.0.0.0:5760").as_deref(),
+            Some("tcpout:127.0.0.1:5760")
+        );
+        assert_eq!(peer("udpout:10.0.0.2:14550"), None);
+        assert_eq!(peer("off"), None);
         for bad in [
             "udp:1.2.3.4:5",
             "udpin:0.0.0.0",

@@ -3,6 +3,7 @@
 //! fails. Frames go to the head's newest-wins slot.
 
 use super::{Head, HeadError};
+use crate::autopilot::Endpoint;
 use crate::autopilot::sim::SimAutopilot;
 use crate::frame::{Frame, PlaneLayout};
 use crate::geometry::Euler;
@@ -104,7 +105,14 @@ impl Head {
         // The flight goes to the frames through the MAVLink link, as a real autopilot's would,
         // where the link listens on this machine; else straight into the telemetry.
         let link = (!d.spin)
-            .then(|| demo_link(&self.cfg.mavlink.endpoint))
+            .then(|| {
+                self.cfg
+                    .mavlink
+                    .endpoint
+                    .parse::<Endpoint>()
+                    .ok()?
+                    .loopback_peer()
+            })
             .flatten();
         let _autopilot = link.map(|to| {
             info!("source: the demo's flight is a simulated autopilot sending to {to}");
@@ -144,17 +152,5 @@ impl Head {
             });
         }
         Ok(())
-    }
-}
-
-/// Where the demo's simulated autopilot sends so that the link hears it: the link's own port
-/// on this machine when it listens (udpin, tcpin); None when it is off or goes elsewhere.
-fn demo_link(endpoint: &str) -> Option<String> {
-    let (kind, rest) = endpoint.split_once(':')?;
-    let (_, port) = rest.rsplit_once(':')?;
-    match kind {
-        "udpin" => Some(format!("udpout:127.0.0.1:{port}")),
-        "tcpin" => Some(format!("tcpout:127.0.0.1:{port}")),
-        _ => None,
     }
 }
