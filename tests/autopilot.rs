@@ -107,8 +107,8 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
     until(Duration::from_secs(5), "the attitude arrives", || {
         centre_yaw(&mut ctl).abs() > 1e-3
     });
-    // The live state is brought up to date 20 times a second: at 90°/s the reading trails
-    // the autopilot by at most 50 ms of turn plus the link's delay.
+    // The live state is brought up to date 50 times a second: at 90°/s the reading trails
+    // the autopilot by at most 20 ms of turn plus the link's delay and the reply's trip.
     let worst = worst_following(&mut ctl, 20);
     eprintln!("following the autopilot: worst {:.2}°", worst / DEG);
     assert!(worst < 8.0 * DEG, "worst {:.1}°", worst / DEG);

@@ -39,7 +39,7 @@ const FIRST_REPORT: Duration = Duration::from_secs(3);
 const OWN_COMPONENT: u8 = 191;
 /// The live state's vehicle is brought up to date at most this often (the frames take the
 /// attitude from the telemetry at every sample).
-const LIVE_EVERY: Duration = Duration::from_millis(50);
+const LIVE_EVERY: Duration = Duration::from_millis(20);
 
 /// Where the link goes: `off`, or an address the `mavlink` crate opens.
 #[derive(Clone, Debug, PartialEq, Eq)]
