@@ -34,14 +34,20 @@ fn spinning(t: f64) -> DVec3 {
     DVec3::new(e.yaw, e.pitch, e.roll)
 }
 
+/// Landmarks of at least this area (px²) are located to better than 0.2 px in a still picture
+/// of this test's; a smaller one (the orange landmark near the horizon, about 4 px across) is
+/// 0.7 to 0.9 px off with nothing moving, so it shows the codec, not the attitude.
+const LOCATABLE: f64 = 30.0;
+
 /// Landmark errors (px, sorted) over `frames` decoded frames of `serve` on the spinning demo
-/// with the simulated autopilot on its link, frames rendered with `attitude_sample`; and the
-/// decoded frame rate. `meanwhile(port)` runs on a thread of its own while they are decoded.
+/// with the simulated autopilot on its link, frames rendered with `attitude_sample`, of the
+/// landmarks of at least [`LOCATABLE`] px² (then of the smaller ones); and the decoded frame
+/// rate. `meanwhile(port)` runs on a thread of its own while they are decoded.
 fn landmark_errors(
     attitude_sample: &str,
     frames: usize,
     meanwhile: impl FnOnce(u16) + Send + 'static,
-) -> (Vec<f64>, f64) {
+) -> (Vec<f64>, Vec<f64>, f64) {
     let dir = tempfile::tempdir().unwrap();
     let state = four_view_state(7);
     let state_file = dir.path().join("state.toml");
@@ -81,32 +87,39 @@ fn landmark_errors(
     // Three seconds for the clock mapping to settle.
     let _ = viewer.frame_after(Duration::from_secs(3));
     let side = std::thread::spawn(move || meanwhile(port));
-    let mut errors = vec![];
+    let (mut errors, mut small) = (vec![], vec![]);
     let (first, mut last) = (viewer.frame().1, None);
     for _ in 1..frames {
         let (got, pts) = viewer.frame();
-        errors.extend(
-            landmark_matches(&plan, &state, &want, &got)
-                .iter()
-                .map(|m| m.error()),
-        );
+        for m in landmark_matches(&plan, &state, &want, &got) {
+            match m.area >= LOCATABLE {
+                true => errors.push(m.error()),
+                false => small.push(m.error()),
+            }
+        }
         last = Some(pts);
     }
     side.join().unwrap();
     errors.sort_by(f64::total_cmp);
+    small.sort_by(f64::total_cmp);
     let fps = (frames - 1) as f64 / (last.unwrap() - first).seconds_f64();
-    (errors, fps)
+    (errors, small, fps)
 }
 
-fn summary(what: &str, errors: &[f64], fps: f64) -> (f64, f64) {
-    let worst = errors.last().copied().unwrap_or(f64::INFINITY);
-    let median = errors
-        .get(errors.len() / 2)
-        .copied()
-        .unwrap_or(f64::INFINITY);
+/// The median and worst of sorted errors (infinite when there are none).
+fn spread(errors: &[f64]) -> (f64, f64) {
+    let at = |i: usize| errors.get(i).copied().unwrap_or(f64::INFINITY);
+    (at(errors.len() / 2), at(errors.len().wrapping_sub(1)))
+}
+
+fn summary(what: &str, errors: &[f64], small: &[f64], fps: f64) -> (f64, f64) {
+    let (median, worst) = spread(errors);
+    let (s_median, s_worst) = spread(small);
     eprintln!(
-        "{what}: {} landmarks, median {median:.2} px, worst {worst:.2} px, {fps:.1} fps",
-        errors.len()
+        "{what}: {} landmarks, median {median:.2} px, worst {worst:.2} px; {} under {LOCATABLE} \
+         px², median {s_median:.2} px, worst {s_worst:.2} px; {fps:.1} fps",
+        errors.len(),
+        small.len()
     );
     (median, worst)
 }
@@ -114,19 +127,23 @@ fn summary(what: &str, errors: &[f64], fps: f64) -> (f64, f64) {
 #[test]
 fn with_all_axes_locked_the_ground_stays_put_while_the_autopilot_reports_a_spin() {
     let _serial = serial();
-    let (errors, fps) = landmark_errors("interpolated", 31, |_| {});
-    let (median, worst) = summary("at capture time", &errors, fps);
-    let (latest, l_fps) = landmark_errors("latest", 31, |_| {});
-    let (l_median, _) = summary("newest sample", &latest, l_fps);
+    let (errors, small, fps) = landmark_errors("interpolated", 31, |_| {});
+    let (median, worst) = summary("at capture time", &errors, &small, fps);
+    let (latest, l_small, l_fps) = landmark_errors("latest", 31, |_| {});
+    let (l_median, _) = summary("newest sample", &latest, &l_small, l_fps);
     assert!(
-        errors.len() >= 300,
+        errors.len() >= 250,
         "only {} landmarks seen in 30 frames",
         errors.len()
     );
-    // The demo's own picture puts landmarks up to 0.9 px off with the vehicle still (its
-    // 2x2-block synthesis and the codec): the attitude may add little to that.
     assert!(median <= 0.5, "median {median:.2} px from the truth");
-    assert!(worst <= 2.0, "a landmark {worst:.2} px from the truth");
+    assert!(worst <= 1.0, "a landmark {worst:.2} px from the truth");
+    // The small ones, off by up to 0.9 px when still, may not be much worse.
+    let (_, s_worst) = spread(&small);
+    assert!(
+        s_worst <= 2.0,
+        "a small landmark {s_worst:.2} px from the truth"
+    );
     assert!(
         l_median > 5.0 * median,
         "rendered with the newest sample, the ground should visibly move"
@@ -177,11 +194,11 @@ fn flood(port: u16) {
 fn a_flood_on_the_link_leaves_the_video_and_the_attitude_right() {
     let _serial = serial();
     // The frames decoded over the flood's 10 s (about 20 fps here).
-    let (errors, fps) = landmark_errors("interpolated", 140, flood);
-    let (median, worst) = summary("during a flood", &errors, fps);
+    let (errors, small, fps) = landmark_errors("interpolated", 140, flood);
+    let (median, worst) = summary("during a flood", &errors, &small, fps);
     assert!(errors.len() >= 1000, "only {} landmarks seen", errors.len());
     assert!(
-        median <= 0.5 && worst <= 2.0,
+        median <= 0.5 && worst <= 1.0,
         "median {median:.2} px, worst {worst:.2} px"
     );
     assert!(fps >= 8.0, "{fps:.1} fps during the flood");
