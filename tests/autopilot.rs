@@ -8,7 +8,7 @@ mod common;
 use common::autopilot::{SimAutopilot, attitude, clock_s, frame, free_udp_port};
 use common::serve::Serve;
 use digiview::control::client::Client;
-use digiview::protocol::params::CamOffset;
+use digiview::protocol::params::{Autopilot, CamOffset};
 use digiview::protocol::{Param, ParamType};
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -71,6 +71,13 @@ fn centre_yaw(ctl: &mut Client) -> f64 {
     }
 }
 
+fn autopilot(ctl: &mut Client) -> Autopilot {
+    match ctl.get_one(ParamType::Autopilot.zeroed()).unwrap() {
+        Param::Autopilot(a) => a,
+        p => panic!("{p:?}"),
+    }
+}
+
 fn status(ctl: &mut Client) -> (u8, u8) {
     match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
         Param::SystemStatus(s) => (s.status, s.error),
@@ -103,6 +110,7 @@ fn until(limit: Duration, what: &str, mut test: impl FnMut() -> bool) {
 fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_reported() {
     let _serial = serial();
     let (_serve, port, mut ctl) = serve_with_link();
+    let sim_started_s = clock_s();
     let sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
     until(Duration::from_secs(5), "the attitude arrives", || {
         centre_yaw(&mut ctl).abs() > 1e-3
@@ -113,6 +121,39 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
     eprintln!("following the autopilot: worst {:.2}°", worst / DEG);
     assert!(worst < 8.0 * DEG, "worst {:.1}°", worst / DEG);
 
+    // The link's state as `digiview ctl get AUTOPILOT` shows it: the autopilot found, the
+    // attitude at about the 200 Hz sent, the clocks 3.7 s apart plus the time the simulated
+    // autopilot started after our clock's zero, TIMESYNC answered ten times a second.
+    until(Duration::from_secs(3), "TIMESYNC round trips", || {
+        autopilot(&mut ctl).timesync_trips >= 10
+    });
+    let a = autopilot(&mut ctl);
+    eprintln!("{a:?}");
+    assert_eq!((a.link, a.system_id, a.component_id), (3, 1, 1), "{a:?}");
+    assert!((150..=250).contains(&a.attitude_rate), "{a:?}");
+    assert!(a.attitude_age < 0.1 && a.clock >= 1, "{a:?}");
+    let offset = sim_started_s - 3.7;
+    assert!(
+        (a.clock_offset - offset).abs() < 0.003,
+        "{a:?}, want {offset:.3} s"
+    );
+    assert!(a.messages > 200 && a.unsigned == 0, "{a:?}");
+    let shown = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "ctl",
+            "--addr",
+            &_serve.addr.to_string(),
+            "get",
+            "autopilot",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&shown.stdout);
+    assert!(
+        text.contains("AUTOPILOT") && text.contains("clock_offset") && text.contains(" s"),
+        "{text}"
+    );
+
     sim.silent.store(true, std::sync::atomic::Ordering::Relaxed);
     let t = Instant::now();
     until(Duration::from_secs(2), "a stale attitude reported", || {
@@ -122,6 +163,7 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
         t.elapsed() >= Duration::from_millis(400),
         "not before 0.5 s"
     );
+    assert_eq!(autopilot(&mut ctl).link, 4, "AUTOPILOT says stale");
     let held = centre_yaw(&mut ctl);
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(
@@ -221,6 +263,35 @@ fn a_tcp_autopilot_that_goes_away_and_comes_back_is_followed_again() {
 }
 
 #[test]
+fn a_udp_autopilot_restarted_from_another_port_is_followed_and_answered() {
+    let _serial = serial();
+    let (_serve, port, mut ctl) = serve_with_link();
+    for round in 0..2 {
+        // Each run is a new process as far as DigiView can tell: another source port and a
+        // boot clock started afresh.
+        let sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
+        until(Duration::from_secs(5), "the attitude arrives", || {
+            status(&mut ctl) == (0, 0) && worst_following(&mut ctl, 1) < 8.0 * DEG
+        });
+        let worst = worst_following(&mut ctl, 10);
+        assert!(
+            worst < 8.0 * DEG,
+            "round {round}: worst {:.1}°",
+            worst / DEG
+        );
+        // DigiView's TIMESYNC requests reach whoever sent last, and are answered.
+        let trips = autopilot(&mut ctl).timesync_trips;
+        until(Duration::from_secs(2), "TIMESYNC answered", || {
+            autopilot(&mut ctl).timesync_trips > trips
+        });
+        drop(sim);
+        until(Duration::from_secs(2), "the loss reported", || {
+            status(&mut ctl) == (3, 4)
+        });
+    }
+}
+
+#[test]
 fn with_signing_only_signed_messages_count() {
     let _serial = serial();
     let dir = tempfile::tempdir().unwrap();
@@ -285,4 +356,89 @@ fn the_demo_flies_through_the_mavlink_link_when_it_listens() {
     // Only the link writes the vehicle into the live state: the heading the protocol reports
     // is the demo's, so it came over MAVLink.
     until_yaw(&mut ctl, 90.0 * DEG, "the demo's heading over the link");
+}
+
+/// A pseudo-terminal pair: the master end (the autopilot's side of the cable) and the slave's
+/// path (what DigiView opens as its serial port).
+fn pty() -> (std::fs::File, std::path::PathBuf) {
+    use std::os::fd::FromRawFd;
+    // SAFETY: plain libc calls on a descriptor this function owns; ptsname_r writes a
+    // NUL-terminated name into the buffer it is given.
+    unsafe {
+        let fd = libc::posix_openpt(libc::O_RDWR | libc::O_NOCTTY);
+        assert!(fd >= 0, "posix_openpt");
+        assert_eq!(libc::grantpt(fd), 0);
+        assert_eq!(libc::unlockpt(fd), 0);
+        let mut name = [0 as libc::c_char; 128];
+        assert_eq!(libc::ptsname_r(fd, name.as_mut_ptr(), name.len()), 0);
+        // Never blocking the test: what DigiView does not read yet is dropped. Not inherited
+        // by the `serve` started next, or the cable could never be pulled.
+        libc::fcntl(fd, libc::F_SETFL, libc::O_NONBLOCK);
+        libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC);
+        let path = std::ffi::CStr::from_ptr(name.as_ptr())
+            .to_str()
+            .unwrap()
+            .to_string();
+        (std::fs::File::from_raw_fd(fd), path.into())
+    }
+}
+
+#[test]
+fn a_serial_autopilot_unplugged_and_plugged_back_is_followed_again() {
+    use std::io::{Read, Write};
+    let _serial = serial();
+    let dir = tempfile::tempdir().unwrap();
+    // A stable name for the port, as /dev/serial/by-id gives a USB adapter; each plug-in is
+    // a new pseudo-terminal behind it.
+    let port = dir.path().join("autopilot");
+    let (mut cable, tty) = pty();
+    std::os::unix::fs::symlink(&tty, &port).unwrap();
+    let link = format!("serial:{}:921600", port.display());
+    let serve = Serve::start(&[
+        "--mavlink",
+        &link,
+        "--cam",
+        "0:yaw=0deg,pitch=-30deg,lock=0",
+    ]);
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let start = Instant::now();
+    // The autopilot's side: HEARTBEAT each second, ATTITUDE at 200 Hz on its boot clock.
+    let feed = |cable: &mut std::fs::File, for_s: f64| {
+        let until_t = Instant::now() + Duration::from_secs_f64(for_s);
+        let mut n = 0u64;
+        while Instant::now() < until_t {
+            let t = start.elapsed();
+            if n.is_multiple_of(200) {
+                let _ = cable.write_all(&frame(1, &common::autopilot::heartbeat()));
+            }
+            let _ = cable.write_all(&frame(1, &attitude(t, turning(clock_s()))));
+            // What DigiView sends (HEARTBEAT, TIMESYNC) is read and dropped.
+            let _ = cable.read(&mut [0u8; 4096]);
+            n += 1;
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    for round in 0..2 {
+        feed(&mut cable, 3.0);
+        let mut worst = 0.0f64;
+        for _ in 0..10 {
+            feed(&mut cable, 0.05);
+            worst = worst.max(worst_following(&mut ctl, 1));
+        }
+        assert!(
+            worst < 8.0 * DEG,
+            "round {round}: worst {:.1}°",
+            worst / DEG
+        );
+        assert_eq!(autopilot(&mut ctl).link, 3, "round {round}");
+        // Unplugged: the cable's end goes, and a new one comes under the same name.
+        drop(cable);
+        until(Duration::from_secs(2), "the loss reported", || {
+            status(&mut ctl) == (3, 4)
+        });
+        let (next, tty) = pty();
+        std::fs::remove_file(&port).unwrap();
+        std::os::unix::fs::symlink(&tty, &port).unwrap();
+        cable = next;
+    }
 }

@@ -3,26 +3,24 @@
 //! the frame's own clock (`clock`), into the telemetry the frame loop renders each frame
 //! with, and the attitude and position into the live state the control protocol reads
 //! (`vehicle` makes sense of the messages). Its threads never touch the frame loop: a
-//! receiving thread reopens the link with back-off whenever it fails, a sending thread says
-//! DigiView is there (HEARTBEAT), asks the autopilot for the rates it needs, and watches for
-//! the attitude going stale.
+//! receiving thread reopens the link with back-off whenever it fails, a sending thread
+//! (`outgoing`) says DigiView is there (HEARTBEAT), asks the autopilot for the rates it needs
+//! and for its time (TIMESYNC), and watches for the attitude going stale.
 
 pub mod clock;
+mod outgoing;
+mod port;
 pub mod sim;
 pub mod vehicle;
 
 use crate::head::config::MavlinkConfig;
 use crate::head::telemetry::Telemetry;
+use crate::protocol::params::Autopilot;
 use crate::source::clock_us;
 use crate::state::{Invalid, Live};
-use mavlink::dialects::common::{
-    COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavState,
-    MavType,
-};
-use mavlink::{
-    MAVLinkMessageRaw, MAVLinkV2MessageRaw, MavConnection, MavHeader, Message, SigningConfig,
-    SigningData,
-};
+use mavlink::dialects::common::MavMessage;
+use mavlink::{MAVLinkMessageRaw, MavHeader, Message, SigningConfig, SigningData};
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -114,7 +112,7 @@ impl Endpoint {
     }
 }
 
-type Connection = Arc<dyn MavConnection<MavMessage> + Send + Sync>;
+type Connection = Arc<port::Port>;
 
 /// The 32-byte signing key of `signing_key`: 64 hex digits as they are, anything else a
 /// passphrase hashed with SHA-256 (as MAVProxy's `signing setup` and Mission Planner do).
@@ -138,9 +136,50 @@ pub struct LinkStatus {
     /// Local time of the newest attitude sample, µs (0: none yet).
     pub attitude_us: AtomicU64,
     pub attitudes: AtomicU64,
+    /// Attitude samples over the last second, millihertz.
+    pub attitude_mhz: AtomicU64,
     pub autopilot: Mutex<Option<(u8, u8)>>,
     pub clock: Mutex<clock::ClockState>,
     pub connected: AtomicBool,
+}
+
+impl LinkStatus {
+    /// The link's state as the control protocol's AUTOPILOT reports it.
+    pub fn param(&self) -> Autopilot {
+        let newest = self.attitude_us.load(Ordering::Relaxed);
+        let age = clock_us().saturating_sub(newest);
+        let link = match (self.connected.load(Ordering::Relaxed), newest) {
+            (false, _) => 1,
+            (true, 0) => 2,
+            _ if age > STALE.as_micros() as u64 => 4,
+            _ => 3,
+        };
+        let (system_id, component_id) = self
+            .autopilot
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .unwrap_or_default();
+        let c = *self.clock.lock().unwrap_or_else(|e| e.into_inner());
+        Autopilot {
+            link,
+            system_id,
+            component_id,
+            attitude_rate: (self.attitude_mhz.load(Ordering::Relaxed) as f64 / 1e3).round() as u16,
+            attitude_age: if newest == 0 { 0.0 } else { age as f64 / 1e6 },
+            clock: match (c.samples, c.fitted) {
+                (0, _) => 0,
+                (_, false) => 1,
+                (_, true) => 2,
+            },
+            clock_offset: c.offset_us as f64 / 1e6,
+            clock_drift_ppm: c.drift_ppm.round() as i16,
+            clock_span: c.span_us as f64 / 1e6,
+            timesync_trips: c.trips.min(255) as u8,
+            link_delay_us: c.link_delay_us.map_or(0, |d| d.round() as u32),
+            messages: self.messages.load(Ordering::Relaxed) as u32,
+            unsigned: self.unsigned.load(Ordering::Relaxed) as u32,
+        }
+    }
 }
 
 /// The running link; dropping it stops its threads.
@@ -158,6 +197,8 @@ struct Shared {
     telemetry: Arc<Telemetry>,
     status: Arc<LinkStatus>,
     connection: Mutex<Option<Connection>>,
+    /// The local times (µs) of the TIMESYNC requests not answered yet, newest last.
+    syncs_sent: Mutex<VecDeque<u64>>,
     /// With signing on: the key, checking what comes in and signing what goes out.
     signing: Option<SigningData>,
     stop: Arc<AtomicBool>,
@@ -182,6 +223,7 @@ impl Link {
             telemetry,
             status: status.clone(),
             connection: Mutex::new(None),
+            syncs_sent: Mutex::new(VecDeque::new()),
             signing: cfg.signing_key.as_deref().map(|k| {
                 SigningData::from_config(SigningConfig::new(signing_key(k), 0, true, false))
             }),
@@ -190,7 +232,7 @@ impl Link {
         let mut threads = vec![];
         for (name, run) in [
             ("mavlink-rx", receive as fn(&Shared)),
-            ("mavlink-tx", send as fn(&Shared)),
+            ("mavlink-tx", outgoing::send as fn(&Shared)),
         ] {
             let shared = shared.clone();
             if let Ok(t) = std::thread::Builder::new()
@@ -227,7 +269,7 @@ fn receive(shared: &Shared) {
     let mut backoff = Duration::from_secs(1);
     let mut vehicle = Vehicle::new(shared.cfg.system_id);
     while !shared.stop.load(Ordering::Relaxed) {
-        let why = match mavlink::connect::<MavMessage>(&shared.address) {
+        let why = match port::Port::open(&shared.address) {
             Ok(c) => {
                 let opened = Instant::now();
                 let Some(why) = read(shared, Arc::from(c), &mut vehicle) else {
@@ -303,19 +345,6 @@ fn accept(shared: &Shared, raw: &MAVLinkMessageRaw) -> Option<(MavHeader, MavMes
     Some((header, msg))
 }
 
-/// `msg` on `connection`, signed when signing is on.
-fn send_one(shared: &Shared, connection: &Connection, header: MavHeader, msg: &MavMessage) {
-    let _ = match &shared.signing {
-        Some(signing) => {
-            let mut raw = MAVLinkV2MessageRaw::new();
-            raw.serialize_message_for_signing(header, msg);
-            signing.sign_message(&mut raw);
-            connection.send_raw(&MAVLinkMessageRaw::V2(raw))
-        }
-        None => connection.send(&header, msg),
-    };
-}
-
 /// One message: into the telemetry and, at most every [`LIVE_EVERY`], the live state.
 fn apply(
     shared: &Shared,
@@ -351,6 +380,17 @@ fn apply(
                 });
             }
         }
+        Update::TimeSync { remote_us, ours_us } => {
+            // Only an answer to a request of ours, each once.
+            let mut sent = shared.syncs_sent.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(i) = sent.iter().position(|&t| t == ours_us) {
+                sent.remove(i);
+                drop(sent);
+                vehicle.clock.observe_sync(remote_us, ours_us, clock_us());
+                *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
+            }
+        }
+        Update::TimeSyncRequest { ts1 } => outgoing::answer_timesync(shared, header, ts1),
         Update::Position(p) => {
             shared.telemetry.position(p);
             let _ = shared.live.update(|s| {
@@ -359,134 +399,6 @@ fn apply(
             });
         }
     }
-}
-
-/// Every 100 ms: HEARTBEAT each second, the rate requests, and the attitude's staleness.
-fn send(shared: &Shared) {
-    let mut beat = Instant::now() - Duration::from_secs(1);
-    let mut asked: Option<Instant> = None;
-    let mut counted = (Instant::now(), 0u64);
-    let mut lost = false;
-    // The first report comes soon after the start, so the log shows the mapping settled.
-    let mut next_report = Instant::now() + FIRST_REPORT;
-    let mut reported = (Instant::now(), 0u64);
-    while !shared.stop.load(Ordering::Relaxed) {
-        std::thread::sleep(Duration::from_millis(100));
-        if Instant::now() >= next_report {
-            next_report += REPORT_EVERY;
-            reported = report(&shared.status, reported);
-        }
-        let connection = shared
-            .connection
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone();
-        let autopilot = *shared
-            .status
-            .autopilot
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        if let Some(c) = &connection {
-            let system = autopilot.map_or(1, |a| a.0);
-            let header = MavHeader {
-                system_id: system.into(),
-                component_id: OWN_COMPONENT,
-                sequence: 0,
-            };
-            if beat.elapsed() >= Duration::from_secs(1) {
-                beat = Instant::now();
-                send_one(shared, c, header, &heartbeat());
-            }
-            // Ask for the rates when the autopilot is found, and again every 10 s while the
-            // attitude comes at less than half the rate asked.
-            if let Some((system, component)) = autopilot {
-                let rate = {
-                    let n = shared.status.attitudes.load(Ordering::Relaxed);
-                    let hz = (n - counted.1) as f64 / counted.0.elapsed().as_secs_f64().max(1e-3);
-                    if counted.0.elapsed() >= Duration::from_secs(5) {
-                        counted = (Instant::now(), n);
-                    }
-                    hz
-                };
-                let due = asked.is_none_or(|t| {
-                    t.elapsed() >= Duration::from_secs(10) && rate < shared.cfg.attitude_hz / 2.0
-                });
-                if due {
-                    asked = Some(Instant::now());
-                    for (id, hz) in [(30, shared.cfg.attitude_hz), (33, shared.cfg.position_hz)] {
-                        send_one(
-                            shared,
-                            c,
-                            header,
-                            &message_interval(system, component, id, hz),
-                        );
-                    }
-                }
-            }
-        }
-        let newest = shared.status.attitude_us.load(Ordering::Relaxed);
-        let stale = newest != 0 && clock_us().saturating_sub(newest) > STALE.as_micros() as u64;
-        if stale != lost {
-            lost = stale;
-            shared.live.set_attitude_lost(stale);
-            if stale {
-                warn!(
-                    "mavlink: no attitude for {} ms: the views hold the last one",
-                    STALE.as_millis()
-                );
-            } else {
-                info!("mavlink: attitude again");
-            }
-        }
-    }
-}
-
-/// The link's state in one log line: the autopilot, the attitude rate, the clock mapping.
-fn report(status: &LinkStatus, (since, before): (Instant, u64)) -> (Instant, u64) {
-    let n = status.attitudes.load(Ordering::Relaxed);
-    let hz = (n - before) as f64 / since.elapsed().as_secs_f64();
-    let c = *status.clock.lock().unwrap_or_else(|e| e.into_inner());
-    match *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) {
-        Some((system, component)) => info!(
-            "mavlink: autopilot {system}/{component}, attitude {hz:.0} Hz, clock: autopilot + \
-             {:.3} s (drift {:+.0} ppm over {:.1} s, {} samples, {} reboots), {} unsigned or \
-             badly signed ignored",
-            c.offset_us as f64 / 1e6,
-            c.drift_ppm,
-            c.span_us as f64 / 1e6,
-            c.samples,
-            c.resets,
-            status.unsigned.load(Ordering::Relaxed)
-        ),
-        None => info!(
-            "mavlink: no autopilot heard yet ({} messages)",
-            status.messages.load(Ordering::Relaxed)
-        ),
-    }
-    (Instant::now(), n)
-}
-
-fn heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
-}
-
-/// MAV_CMD_SET_MESSAGE_INTERVAL: message `id` every 1/`hz` s.
-fn message_interval(system: u8, component: u8, id: u32, hz: f64) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
-        target_system: system,
-        target_component: component,
-        param1: id as f32,
-        param2: (1e6 / hz) as f32,
-        ..Default::default()
-    })
 }
 
 #[cfg(test)]

@@ -1,16 +1,20 @@
 //! A simulated autopilot: the demo's flight sent as a flight controller sends it (HEARTBEAT
 //! each second, ATTITUDE at the rate asked, GLOBAL_POSITION_INT at 10 Hz and HOME_POSITION
-//! each second, stamped with its own boot clock), so that everything downstream of the link,
-//! the parser and the clock mapping included, runs without a drone, and a ground station
-//! pointed at it sees a vehicle flying the demo's circle. `digiview sim-autopilot` runs it.
+//! each second, stamped with its own boot clock, TIMESYNC answered on that clock), so that
+//! everything downstream of the link, the parser and the clock mapping included, runs
+//! without a drone, and a ground station pointed at it sees a vehicle flying the demo's
+//! circle. `digiview sim-autopilot` runs it.
 
+use super::port::Port;
 use crate::geometry::rotation::wrap_pi;
 use crate::source::demo::Flight;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, HOME_POSITION_DATA, MavAutopilot,
-    MavMessage, MavModeFlag, MavState, MavType,
+    MavMessage, MavModeFlag, MavState, MavType, TIMESYNC_DATA,
 };
-use mavlink::{MavConnection, MavHeader};
+use mavlink::error::MessageReadError;
+use mavlink::{MavHeader, Message};
+use std::io::ErrorKind;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
@@ -58,14 +62,15 @@ fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBoo
         sequence: 0,
     };
     while !stop.load(Ordering::Relaxed) {
-        let link = match mavlink::connect::<MavMessage>(to) {
-            Ok(l) => l,
+        let link = match Port::open(to) {
+            Ok(l) => Arc::new(l),
             Err(e) => {
                 warn!("sim-autopilot {to}: {e}; retrying in 1 s");
                 std::thread::sleep(Duration::from_secs(1));
                 continue;
             }
         };
+        answer_timesync(link.clone(), header, start);
         let (mut next, mut position_at, mut beat_at) = (Instant::now(), start, start);
         while !stop.load(Ordering::Relaxed) {
             let now = Instant::now();
@@ -84,7 +89,7 @@ fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBoo
                 position_at += Duration::from_millis(100);
                 out.push(position(flight, t));
             }
-            if out.iter().any(|m| link.send(&header, m).is_err()) {
+            if out.iter().any(|m| link.send(header, m).is_err()) {
                 // Nobody listening yet (a refused UDP send) costs nothing; a broken TCP link
                 // is reopened.
                 if to.starts_with("tcp") {
@@ -93,6 +98,38 @@ fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBoo
             }
         }
     }
+}
+
+/// Answers TIMESYNC requests read from `link` on the boot clock (`start`), on a thread that
+/// ends with the link (on UDP, at the first message after the sender is gone).
+fn answer_timesync(link: Arc<Port>, header: MavHeader, start: Instant) {
+    let _ = std::thread::Builder::new()
+        .name("sim-timesync".into())
+        .spawn(move || {
+            loop {
+                let msg = match link.recv_raw() {
+                    Ok(raw) => MavMessage::parse(raw.version(), raw.message_id(), raw.payload()),
+                    Err(MessageReadError::Io(e)) if e.kind() == ErrorKind::TimedOut => continue,
+                    Err(MessageReadError::Io(_)) => break,
+                    Err(_) => continue,
+                };
+                let Ok(msg) = msg else {
+                    continue;
+                };
+                if let MavMessage::TIMESYNC(t) = msg
+                    && t.tc1 == 0
+                {
+                    let tc1 = start.elapsed().as_nanos() as i64;
+                    let answer = MavMessage::TIMESYNC(TIMESYNC_DATA { tc1, ts1: t.ts1 });
+                    if link.send(header, &answer).is_err() && Arc::strong_count(&link) == 1 {
+                        break;
+                    }
+                }
+                if Arc::strong_count(&link) == 1 {
+                    break;
+                }
+            }
+        });
 }
 
 fn heartbeat() -> MavMessage {

@@ -2,7 +2,7 @@
 //! first HEARTBEAT with an autopilot type, or the configured system id), its attitude
 //! (ATTITUDE_QUATERNION when it comes, else ATTITUDE) at the local time it was measured, its
 //! position (GLOBAL_POSITION_INT) and its home altitude (HOME_POSITION, else the position's
-//! relative altitude). Pure: messages in, updates out; the link applies them.
+//! relative altitude), and TIMESYNC. Pure: messages in, updates out; the link applies them.
 
 use super::clock::BootClock;
 use crate::geometry::{Euler, GeoPosition};
@@ -25,6 +25,16 @@ pub enum Update {
         attitude: Euler,
     },
     Position(GeoPosition),
+    /// The autopilot answered our TIMESYNC request stamped `ours_us` (local) at its time
+    /// `remote_us`.
+    TimeSync {
+        remote_us: u64,
+        ours_us: u64,
+    },
+    /// The autopilot asks for our time (TIMESYNC with tc1 0), to be answered with `ts1`.
+    TimeSyncRequest {
+        ts1: i64,
+    },
 }
 
 #[derive(Debug, Default)]
@@ -114,6 +124,11 @@ impl Vehicle {
                     relative_alt: self.home_alt.map_or(relative, |h| alt - h),
                 }))
             }
+            MavMessage::TIMESYNC(t) if t.tc1 == 0 => Some(Update::TimeSyncRequest { ts1: t.ts1 }),
+            MavMessage::TIMESYNC(t) => Some(Update::TimeSync {
+                remote_us: u64::try_from(t.tc1 / 1000).ok()?,
+                ours_us: u64::try_from(t.ts1 / 1000).ok()?,
+            }),
             MavMessage::HOME_POSITION(h) => {
                 self.home_alt = Some(h.altitude as f64 / 1000.0);
                 None

@@ -271,6 +271,7 @@ fn list_params(param: Option<&str>) -> Result<()> {
             Unit::Ratio => "ratio in [0, 1)",
             Unit::Offset => "normalized offset in [-1, 1]",
             Unit::Boxes => "bounding boxes (GET only)",
+            Unit::Seconds => "seconds",
         };
         println!("  {:28} {unit}", f.name);
     }

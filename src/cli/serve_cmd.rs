@@ -162,8 +162,11 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     };
     let live = Arc::new(Live::new(state, cal, hook)?);
     let telemetry = Arc::new(Telemetry::new(cfg.mavlink.attitude_sample));
-    let _link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone())?;
-    let controller = Arc::new(Controller::new(live.clone(), permissions));
+    let link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone())?;
+    let controller = Arc::new(Controller {
+        autopilot: link.as_ref().map(|l| l.status.clone()),
+        ..Controller::new(live.clone(), permissions)
+    });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("control")

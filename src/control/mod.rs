@@ -15,6 +15,7 @@ pub mod permissions;
 pub mod server;
 pub mod system;
 
+use crate::autopilot::LinkStatus;
 use crate::protocol::{Body, Message, Param, Verdict};
 use crate::state::{Invalid, Live, MAX_CAMERAS};
 use permissions::Permissions;
@@ -73,11 +74,17 @@ impl Outcome {
 pub struct Controller {
     pub live: Arc<Live>,
     pub permissions: Permissions,
+    /// The autopilot link's state, for AUTOPILOT (None: the link is off).
+    pub autopilot: Option<Arc<LinkStatus>>,
 }
 
 impl Controller {
     pub fn new(live: Arc<Live>, permissions: Permissions) -> Controller {
-        Controller { live, permissions }
+        Controller {
+            live,
+            permissions,
+            autopilot: None,
+        }
     }
 
     /// Handles one received frame (or datagram) from `peer`.
@@ -158,6 +165,11 @@ impl Controller {
             Param::CamTarget(q) => one(Param::CamTarget(camera::target(live, &s, q)?)),
             Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s))),
             Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s))),
+            Param::Autopilot(_) => one(Param::Autopilot(
+                self.autopilot
+                    .as_ref()
+                    .map_or_else(Default::default, |a| a.param()),
+            )),
         }
     }
 
@@ -188,7 +200,10 @@ impl Controller {
             Param::CamTarget(p) => camera::set_target(live, s, p),
             Param::CamSensor(p) => system::set_sensor(s, p),
             Param::GeneralSettings(p) => system::set_general(live, s, p),
-            Param::SystemStatus(_) | Param::DetectedRoi(_) | Param::Capture(_) => {
+            Param::SystemStatus(_)
+            | Param::DetectedRoi(_)
+            | Param::Capture(_)
+            | Param::Autopilot(_) => {
                 unreachable!("handled above")
             }
         })

@@ -1,10 +1,10 @@
-//! The sixteen parameter types of the control protocol as typed values, each declared once as
+//! The seventeen parameter types of the control protocol as typed values, each declared once as
 //! its list of (field, encoding) in protocol.md's order, so the offsets, the codec, the units
 //! and the field names the command-line client accepts all come from that one list.
 
 use super::wire::{
-    Angle, BoundingBox, CoarseDegrees, DATA_LEN, Degrees, Fov, I8, LayoutMode, Metres, Offset,
-    Ratio, Reader, U8, U16, U32, Unit, ViewBoxes, Views, Wire, Writer,
+    Angle, BoundingBox, CoarseDegrees, DATA_LEN, Degrees, Fov, I8, I16, LayoutMode, Metres, Offset,
+    Ratio, Reader, Seconds, U8, U16, U32, Unit, ViewBoxes, Views, Wire, Writer,
 };
 use serde::Serialize;
 
@@ -23,7 +23,7 @@ macro_rules! from_integer {
         }
     )*};
 }
-from_integer!(u8, i8, u16, u32);
+from_integer!(u8, i8, i16, u16, u32);
 
 impl FromNumber for f64 {
     fn from_number(v: f64) -> Option<f64> {
@@ -221,6 +221,27 @@ wire_struct!(
     }
 );
 
+wire_struct!(
+    /// The extension (GET only): the autopilot link and its clock mapping. `link`: 0 off, 1
+    /// opening, 2 open with no attitude yet, 3 attitude coming, 4 attitude stale. `clock`: 0
+    /// no mapping yet, 1 from the stamps, 2 from the stamps with the drift fitted.
+    Autopilot {
+        link: U8,
+        system_id: U8,
+        component_id: U8,
+        attitude_rate: U16,
+        attitude_age: Seconds,
+        clock: U8,
+        clock_offset: Seconds,
+        clock_drift_ppm: I16,
+        clock_span: Seconds,
+        timesync_trips: U8,
+        link_delay_us: U32,
+        messages: U32,
+        unsigned: U32,
+    }
+);
+
 macro_rules! params {
     ($($variant:ident = $n:literal, $wire_name:literal, $settable:literal;)*) => {
         /// The param_type byte.
@@ -254,7 +275,7 @@ macro_rules! params {
                 }
             }
 
-            /// Whether SET is allowed (SYSTEM_STATUS and DETECTED_ROI are GET only).
+            /// Whether SET is allowed (SYSTEM_STATUS, DETECTED_ROI and AUTOPILOT are GET only).
             pub fn settable(self) -> bool {
                 match self {
                     $(ParamType::$variant => $settable,)*
@@ -326,6 +347,7 @@ params! {
     CamTarget = 13, "CAM_TARGET", true;
     CamSensor = 14, "CAM_SENSOR", true;
     GeneralSettings = 15, "GENERAL_SETTINGS", true;
+    Autopilot = 16, "AUTOPILOT", false;
 }
 
 impl ParamType {

@@ -34,6 +34,7 @@ pub fn show(unit: Unit, v: &Value) -> String {
         Unit::Metres => format!("{n:.3} m"),
         Unit::Ratio => format!("{n:.3}"),
         Unit::Offset => format!("{n:.4}"),
+        Unit::Seconds => format!("{n:.3} s"),
         Unit::Boxes => match v {
             Value::Array(boxes) => boxes
                 .iter()

@@ -57,6 +57,8 @@ pub enum Unit {
     Offset,
     /// A bounding box or a list of them (GET only).
     Boxes,
+    /// A duration or a clock's offset.
+    Seconds,
 }
 
 /// One field encoding: its Rust value, its bytes and its unit.
@@ -88,6 +90,7 @@ macro_rules! integer {
 
 integer!(U8, u8);
 integer!(I8, i8);
+integer!(I16, i16);
 integer!(U16, u16);
 integer!(U32, u32);
 
@@ -139,6 +142,10 @@ fixed!(
 fixed!(
     /// Metres as i32 millimetres.
     Metres, i32, 1000.0, Unit::Metres
+);
+fixed!(
+    /// Seconds as i32 milliseconds (about ±24 days).
+    Seconds, i32, 1000.0, Unit::Seconds
 );
 fixed!(
     /// A ratio in [0, 1) as u8 / 255.

@@ -1,7 +1,8 @@
 //! A simulated autopilot, written with the `mavlink` crate as a flight controller's MAVLink
 //! would be: HEARTBEAT at 1 Hz and ATTITUDE at 200 Hz stamped with its own boot clock (booted
 //! 3.7 s before the test's), each message delivered after 0 to 20 ms of random delay, so
-//! they arrive jittered and now and then out of order. The vehicle's attitude is a function
+//! they arrive jittered and now and then out of order. It answers TIMESYNC on its boot clock
+//! as ArduPilot and PX4 do, the answer delayed alike. The vehicle's attitude is a function
 //! of time the test gives; it can fall silent, and hostile bytes can be sent beside it.
 
 use glam::DVec3;
@@ -55,7 +56,9 @@ impl SimAutopilot {
     pub fn start_signed(to: &str, flight: Flight, key: Option<[u8; 32]>) -> SimAutopilot {
         let mut link = mavlink::connect::<MavMessage>(to).expect("the simulated autopilot's link");
         link.setup_signing(key.map(|k| mavlink::SigningConfig::new(k, 0, true, false)));
+        let link: Arc<dyn MavConnection<MavMessage> + Send + Sync> = Arc::from(link);
         let start = Instant::now();
+        let answers = answer_timesync(link.clone(), start);
         let start_s = clock_s();
         let silent = Arc::new(AtomicBool::new(false));
         let stop = Arc::new(AtomicBool::new(false));
@@ -74,7 +77,7 @@ impl SimAutopilot {
                 let (mut n, mut next_att, mut next_beat) = (0u64, start, start);
                 while !stop.load(Ordering::Relaxed) {
                     let now = Instant::now();
-                    let mut made = vec![];
+                    let mut made: Vec<MavMessage> = answers.try_iter().collect();
                     if now >= next_beat {
                         next_beat += Duration::from_secs(1);
                         made.push(heartbeat());
@@ -118,7 +121,7 @@ impl Drop for SimAutopilot {
     }
 }
 
-fn heartbeat() -> MavMessage {
+pub fn heartbeat() -> MavMessage {
     MavMessage::HEARTBEAT(HEARTBEAT_DATA {
         mavtype: MavType::MAV_TYPE_QUADROTOR,
         autopilot: MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
@@ -126,6 +129,38 @@ fn heartbeat() -> MavMessage {
         mavlink_version: 3,
         ..Default::default()
     })
+}
+
+/// TIMESYNC answers to requests read from `link`, stamped with the boot clock of an autopilot
+/// started at `start`, for the sending thread to deliver. The reading thread ends with the
+/// link (or, on UDP, at the first message after the sender is gone).
+fn answer_timesync(
+    link: Arc<dyn MavConnection<MavMessage> + Send + Sync>,
+    start: Instant,
+) -> std::sync::mpsc::Receiver<MavMessage> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        loop {
+            let msg = match link.recv() {
+                Ok((_, msg)) => msg,
+                Err(mavlink::error::MessageReadError::Io(_)) => break,
+                Err(_) => continue,
+            };
+            if let MavMessage::TIMESYNC(t) = msg
+                && t.tc1 == 0
+            {
+                let now = (start.elapsed() + BOOTED_BEFORE).as_nanos() as i64;
+                let answer = MavMessage::TIMESYNC(TIMESYNC_DATA {
+                    tc1: now,
+                    ts1: t.ts1,
+                });
+                if tx.send(answer).is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    rx
 }
 
 /// ATTITUDE at `t` after the start: the autopilot's clock reads `t` + [`BOOTED_BEFORE`].

@@ -1,0 +1,224 @@
+//! What the autopilot link sends, on its own thread every 100 ms: DigiView's HEARTBEAT each
+//! second, the message rates it asks the autopilot for, TIMESYNC requests ten times a second
+//! (the clock mapping's round trips), and the attitude's staleness, reported once each way.
+//! Everything sent is signed when signing is on.
+
+use super::{Connection, FIRST_REPORT, LinkStatus, OWN_COMPONENT, REPORT_EVERY, STALE, Shared};
+use crate::source::clock_us;
+use mavlink::dialects::common::{
+    COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavState,
+    MavType, TIMESYNC_DATA,
+};
+use mavlink::{MAVLinkMessageRaw, MAVLinkV2MessageRaw, MavHeader};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+use tracing::{info, warn};
+
+/// `msg` on `connection`, signed when signing is on.
+pub(super) fn send_one(
+    shared: &Shared,
+    connection: &Connection,
+    header: MavHeader,
+    msg: &MavMessage,
+) {
+    let _ = match &shared.signing {
+        Some(signing) => {
+            let mut raw = MAVLinkV2MessageRaw::new();
+            raw.serialize_message_for_signing(header, msg);
+            signing.sign_message(&mut raw);
+            connection.send_raw(&MAVLinkMessageRaw::V2(raw))
+        }
+        None => connection.send(header, msg),
+    };
+}
+
+/// Every 100 ms: HEARTBEAT each second, the rate requests, and the attitude's staleness.
+pub(super) fn send(shared: &Shared) {
+    let mut beat = Instant::now() - Duration::from_secs(1);
+    let mut asked: Option<Instant> = None;
+    let mut counted = (Instant::now(), 0u64);
+    let mut second = (Instant::now(), 0u64);
+    let mut lost = false;
+    // The first report comes soon after the start, so the log shows the mapping settled.
+    let mut next_report = Instant::now() + FIRST_REPORT;
+    let mut reported = (Instant::now(), 0u64);
+    while !shared.stop.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(100));
+        if second.0.elapsed() >= Duration::from_secs(1) {
+            let n = shared.status.attitudes.load(Ordering::Relaxed);
+            let hz = (n - second.1) as f64 / second.0.elapsed().as_secs_f64();
+            shared
+                .status
+                .attitude_mhz
+                .store((hz * 1e3) as u64, Ordering::Relaxed);
+            second = (Instant::now(), n);
+        }
+        if Instant::now() >= next_report {
+            next_report += REPORT_EVERY;
+            reported = report(&shared.status, reported);
+        }
+        let connection = shared
+            .connection
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        let autopilot = *shared
+            .status
+            .autopilot
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        if let Some(c) = &connection {
+            let system = autopilot.map_or(1, |a| a.0);
+            let header = MavHeader {
+                system_id: system.into(),
+                component_id: OWN_COMPONENT,
+                sequence: 0,
+            };
+            if autopilot.is_some() {
+                request_timesync(shared, c, header);
+            }
+            if beat.elapsed() >= Duration::from_secs(1) {
+                beat = Instant::now();
+                send_one(shared, c, header, &heartbeat());
+            }
+            // Ask for the rates when the autopilot is found, and again every 10 s while the
+            // attitude comes at less than half the rate asked.
+            if let Some((system, component)) = autopilot {
+                let rate = {
+                    let n = shared.status.attitudes.load(Ordering::Relaxed);
+                    let hz = (n - counted.1) as f64 / counted.0.elapsed().as_secs_f64().max(1e-3);
+                    if counted.0.elapsed() >= Duration::from_secs(5) {
+                        counted = (Instant::now(), n);
+                    }
+                    hz
+                };
+                let due = asked.is_none_or(|t| {
+                    t.elapsed() >= Duration::from_secs(10) && rate < shared.cfg.attitude_hz / 2.0
+                });
+                if due {
+                    asked = Some(Instant::now());
+                    for (id, hz) in [(30, shared.cfg.attitude_hz), (33, shared.cfg.position_hz)] {
+                        send_one(
+                            shared,
+                            c,
+                            header,
+                            &message_interval(system, component, id, hz),
+                        );
+                    }
+                }
+            }
+        }
+        let newest = shared.status.attitude_us.load(Ordering::Relaxed);
+        let stale = newest != 0 && clock_us().saturating_sub(newest) > STALE.as_micros() as u64;
+        if stale != lost {
+            lost = stale;
+            shared.live.set_attitude_lost(stale);
+            if stale {
+                warn!(
+                    "mavlink: no attitude for {} ms: the views hold the last one",
+                    STALE.as_millis()
+                );
+            } else {
+                info!("mavlink: attitude again");
+            }
+        }
+    }
+}
+
+/// The link's state in one log line: the autopilot, the attitude rate, the clock mapping.
+fn report(status: &LinkStatus, (since, before): (Instant, u64)) -> (Instant, u64) {
+    let n = status.attitudes.load(Ordering::Relaxed);
+    let hz = (n - before) as f64 / since.elapsed().as_secs_f64();
+    let c = *status.clock.lock().unwrap_or_else(|e| e.into_inner());
+    match *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) {
+        Some((system, component)) => info!(
+            "mavlink: autopilot {system}/{component}, attitude {hz:.0} Hz, clock: autopilot + \
+             {:.3} s (drift {:+.0} ppm over {:.1} s, {} samples, {} reboots; {}), {} unsigned \
+             or badly signed ignored",
+            c.offset_us as f64 / 1e6,
+            c.drift_ppm,
+            c.span_us as f64 / 1e6,
+            c.samples,
+            c.resets,
+            match (c.trips, c.link_delay_us) {
+                (0, _) => "no TIMESYNC answers".to_string(),
+                (n, Some(d)) => format!(
+                    "{n} TIMESYNC round trips: {:.1} ms of link delay taken out",
+                    d / 1e3
+                ),
+                (n, None) => format!("{n} TIMESYNC round trips: no link delay to take out"),
+            },
+            status.unsigned.load(Ordering::Relaxed)
+        ),
+        None => info!(
+            "mavlink: no autopilot heard yet ({} messages)",
+            status.messages.load(Ordering::Relaxed)
+        ),
+    }
+    (Instant::now(), n)
+}
+
+fn heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+/// MAV_CMD_SET_MESSAGE_INTERVAL: message `id` every 1/`hz` s.
+fn message_interval(system: u8, component: u8, id: u32, hz: f64) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        command: MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL,
+        target_system: system,
+        target_component: component,
+        param1: id as f32,
+        param2: (1e6 / hz) as f32,
+        ..Default::default()
+    })
+}
+
+/// Unanswered TIMESYNC requests remembered (three seconds' worth).
+const SYNCS_KEPT: usize = 30;
+
+/// Asks the autopilot for its time, remembering when.
+fn request_timesync(shared: &Shared, connection: &Connection, header: MavHeader) {
+    let now = clock_us();
+    {
+        let mut sent = shared.syncs_sent.lock().unwrap_or_else(|e| e.into_inner());
+        sent.push_back(now);
+        while sent.len() > SYNCS_KEPT {
+            sent.pop_front();
+        }
+    }
+    let request = MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1: 0,
+        ts1: now as i64 * 1000,
+    });
+    send_one(shared, connection, header, &request);
+}
+
+/// Answers the autopilot's TIMESYNC request (PX4 asks a companion computer for its time).
+pub(super) fn answer_timesync(shared: &Shared, to: &MavHeader, ts1: i64) {
+    let connection = shared
+        .connection
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .clone();
+    let Some(c) = connection else {
+        return;
+    };
+    let header = MavHeader {
+        system_id: to.system_id,
+        component_id: OWN_COMPONENT,
+        sequence: 0,
+    };
+    let answer = MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1: clock_us() as i64 * 1000,
+        ts1,
+    });
+    send_one(shared, &c, header, &answer);
+}
