@@ -243,3 +243,46 @@ fn without_any_vulkan_driver_render_says_what_to_install() {
     assert!(err.contains("mesa-vulkan-drivers"), "{err}");
     assert!(!out.exists(), "no output file on failure");
 }
+
+#[test]
+fn an_odd_output_size_is_rounded_down_on_every_entry_as_over_the_protocol() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let fish = p("fish.png");
+    let sized = |o: &Output| {
+        assert!(o.status.success(), "{}", stderr(o));
+        stderr(o).contains("rounded down to 640x480")
+    };
+    // The flag (digiview once panicked in its frame loop on this very size).
+    let o = digiview(
+        &[
+            "synth", "--sensor", "1280x720", "--size", "641x481", "--out", &fish,
+        ],
+        &shipped(),
+    );
+    assert!(sized(&o), "{}", stderr(&o));
+    let out = p("out.png");
+    let o = digiview(
+        &[
+            "render", "--input", &fish, "--size", "641x481", "--out", &out,
+        ],
+        &shipped(),
+    );
+    assert!(sized(&o));
+    assert_eq!(
+        image::open(&out).unwrap().to_rgb8().dimensions(),
+        (640, 480)
+    );
+    // A state file.
+    let state = p("state.toml");
+    std::fs::write(&state, "[output]\nwidth = 641\nheight = 481\n").unwrap();
+    let o = digiview(
+        &["render", "--input", &fish, "--state", &state, "--out", &out],
+        &shipped(),
+    );
+    assert!(sized(&o));
+    assert_eq!(
+        image::open(&out).unwrap().to_rgb8().dimensions(),
+        (640, 480)
+    );
+}

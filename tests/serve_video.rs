@@ -420,3 +420,33 @@ fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
     assert_eq!(capture(&mut ctl).flags & 2, 0, "not recording");
     assert!(files(&captures, "mp4").is_empty() && files(&captures, "jpg").is_empty());
 }
+
+/// A stage that keeps failing is never a silent zombie: with a fault injected into the frame
+/// loop (it panics half a second into each run), SYSTEM_STATUS says error 5 while it is
+/// started again, and after the third failure `serve` exits non-zero saying which stage.
+#[test]
+fn a_frame_loop_that_keeps_panicking_is_reported_and_ends_the_process() {
+    let _serial = serial();
+    let mut serve = Serve::start_video_faulty("frames", &["--demo-size", "640x480"]);
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(2)).unwrap();
+    let t = Instant::now();
+    let mut saw_error = false;
+    while t.elapsed() < Duration::from_secs(15) && !saw_error {
+        if let Ok(Param::SystemStatus(s)) = ctl.get_one(ParamType::SystemStatus.zeroed()) {
+            saw_error = (s.status, s.error) == (3, 5);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(saw_error, "SYSTEM_STATUS never said error 5");
+    let status = serve
+        .wait_exit(Duration::from_secs(20))
+        .expect("serve ends once the stage keeps failing");
+    let log = serve.log();
+    assert!(!status.success(), "{status:?}");
+    assert!(
+        log.contains("the frames stage failed (fault injected")
+            && log.contains("starting it again")
+            && log.contains("the frames stage kept failing"),
+        "{log}"
+    );
+}

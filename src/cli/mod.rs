@@ -142,6 +142,7 @@ impl StateArgs {
         if let Some(t) = self.time {
             s.time = t;
         }
+        s.even_output();
         s.validate()?;
         Ok(s)
     }

@@ -213,10 +213,10 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         let thread = std::thread::Builder::new()
             .name("frames".into())
             .spawn(move || {
-                let r = running.run();
-                // The head ending on its own (an error) ends the process too.
-                stop_all.trigger();
-                r
+                // The head ending on its own (an error, or even a panic outside its
+                // supervised stages) ends the process too.
+                let _stop_all = OnExit(move || stop_all.trigger());
+                running.run()
             })?;
         Some((head, thread))
     };
@@ -232,4 +232,13 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
             .map_err(|_| anyhow!("the frame loop panicked"))??;
     }
     Ok(())
+}
+
+/// Runs its closure when dropped, unwinding included.
+struct OnExit<F: FnMut()>(F);
+
+impl<F: FnMut()> Drop for OnExit<F> {
+    fn drop(&mut self) {
+        (self.0)()
+    }
 }

@@ -59,8 +59,7 @@ pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), Refusal> {
     );
     let o = &mut s.output;
     if w >= MIN_OUTPUT.0 && h >= MIN_OUTPUT.1 {
-        o.width = w & !1;
-        o.height = h & !1;
+        (o.width, o.height) = (w, h);
     }
     o.fps = (p.fps as u32).clamp(FPS_RANGE.0, FPS_RANGE.1);
     if p.layout_mode < LAYOUT_MODES {
@@ -69,6 +68,8 @@ pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), Refusal> {
     if p.detection_overlay_mode < OVERLAY_MODES {
         o.overlay = p.detection_overlay_mode;
     }
+    s.even_output();
+    let o = &s.output;
     layout(o.width, o.height, o.layout, o.overlay)
         .map(|_| ())
         .map_err(Refusal::data)

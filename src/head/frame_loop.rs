@@ -4,6 +4,7 @@
 //! encoder. A failed GPU or encoder is rebuilt and the status says so meanwhile.
 
 use super::pacing::Pacer;
+use super::supervise::Fault;
 use super::{Head, HeadError, no_signal};
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
 use crate::head::capture::Still;
@@ -78,7 +79,9 @@ impl Head {
         let mut shown: Option<Arc<State>> = None;
         // The status last reported: None idle, Some(running or not).
         let mut healthy: Option<bool> = None;
+        let fault = Fault::for_stage("frames");
         while !self.stop.load(Ordering::Relaxed) {
+            fault.check("frames");
             let state = self.live.snapshot();
             let period = Duration::from_secs_f64(1.0 / state.output.fps as f64);
             let due = pacer.due();

@@ -14,6 +14,7 @@ mod health;
 mod no_signal;
 pub mod pacing;
 mod source_thread;
+mod supervise;
 pub mod telemetry;
 
 use crate::frame::FrameError;
@@ -43,6 +44,8 @@ pub enum HeadError {
     Lens(#[from] LensError),
     #[error(transparent)]
     Frame(#[from] FrameError),
+    #[error("the {0} stage kept failing: {1}")]
+    Panicked(&'static str, String),
 }
 
 /// Shared by the head's threads.
@@ -103,18 +106,28 @@ impl Head {
         let spec: SourceSpec = self.cfg.source.parse()?;
         let source = {
             let head = self.clone();
-            thread("source", move || head.source_thread(spec))?
+            thread("source", move || {
+                head.supervised("source", || {
+                    head.source_thread(spec.clone());
+                    Ok(())
+                })
+            })?
         };
         let health = {
             let head = self.clone();
-            thread("health", move || head.health_thread())?
+            thread("health", move || {
+                head.supervised("health", || {
+                    head.health_thread();
+                    Ok(())
+                })
+            })?
         };
-        let result = self.frame_loop();
+        let result = self.supervised("frames", || self.frame_loop());
         self.stop.store(true, Ordering::Relaxed);
         self.capture.finish();
-        let _ = source.join();
-        let _ = health.join();
-        result
+        // The first failure is the one to report: a stage that gave up stopped the others.
+        let others = [source, health].map(|t| t.join().unwrap_or(Ok(())));
+        result.and(others.into_iter().collect::<Result<Vec<()>, _>>().map(drop))
     }
 
     fn set_source_error(&self, e: Option<String>) {
@@ -131,10 +144,10 @@ impl Head {
 }
 
 /// Starts a named thread of the head.
-fn thread(
+fn thread<T: Send + 'static>(
     name: &'static str,
-    work: impl FnOnce() + Send + 'static,
-) -> Result<std::thread::JoinHandle<()>, HeadError> {
+    work: impl FnOnce() -> T + Send + 'static,
+) -> Result<std::thread::JoinHandle<T>, HeadError> {
     std::thread::Builder::new()
         .name(name.into())
         .spawn(work)

@@ -39,6 +39,7 @@ impl State {
             line: e.span().map_or(1, |s| line_of(text, s.start)),
             message: e.message().trim().to_string(),
         })?;
+        state.even_output();
         state
             .place_cameras()
             .and_then(|()| state.validate())

@@ -37,6 +37,9 @@ pub enum Failure {
     Gpu = 3,
     /// The autopilot's attitude stopped coming (none for 0.5 s): the views hold the last.
     Attitude = 4,
+    /// A stage of the head failed unexpectedly (a panic): it is started again, and given up
+    /// (the process exits) when it keeps failing.
+    Internal = 5,
 }
 
 pub struct Live {

@@ -15,6 +15,23 @@ fn invalid<T>(message: String) -> Result<T, Invalid> {
 }
 
 impl State {
+    /// Rounds an odd output width or height down to even, as every entry does (flags, state
+    /// files, the protocol's VIDEO_OUTPUT): 4:2:0 video has no odd sizes.
+    pub fn even_output(&mut self) {
+        let o = &mut self.output;
+        let even = (o.width & !1, o.height & !1);
+        if even != (o.width, o.height) {
+            tracing::info!(
+                "output size {}x{} rounded down to {}x{} (4:2:0 video needs even sizes)",
+                o.width,
+                o.height,
+                even.0,
+                even.1
+            );
+            (o.width, o.height) = even;
+        }
+    }
+
     /// Checks every field against the range the protocol allows.
     pub fn validate(&self) -> Result<(), Invalid> {
         let o = &self.output;
@@ -23,6 +40,12 @@ impl State {
             return invalid(format!(
                 "output size {}x{} is outside {}x{}..={}x{}",
                 o.width, o.height, lo.0, lo.1, hi.0, hi.1
+            ));
+        }
+        if o.width % 2 == 1 || o.height % 2 == 1 {
+            return invalid(format!(
+                "output size {}x{} is odd; 4:2:0 video needs even sizes",
+                o.width, o.height
             ));
         }
         if !(FPS_RANGE.0..=FPS_RANGE.1).contains(&o.fps) {

@@ -37,6 +37,26 @@ impl Serve {
         Serve::launch(mode, extra, None)
     }
 
+    /// As [`Serve::start_video`] with `DIGIVIEW_FAULT=fault` and errors logged into a pipe
+    /// ([`Serve::log`]).
+    pub fn start_video_faulty(fault: &str, extra: &[&str]) -> Serve {
+        // SAFETY: the tests that set it run one at a time, and the variable is only read by
+        // the child started here.
+        unsafe { std::env::set_var("DIGIVIEW_FAULT", fault) };
+        let serve = Serve::launch(&["--rtsp-port", "0"], extra, Some("error"));
+        unsafe { std::env::remove_var("DIGIVIEW_FAULT") };
+        serve
+    }
+
+    /// What the server logged (with a piped log), once it has ended.
+    pub fn log(&mut self) -> String {
+        let mut log = String::new();
+        if let Some(mut e) = self.child.stderr.take() {
+            let _ = e.read_to_string(&mut log);
+        }
+        log
+    }
+
     /// `log`: a RUST_LOG level for a piped stderr, else the test's choice (see below).
     fn launch(mode: &[&str], extra: &[&str], log: Option<&str>) -> Serve {
         let cal = super::lens_cal_path();
