@@ -249,17 +249,22 @@ fn a_tcp_autopilot_that_goes_away_and_comes_back_is_followed_again() {
         until(Duration::from_secs(15), "the attitude arrives", || {
             worst_following(&mut ctl, 1) < 8.0 * DEG
         });
-        let worst = worst_following(&mut ctl, 10);
-        assert!(
-            worst < 8.0 * DEG,
-            "round {round}: worst {:.1}°",
-            worst / DEG
-        );
-        drop(sim);
-        until(Duration::from_secs(2), "the loss reported", || {
-            status(&mut ctl) == (3, 4)
-        });
+        followed_then_lost(&mut ctl, sim, round);
     }
+}
+
+/// The attitude of `sim` followed closely, then, `sim` gone, its loss reported.
+fn followed_then_lost(ctl: &mut Client, sim: SimAutopilot, round: usize) {
+    let worst = worst_following(ctl, 10);
+    assert!(
+        worst < 8.0 * DEG,
+        "round {round}: worst {:.1}°",
+        worst / DEG
+    );
+    drop(sim);
+    until(Duration::from_secs(2), "the loss reported", || {
+        status(ctl) == (3, 4)
+    });
 }
 
 #[test]
@@ -273,21 +278,12 @@ fn a_udp_autopilot_restarted_from_another_port_is_followed_and_answered() {
         until(Duration::from_secs(5), "the attitude arrives", || {
             status(&mut ctl) == (0, 0) && worst_following(&mut ctl, 1) < 8.0 * DEG
         });
-        let worst = worst_following(&mut ctl, 10);
-        assert!(
-            worst < 8.0 * DEG,
-            "round {round}: worst {:.1}°",
-            worst / DEG
-        );
         // DigiView's TIMESYNC requests reach whoever sent last, and are answered.
         let trips = autopilot(&mut ctl).timesync_trips;
         until(Duration::from_secs(2), "TIMESYNC answered", || {
             autopilot(&mut ctl).timesync_trips > trips
         });
-        drop(sim);
-        until(Duration::from_secs(2), "the loss reported", || {
-            status(&mut ctl) == (3, 4)
-        });
+        followed_then_lost(&mut ctl, sim, round);
     }
 }
 
