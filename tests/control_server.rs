@@ -5,7 +5,7 @@
 
 mod common;
 use common::DEG;
-use common::frames::{Client, MRAD, ack, verdict};
+use common::frames::{Client, MRAD, ack, raw_frame, verdict};
 use common::serve::{Serve, udp_exchange};
 use digiview::protocol::params::*;
 use digiview::protocol::{Body, Message, Param, ParamType, Verdict};
@@ -310,6 +310,54 @@ fn ctl_reads_and_changes_values_for_people_and_scripts() {
     let o = ctl(&addr, &["quit"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     assert!(server.wait_exit(Duration::from_secs(5)).unwrap().success());
+}
+
+#[test]
+fn a_refusal_says_why_in_ctl_and_in_the_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "not a directory").unwrap();
+    let captures = file.join("captures");
+    let mut server =
+        Serve::start_video_logging("info", &["--capture-dir", captures.to_str().unwrap()]);
+    let addr = server.addr.to_string();
+
+    // The cause, however long, reaches the user (REFUSAL comes in 62-byte parts).
+    let o = ctl(&addr, &["set", "capture", "flags=1"]);
+    let err = text(&o.stderr);
+    assert!(!o.status.success());
+    let want = format!(
+        "DATA_ERROR to SET CAPTURE: capture directory {}: Not a directory",
+        captures.display()
+    );
+    assert!(err.contains(&want), "{err}");
+
+    // A SET that reads the current values first is still reported as the SET.
+    let o = ctl(&addr, &["set", "cam_euler", "cam=9", "yaw=10deg"]);
+    let err = text(&o.stderr);
+    assert!(
+        err.contains("DATA_ERROR to SET CAM_EULER: cam_id 9 is outside 0..=3"),
+        "{err}"
+    );
+
+    // A flood of refusals is counted, not logged line by line.
+    let mut c = server.tcp();
+    for _ in 0..200 {
+        c.send_bytes(&raw_frame(0, 2, 99));
+    }
+    for _ in 0..200 {
+        c.recv();
+    }
+    server.terminate();
+    assert!(server.wait_exit(Duration::from_secs(10)).is_some());
+    let log = server.log();
+    let line = log
+        .lines()
+        .find(|l| l.contains("refused SET CAPTURE"))
+        .unwrap_or_else(|| panic!("{log}"));
+    assert!(line.contains("INFO") && line.contains("Not a directory"), "{line}");
+    let unknown = log.lines().filter(|l| l.contains("refused GET")).count();
+    assert!(unknown <= 10, "{unknown} lines for 200 refusals:\n{log}");
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! `digiview ctl`: get, set, watch and quit over the control protocol, for people (fields
 //! with units) and scripts (`--json`, one object per line).
 
-use crate::control::client::{Client, query};
+use crate::control::client::{Client, ClientError, query};
 use crate::protocol::text::{annotate, describe};
 use crate::protocol::{Param, ParamType, Unit};
 use anyhow::{Context, Result, bail};
@@ -109,7 +109,19 @@ pub fn run(args: CtlArgs) -> Result<()> {
             let kind = param_type(&param)?;
             let current = if reads_first(kind, &fields) {
                 let cam = cam_of(kind, &fields)?;
-                Some(client.get_one(query(kind, cam))?)
+                // Unnamed fields keep their values: read them first. A refusal here is the
+                // SET's refusal (a cam_id out of range), so it says SET.
+                let read = client.get_one(query(kind, cam)).map_err(|e| match e {
+                    ClientError::Refused {
+                        verdict, reason, ..
+                    } => ClientError::Refused {
+                        request: format!("SET {kind}"),
+                        verdict,
+                        reason,
+                    },
+                    e => e,
+                });
+                Some(read?)
             } else {
                 None
             };
@@ -221,7 +233,9 @@ fn build(name: &str, pairs: &[String], base: Option<Param>) -> Result<Param> {
         };
         let v = match field.unit {
             Unit::Radians => crate::units::parse_angle(value)?,
-            Unit::Boxes => bail!("{kind} {key} is reported by GET; it cannot be sent"),
+            Unit::Boxes | Unit::Text => {
+                bail!("{kind} {key} is reported by GET; it cannot be sent")
+            }
             _ => value
                 .trim()
                 .parse::<f64>()
@@ -271,6 +285,7 @@ fn list_params(param: Option<&str>) -> Result<()> {
             Unit::Ratio => "ratio in [0, 1)",
             Unit::Offset => "normalized offset in [-1, 1]",
             Unit::Boxes => "bounding boxes (GET only)",
+            Unit::Text => "text (GET only)",
             Unit::Seconds => "seconds",
         };
         println!("  {:28} {unit}", f.name);

@@ -28,8 +28,17 @@ pub enum ClientError {
         addr: String,
         source: std::io::Error,
     },
-    #[error("the server answered {} to {request}: {}", verdict.message_type(), verdict.meaning())]
-    Refused { request: String, verdict: Verdict },
+    #[error(
+        "the server answered {} to {request}: {}",
+        verdict.message_type(),
+        reason.as_deref().unwrap_or(verdict.meaning())
+    )]
+    Refused {
+        request: String,
+        verdict: Verdict,
+        /// The server's reason (REFUSAL), where it gives one.
+        reason: Option<String>,
+    },
     #[error("the server's reply is not a valid frame: {0}")]
     Decode(#[from] DecodeError),
     #[error("unexpected reply to {request}: {got:?}")]
@@ -158,20 +167,46 @@ impl Client {
     /// GET: the current values (several for DETECTED_ROI 254/255).
     pub fn get(&mut self, query: Param) -> Result<Vec<Param>, ClientError> {
         let request = format!("GET {}", query.param_type());
-        self.request(Body::Get(query))?
-            .into_iter()
-            .map(|m| match m.body {
-                Body::Current(p) if p.param_type() == query.param_type() => Ok(p),
-                Body::Verdict(verdict, _) => Err(ClientError::Refused {
-                    request: request.clone(),
-                    verdict,
-                }),
-                got => Err(ClientError::Unexpected {
-                    request: request.clone(),
-                    got,
-                }),
-            })
-            .collect()
+        let mut params = Vec::new();
+        for m in self.request(Body::Get(query))? {
+            match m.body {
+                Body::Current(p) if p.param_type() == query.param_type() => params.push(p),
+                Body::Verdict(verdict, _) => return Err(self.refused(request, verdict)),
+                got => return Err(ClientError::Unexpected { request, got }),
+            }
+        }
+        Ok(params)
+    }
+
+    /// A refusal, with the server's reason for it where the server gives one (REFUSAL;
+    /// older servers answer UNKNOWN to it and the verdict's meaning stands).
+    fn refused(&mut self, request: String, verdict: Verdict) -> ClientError {
+        let reason = self.reason().filter(|t| !t.is_empty());
+        ClientError::Refused {
+            request,
+            verdict,
+            reason,
+        }
+    }
+
+    /// REFUSAL, all its parts.
+    fn reason(&mut self) -> Option<String> {
+        let mut text = String::new();
+        let mut part = 0u8;
+        loop {
+            let mut q = ParamType::RefusalReason.zeroed();
+            q.set_field("part", part as f64).ok()?;
+            let replies = self.request(Body::Get(q)).ok()?;
+            let Some(Body::Current(Param::RefusalReason(r))) = replies.first().map(|m| m.body)
+            else {
+                return None;
+            };
+            text.push_str(&r.reason.text());
+            part += 1;
+            if part >= r.parts {
+                return Some(text);
+            }
+        }
     }
 
     /// GET of a type that has exactly one reply.
@@ -196,7 +231,7 @@ impl Client {
         let reply = self.request(body)?.remove(0);
         match reply.body {
             Body::Verdict(Verdict::Acknowledgement, _) => Ok(()),
-            Body::Verdict(verdict, _) => Err(ClientError::Refused { request, verdict }),
+            Body::Verdict(verdict, _) => Err(self.refused(request, verdict)),
             got => Err(ClientError::Unexpected { request, got }),
         }
     }

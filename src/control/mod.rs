@@ -12,16 +12,17 @@ pub mod client;
 pub mod detection;
 pub mod load;
 pub mod permissions;
+pub mod refusals;
 pub mod server;
 pub mod system;
 
 use crate::autopilot::LinkStatus;
-use crate::protocol::{Body, Message, Param, Verdict};
+use crate::protocol::{Body, Message, Param, TextValue, Verdict, split_text};
 use crate::state::{Invalid, Live, MAX_CAMERAS};
 use permissions::Permissions;
+use refusals::Refusals;
 use std::net::IpAddr;
 use std::sync::Arc;
-use tracing::debug;
 
 /// Why a request was refused; the text goes to the server's log.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -76,6 +77,8 @@ pub struct Controller {
     pub permissions: Permissions,
     /// The autopilot link's state, for AUTOPILOT (None: the link is off).
     pub autopilot: Option<Arc<LinkStatus>>,
+    /// Why requests were refused: logged, and the last per address kept for REFUSAL.
+    pub refusals: Refusals,
 }
 
 impl Controller {
@@ -84,6 +87,7 @@ impl Controller {
             live,
             permissions,
             autopilot: None,
+            refusals: Refusals::default(),
         }
     }
 
@@ -92,7 +96,7 @@ impl Controller {
         let msg = match Message::decode(frame) {
             Ok(m) => m,
             Err(e) => {
-                debug!(%peer, "refused a frame: {e}");
+                self.refusals.note(peer, "a frame", &e.to_string());
                 let (verdict, param_type) = e.reply();
                 return Outcome {
                     bad_checksum: matches!(e, crate::protocol::DecodeError::Checksum { .. }),
@@ -102,8 +106,12 @@ impl Controller {
         };
         let param_type = msg.body.param_type();
         let refused = |r: Refusal| {
-            let what = msg.body.message_type();
-            debug!(%peer, "refused {what} of param_type {param_type}: {r}");
+            let what = match msg.body {
+                Body::Get(p) => format!("GET {}", p.param_type()),
+                Body::Set(p) => format!("SET {}", p.param_type()),
+                _ => format!("{}", msg.body.message_type()),
+            };
+            self.refusals.note(peer, &what, &r.to_string());
             Outcome::one(Body::Verdict(r.verdict(), param_type))
         };
         match msg.body {
@@ -117,6 +125,21 @@ impl Controller {
                 } else {
                     refused(Refusal::Forbidden("QUIT is not permitted from here"))
                 }
+            }
+            Body::Get(Param::RefusalReason(q)) => {
+                let reason = self.refusals.last(peer).unwrap_or_default();
+                let parts = split_text(&reason, TextValue::MAX);
+                // Not noted as a refusal: that would replace the reason being read.
+                let Some(text) = parts.get(q.part as usize) else {
+                    return Outcome::one(Body::Verdict(Verdict::DataError, param_type));
+                };
+                Outcome::one(Body::Current(Param::RefusalReason(
+                    crate::protocol::params::RefusalReason {
+                        part: q.part,
+                        parts: parts.len().min(255) as u8,
+                        reason: TextValue::new(text),
+                    },
+                )))
             }
             Body::Get(query) => match self.get(&query) {
                 Ok(params) => Outcome {
@@ -165,6 +188,7 @@ impl Controller {
             Param::CamTarget(q) => one(Param::CamTarget(camera::target(live, &s, q)?)),
             Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s))),
             Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s))),
+            Param::RefusalReason(_) => unreachable!("answered per peer in handle"),
             Param::Autopilot(_) => one(Param::Autopilot(
                 self.autopilot
                     .as_ref()
@@ -203,7 +227,8 @@ impl Controller {
             Param::SystemStatus(_)
             | Param::DetectedRoi(_)
             | Param::Capture(_)
-            | Param::Autopilot(_) => {
+            | Param::Autopilot(_)
+            | Param::RefusalReason(_) => {
                 unreachable!("handled above")
             }
         })

@@ -10,7 +10,7 @@ pub mod text;
 pub mod wire;
 
 pub use params::{Param, ParamType};
-pub use wire::{BoundingBox, DATA_LEN, Unit, ViewBoxes};
+pub use wire::{BoundingBox, DATA_LEN, TextValue, Unit, ViewBoxes, split_text};
 
 /// Every frame is this long, in both directions and on both transports.
 pub const FRAME_LEN: usize = 80;

@@ -1,10 +1,10 @@
-//! The seventeen parameter types of the control protocol as typed values, each declared once as
+//! The eighteen parameter types of the control protocol as typed values, each declared once as
 //! its list of (field, encoding) in protocol.md's order, so the offsets, the codec, the units
 //! and the field names the command-line client accepts all come from that one list.
 
 use super::wire::{
     Angle, BoundingBox, CoarseDegrees, DATA_LEN, Degrees, Fov, I8, I16, LayoutMode, Metres, Offset,
-    Ratio, Reader, Seconds, U8, U16, U32, Unit, ViewBoxes, Views, Wire, Writer,
+    Ratio, Reader, Seconds, Text, TextValue, U8, U16, U32, Unit, ViewBoxes, Views, Wire, Writer,
 };
 use serde::Serialize;
 
@@ -37,6 +37,11 @@ impl FromNumber for BoundingBox {
 }
 impl FromNumber for ViewBoxes {
     fn from_number(_: f64) -> Option<ViewBoxes> {
+        None
+    }
+}
+impl FromNumber for TextValue {
+    fn from_number(_: f64) -> Option<TextValue> {
         None
     }
 }
@@ -242,6 +247,17 @@ wire_struct!(
     }
 );
 
+wire_struct!(
+    /// The extension (GET only): why this client's last refused request was refused, so a
+    /// client can show the reason behind a DATA_ERROR or FORBIDDEN; empty when none was. A
+    /// long reason comes in parts: the GET names the part, the reply how many there are.
+    RefusalReason {
+        part: U8,
+        parts: U8,
+        reason: Text,
+    }
+);
+
 macro_rules! params {
     ($($variant:ident = $n:literal, $wire_name:literal, $settable:literal;)*) => {
         /// The param_type byte.
@@ -275,7 +291,8 @@ macro_rules! params {
                 }
             }
 
-            /// Whether SET is allowed (SYSTEM_STATUS, DETECTED_ROI and AUTOPILOT are GET only).
+            /// Whether SET is allowed (SYSTEM_STATUS, DETECTED_ROI, AUTOPILOT and REFUSAL are GET
+            /// only).
             pub fn settable(self) -> bool {
                 match self {
                     $(ParamType::$variant => $settable,)*
@@ -348,6 +365,7 @@ params! {
     CamSensor = 14, "CAM_SENSOR", true;
     GeneralSettings = 15, "GENERAL_SETTINGS", true;
     Autopilot = 16, "AUTOPILOT", false;
+    RefusalReason = 17, "REFUSAL", false;
 }
 
 impl ParamType {

@@ -59,6 +59,8 @@ pub enum Unit {
     Boxes,
     /// A duration or a clock's offset.
     Seconds,
+    /// UTF-8 text (GET only).
+    Text,
 }
 
 /// One field encoding: its Rust value, its bytes and its unit.
@@ -151,6 +153,83 @@ fixed!(
     /// A ratio in [0, 1) as u8 / 255.
     Ratio, u8, 255.0, Unit::Ratio
 );
+
+/// UTF-8 text, zero-padded: REFUSAL's reason, a part of it per frame.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct TextValue {
+    bytes: [u8; TextValue::MAX],
+}
+
+impl TextValue {
+    /// Bytes a frame carries (after REFUSAL's part and parts).
+    pub const MAX: usize = DATA_LEN - 2;
+
+    /// `text` up to [`TextValue::MAX`] bytes, cut at a character boundary.
+    pub fn new(text: &str) -> TextValue {
+        let mut bytes = [0u8; Self::MAX];
+        let part = split_text(text, Self::MAX)[0];
+        bytes[..part.len()].copy_from_slice(part.as_bytes());
+        TextValue { bytes }
+    }
+
+    /// The text up to the first zero byte; invalid UTF-8 is replaced, never refused.
+    pub fn text(&self) -> String {
+        let end = self.bytes.iter().position(|&b| b == 0).unwrap_or(Self::MAX);
+        String::from_utf8_lossy(&self.bytes[..end]).into_owned()
+    }
+}
+
+/// `text` in parts of at most `max` bytes, cut at character boundaries; one empty part for
+/// an empty text.
+pub fn split_text(text: &str, max: usize) -> Vec<&str> {
+    let mut parts = Vec::new();
+    let mut rest = text;
+    loop {
+        let mut end = rest.len().min(max);
+        while !rest.is_char_boundary(end) {
+            end -= 1;
+        }
+        parts.push(&rest[..end]);
+        rest = &rest[end..];
+        if rest.is_empty() {
+            return parts;
+        }
+    }
+}
+
+impl Default for TextValue {
+    fn default() -> Self {
+        TextValue {
+            bytes: [0; Self::MAX],
+        }
+    }
+}
+
+impl std::fmt::Debug for TextValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "{:?}", self.text())
+    }
+}
+
+impl Serialize for TextValue {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.text())
+    }
+}
+
+pub struct Text;
+
+impl Wire for Text {
+    type Value = TextValue;
+    const UNIT: Unit = Unit::Text;
+    const SIZE: usize = TextValue::MAX;
+    fn put(w: &mut Writer, v: TextValue) {
+        w.put(&v.bytes);
+    }
+    fn get(r: &mut Reader) -> TextValue {
+        TextValue { bytes: r.take() }
+    }
+}
 
 /// The seed's `bounding_box`: x, y, w, h as u16.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -264,6 +343,21 @@ mod tests {
         let mut data = [0u8; DATA_LEN];
         W::put(&mut Writer::new(&mut data), v);
         (W::get(&mut Reader::new(&data)), data)
+    }
+
+    #[test]
+    fn text_is_cut_at_character_boundaries_and_reads_back_whole() {
+        let long = "é".repeat(40); // 80 bytes: two parts, the first 62 bytes (31 chars).
+        let parts = split_text(&long, TextValue::MAX);
+        assert_eq!(parts.iter().map(|p| p.len()).collect::<Vec<_>>(), [62, 18]);
+        assert_eq!(parts.concat(), long);
+        let (v, d) = round_trip::<Text>(TextValue::new(parts[0]));
+        assert_eq!(v.text(), parts[0]);
+        assert_eq!(&d[..2], "é".as_bytes());
+        // A part ending mid-character.
+        let odd = format!("a{long}");
+        assert_eq!(split_text(&odd, TextValue::MAX)[0].len(), 61);
+        assert_eq!(split_text("", 62), [""]);
     }
 
     #[test]

@@ -48,6 +48,11 @@ impl Serve {
         serve
     }
 
+    /// As [`Serve::start_video`], logging at `level` into a pipe ([`Serve::log`]).
+    pub fn start_video_logging(level: &str, extra: &[&str]) -> Serve {
+        Serve::launch(&["--rtsp-port", "0"], extra, Some(level))
+    }
+
     /// What the server logged (with a piped log), once it has ended.
     pub fn log(&mut self) -> String {
         let mut log = String::new();
