@@ -5,6 +5,7 @@ mod bench_cmd;
 mod ctl_cmd;
 mod lens_cmd;
 pub mod locate;
+mod output;
 mod render_cmd;
 mod render_video;
 mod serve_cmd;
@@ -105,7 +106,7 @@ impl StateArgs {
     /// flag is resolved by the caller, which has lens.cal.
     pub fn state(&self, cal: &crate::lens::LensCal) -> Result<State> {
         let mut s = match &self.state {
-            Some(p) => State::load(p)?,
+            Some(p) => State::load(p, cal)?,
             None => State::default(),
         };
         if let Some(l) = &self.lens {
@@ -143,7 +144,10 @@ impl StateArgs {
             s.time = t;
         }
         s.even_output();
-        s.validate()?;
+        s.validate(&crate::lens::Lenses::new(cal))?;
+        for (i, c) in s.cameras.iter().enumerate() {
+            crate::geometry::view::warn_unknown_crop(i, c.crop);
+        }
         Ok(s)
     }
 }

@@ -1,7 +1,7 @@
 //! `digiview render` (fisheye image → output frame) and `digiview synth` (synthetic fisheye
 //! frames, ground-truth output frames and panoramas).
 
-use super::{Backend, StateArgs, spinner};
+use super::{Backend, StateArgs, output, spinner};
 use crate::frame::PixelFormat;
 use crate::lens::{LensCal, Lenses};
 use crate::render::gpu::renderer::render_image;
@@ -27,8 +27,8 @@ pub struct RenderArgs {
     /// Frame rate of an image sequence input.
     #[arg(long, default_value_t = 30)]
     input_fps: u32,
-    /// H.264 bitrate of an MP4 output.
-    #[arg(long, default_value_t = 8000)]
+    /// H.264 bitrate of an MP4 output, 100..=100000 kbit/s.
+    #[arg(long, default_value_t = 8000, value_parser = bitrate)]
     bitrate_kbps: u32,
     /// The GPU renderer (lavapipe where there is no GPU) or the f64 CPU reference.
     #[arg(long, value_enum, default_value = "gpu")]
@@ -61,9 +61,8 @@ pub struct SynthArgs {
     state: StateArgs,
 }
 
-fn save(img: &RgbImage, path: &Path) -> Result<()> {
-    img.save(path)
-        .with_context(|| format!("writing {}", path.display()))?;
+fn save(img: &RgbImage, path: &Path, inputs: &[&Path]) -> Result<()> {
+    output::save_image(img, path, inputs)?;
     eprintln!(
         "wrote {} ({}x{})",
         path.display(),
@@ -72,6 +71,18 @@ fn save(img: &RgbImage, path: &Path) -> Result<()> {
     );
     Ok(())
 }
+
+/// `--bitrate-kbps`, in the range the serve config takes too.
+fn bitrate(text: &str) -> Result<u32, String> {
+    let (lo, hi) = crate::stream::encoder::BITRATE_KBPS;
+    text.parse::<u32>()
+        .ok()
+        .filter(|b| (lo..=hi).contains(b))
+        .ok_or_else(|| format!("{text} is not a bitrate in {lo}..={hi} kbit/s"))
+}
+
+/// The widest panorama `synth --equirect` draws.
+const MAX_EQUIRECT: u32 = 16384;
 
 /// Image extensions `render` reads and writes as single frames.
 fn is_image(path: &Path) -> bool {
@@ -102,6 +113,8 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
             args.out.display()
         );
     }
+    output::image_format(&args.out)?;
+    output::refuse_inputs(&args.out, &[&args.input])?;
     let input = image::open(&args.input)
         .with_context(|| format!("reading {}", args.input.display()))?
         .to_rgb8();
@@ -121,7 +134,7 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
             render_image(&mut renderer, &input, &plan)?.to_rgb()
         }
     };
-    save(&out, &args.out)
+    save(&out, &args.out, &[&args.input])
 }
 
 impl RenderArgs {
@@ -137,6 +150,12 @@ impl RenderArgs {
 }
 
 pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
+    output::image_format(&args.out)?;
+    let world_file: Vec<&Path> = match args.world.as_str() {
+        "grid" => vec![],
+        w => vec![Path::new(w)],
+    };
+    output::refuse_inputs(&args.out, &world_file)?;
     let mut state_args = args.state.clone();
     // Without --truth, --size names the fisheye frame (as in `synth --size 3840x2160`).
     let mut sensor = args.sensor;
@@ -146,6 +165,14 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
     let mut state = state_args.state(cal)?;
     if let Some((w, h)) = sensor {
         (state.sensor.width, state.sensor.height) = (w, h);
+        state
+            .validate(&Lenses::new(cal))
+            .context("--size (the fisheye frame)")?;
+    }
+    if let Some((w, h)) = args.equirect
+        && !(2..=MAX_EQUIRECT).contains(&w.max(h))
+    {
+        anyhow::bail!("--equirect {w}x{h}: each side is 2..={MAX_EQUIRECT}");
     }
     let world: Box<dyn World> = if args.world == "grid" {
         Box::new(GridWorld::default())
@@ -166,5 +193,5 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
         fisheye(world.as_ref(), &lens, &state)
     };
     bar.finish_and_clear();
-    save(&img, &args.out)
+    save(&img, &args.out, &world_file)
 }

@@ -12,6 +12,7 @@ use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
 use crate::stream::encoder::AccessUnit;
 use crate::stream::{Encoder, EncoderConfig, Recorder};
+use super::output::{self, Output};
 use anyhow::{Context, Result, anyhow, bail};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -32,6 +33,7 @@ enum Sink {
         encoder: Encoder,
         recorder: Arc<Mutex<Option<Recorder>>>,
         fps: u32,
+        out: Output,
     },
     Images(String),
 }
@@ -58,11 +60,30 @@ fn numbered(pattern: &str, n: u64) -> Result<String> {
     ))
 }
 
-impl Sink {
-    fn open(job: &VideoJob, fps: f64) -> Result<Sink> {
+/// Where the frames will go, checked before any work.
+enum Target {
+    Mp4(Output),
+    Images(String),
+}
+
+impl Target {
+    fn new(job: &VideoJob) -> Result<Target> {
         let out = job.out.to_string_lossy().to_string();
+        // The first files each side names: none of the outputs may be an input.
+        let names = |p: &Path| -> Vec<PathBuf> {
+            let text = p.to_string_lossy();
+            match text.contains('%') {
+                true => (0..2).filter_map(|n| numbered(&text, n).ok()).map(PathBuf::from).collect(),
+                false => vec![p.to_path_buf()],
+            }
+        };
+        let inputs = names(&job.input);
+        let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+        for o in names(&job.out) {
+            output::refuse_inputs(&o, &inputs)?;
+        }
         if out.contains('%') {
-            numbered(&out, 0)?;
+            output::image_format(Path::new(&numbered(&out, 0)?))?;
             if let Some(dir) = Path::new(&out)
                 .parent()
                 .filter(|d| !d.as_os_str().is_empty())
@@ -70,12 +91,22 @@ impl Sink {
                 std::fs::create_dir_all(dir)
                     .with_context(|| format!("making {}", dir.display()))?;
             }
-            return Ok(Sink::Images(out));
+            return Ok(Target::Images(out));
         }
         if !out.to_ascii_lowercase().ends_with(".mp4") {
             bail!("{out}: a video renders to .mp4 or to an image pattern such as out/%05d.png");
         }
-        let recorder = Arc::new(Mutex::new(Some(Recorder::start(&job.out)?)));
+        Ok(Target::Mp4(Output::create(&job.out, &inputs)?))
+    }
+}
+
+impl Sink {
+    fn open(target: Target, job: &VideoJob, fps: f64) -> Result<Sink> {
+        let out = match target {
+            Target::Images(pattern) => return Ok(Sink::Images(pattern)),
+            Target::Mp4(out) => out,
+        };
+        let recorder = Arc::new(Mutex::new(Some(Recorder::start(out.temp())?)));
         let feed = recorder.clone();
         let fps = fps.round().clamp(1.0, 240.0) as u32;
         let cfg = EncoderConfig {
@@ -94,6 +125,7 @@ impl Sink {
             encoder,
             recorder,
             fps,
+            out,
         })
     }
 
@@ -104,17 +136,17 @@ impl Sink {
             }
             Sink::Images(pattern) => {
                 let path = numbered(pattern, frame.id)?;
-                frame
-                    .to_rgb()
-                    .save(&path)
-                    .with_context(|| format!("writing {path}"))
+                output::save_image(&frame.to_rgb(), Path::new(&path), &[])
             }
         }
     }
 
     fn finish(self) -> Result<()> {
         if let Sink::Mp4 {
-            encoder, recorder, ..
+            encoder,
+            recorder,
+            out,
+            ..
         } = self
         {
             encoder.finish()?;
@@ -124,6 +156,7 @@ impl Sink {
                 .take()
                 .context("the recording was lost")?;
             r.finish()?;
+            out.keep()?;
         }
         Ok(())
     }
@@ -134,11 +167,20 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     let spec = if text.contains('%') {
         SourceSpec::Sequence(text)
     } else {
+        if job.input.is_dir() {
+            bail!(
+                "{} is a directory; give a video file or an image sequence such as {}/%05d.png",
+                job.input.display(),
+                job.input.display()
+            );
+        }
         if !job.input.is_file() {
             bail!("{}: no such file", job.input.display());
         }
         SourceSpec::File(job.input.clone())
     };
+    let mut target = Some(Target::new(job)?);
+    let interrupted = output::interrupted();
     let mut frames = FileFrames::open(&spec, job.input_fps)?;
     let duration = frames.duration().or_else(|| match &spec {
         // A sequence's length: its files, counted from 0 until one is missing.
@@ -172,20 +214,35 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     let mut plan: Option<((u32, u32), FramePlan)> = None;
     let mut times: VecDeque<Duration> = VecDeque::new();
     let mut count = 0u64;
+    let mut last = None;
     loop {
+        if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
+            bar.finish_and_clear();
+            match &sink {
+                Some(Sink::Images(_)) => bail!(
+                    "interrupted after {count} frames; the frames rendered so far are in {}",
+                    job.out.display()
+                ),
+                _ => bail!(
+                    "interrupted after {count} frames: {} was not written",
+                    job.out.display()
+                ),
+            }
+        }
         let next = frames
             .next_frame()
             .with_context(|| format!("decoding {}", job.input.display()))?;
         let Some((frame, pts, fps)) = next else {
             break;
         };
+        last = Some((pts, fps.unwrap_or(job.input_fps as f64)));
         let size = (frame.layout.width, frame.layout.height);
         if plan.as_ref().is_none_or(|(s, _)| *s != size) {
             let lens = lenses.for_frame(state.lens, size, state.sensor.roi())?;
             plan = Some((size, FramePlan::new(state, &lens)?));
         }
-        if sink.is_none() {
-            sink = Some(Sink::open(job, fps.unwrap_or(job.input_fps as f64))?);
+        if let Some(t) = target.take() {
+            sink = Some(Sink::open(t, job, fps.unwrap_or(job.input_fps as f64))?);
         }
         let (_, p) = plan.as_ref().unwrap();
         times.push_back(pts);
@@ -217,6 +274,20 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         state.output.height,
         count as f64 / secs
     );
+    // A container that says it is longer than what decoded was cut short: the frames are
+    // kept, and the exit status says the input was not whole.
+    if let (Some(length), Some((pts, fps))) = (duration, last) {
+        let end = pts.as_secs_f64() + 1.0 / fps;
+        if end + 1.0 / fps < length.as_secs_f64() {
+            bail!(
+                "{} ended at {end:.2} s of the {:.2} s its container announces (truncated or \
+                 damaged?); the {count} frames decoded were rendered to {}",
+                job.input.display(),
+                length.as_secs_f64(),
+                job.out.display()
+            );
+        }
+    }
     Ok(())
 }
 

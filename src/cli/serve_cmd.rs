@@ -16,13 +16,14 @@ use crate::lens::LensCal;
 use crate::state::Live;
 use crate::state::capture::{Capturer, NoVideo};
 use crate::stream::{Publisher, Rtsp};
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 use tracing::info;
 
 #[derive(Args, Debug)]
@@ -126,6 +127,12 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         cap_malloc_arenas();
     }
     let cfg = config(&args)?;
+    if !args.no_video {
+        // A source that can never open (a missing file, a pipeline that does not parse) is an
+        // error now, not retried for ever; a camera that is not there yet is waited for.
+        let spec: crate::source::SourceSpec = cfg.source.parse()?;
+        crate::source::check(&spec, cfg.source_fps)?;
+    }
     let mut state_args = args.state.clone();
     state_args.state = state_args.state.or(cfg.state.clone());
     state_args.lens = state_args.lens.or(cfg.lens.clone());
@@ -177,8 +184,9 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     let (tcp, udp) = runtime
         .block_on(server::bind(control))
         .with_context(|| format!("cannot listen on {control} (tcp and udp)"))?;
-    // Lines on stdout that scripts (and the tests) read to find the ports.
-    println!("control listening on {}", tcp.local_addr()?);
+    // Lines on stdout that scripts (and the tests) read to find the ports: printed once every
+    // service serves, so a service that fails to start never announces itself.
+    let mut announce = vec![format!("control listening on {}", tcp.local_addr()?)];
     let head = if args.no_video {
         None
     } else {
@@ -189,7 +197,11 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
             "0.0.0.0" | "::" => "127.0.0.1",
             a => a,
         };
-        println!("rtsp serving rtsp://{host}:{}{}", rtsp.port(), rtsp.path());
+        announce.push(format!(
+            "rtsp serving rtsp://{host}:{}{}",
+            rtsp.port(),
+            rtsp.path()
+        ));
         let publishers = cfg
             .publish_targets()?
             .into_iter()
@@ -218,8 +230,12 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
                 let _stop_all = OnExit(move || stop_all.trigger());
                 running.run()
             })?;
+        let thread = wait_until_streaming(&head, thread)?;
         Some((head, thread))
     };
+    for line in announce {
+        println!("{line}");
+    }
     std::io::stdout().flush()?;
     runtime.block_on(async {
         tokio::spawn(server::stop_on_signals(shutdown.clone()));
@@ -233,6 +249,28 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     }
     Ok(())
 }
+
+/// Waits for the encoder's first picture. A head that ends first (its encoder or GPU would
+/// not start) returns its error; one that puts out nothing for a minute is an error too.
+fn wait_until_streaming(head: &Arc<Head>, thread: HeadThread) -> Result<HeadThread> {
+    let limit = Instant::now() + Duration::from_secs(60);
+    while !head.streaming() {
+        if thread.is_finished() {
+            thread
+                .join()
+                .map_err(|_| anyhow!("the frame loop panicked"))??;
+            bail!("the video head stopped before its first frame");
+        }
+        if Instant::now() > limit {
+            head.stop.store(true, Ordering::Relaxed);
+            bail!("the video head put out no frame in 60 s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Ok(thread)
+}
+
+type HeadThread = std::thread::JoinHandle<Result<(), crate::head::HeadError>>;
 
 /// Runs its closure when dropped, unwinding included.
 struct OnExit<F: FnMut()>(F);

@@ -37,7 +37,7 @@ pub fn sim_autopilot(args: SimArgs) -> Result<()> {
     if let Some(p) = &args.position {
         state.apply_position(p)?;
     }
-    state.validate()?;
+    state.validate_fields()?;
     let flight = Flight {
         hover: state.vehicle.position,
         attitude: state.vehicle.attitude.euler(),

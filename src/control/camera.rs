@@ -107,6 +107,7 @@ pub fn crop_mode(c: &Camera, cam_id: u8) -> CamCropMode {
 /// Any mode is taken (an unknown one renders black, as the seed says); the fov is brought
 /// into the new mode's range.
 pub fn set_crop_mode(c: &mut Camera, p: &CamCropMode) -> Result<(), Refusal> {
+    crate::geometry::view::warn_unknown_crop(p.cam_id as usize, p.mode);
     c.crop = p.mode;
     if c.crop <= crop::DEBUG {
         c.fov = clamp_fov(c.fov, c.crop);

@@ -75,7 +75,7 @@ pub fn handle_stream(controller: &Controller, data: &[u8]) {
         controller
             .live
             .snapshot()
-            .validate()
+            .validate(controller.live.lenses())
             .expect("the live state stays valid");
     }
 }

@@ -13,7 +13,7 @@ use crate::state::{FPS_RANGE, Live, MAX_OUTPUT, MIN_OUTPUT, State};
 pub const MAX_EXPOSURE_US: u32 = 40_000;
 pub const MAX_GAIN: u32 = 50_000;
 /// The largest fisheye frame GENERAL_SETTINGS accepts.
-pub const MAX_CAMERA_SIZE: u16 = 8192;
+pub const MAX_CAMERA_SIZE: u16 = crate::state::MAX_SENSOR as u16;
 
 pub fn system_status(live: &Live) -> SystemStatus {
     SystemStatus {

@@ -118,6 +118,17 @@ pub mod crop {
     pub const DEBUG: u8 = 4;
 }
 
+/// Crop modes beyond 4 are taken and draw their view black (conventions.md); that is
+/// rarely what was meant, so it is said.
+pub fn warn_unknown_crop(camera: usize, mode: u8) {
+    if mode > crop::DEBUG {
+        tracing::warn!(
+            "camera {camera}: crop mode {mode} is not one of 0..={}; its view is black",
+            crop::DEBUG
+        );
+    }
+}
+
 /// The narrowest fov any view may have (the seed's 0.1 rad).
 pub const MIN_FOV: f64 = 0.1;
 /// The widest rectilinear fov: a pinhole view cannot reach π, and near it nothing is usable.

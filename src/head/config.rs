@@ -286,9 +286,10 @@ impl Config {
                 return out_of_range(format!("mavlink {key} {hz} is outside 0.1..=500"));
             }
         }
-        if !(self.encoder.bitrate_kbps >= 100 && self.encoder.bitrate_kbps <= 100_000) {
+        let (lo, hi) = crate::stream::encoder::BITRATE_KBPS;
+        if !(lo..=hi).contains(&self.encoder.bitrate_kbps) {
             return out_of_range(format!(
-                "encoder bitrate_kbps {} is outside 100..=100000",
+                "encoder bitrate_kbps {} is outside {lo}..={hi}",
                 self.encoder.bitrate_kbps
             ));
         }

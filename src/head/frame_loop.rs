@@ -43,6 +43,7 @@ impl Head {
     fn encoder(self: &Arc<Head>, fps: u32) -> Result<Encoder, HeadError> {
         let head = self.clone();
         let encoder = Encoder::new(&self.cfg.encoder, fps, move |au: AccessUnit| {
+            head.stats.units.fetch_add(1, Ordering::Relaxed);
             head.rtsp.push(&au.buffer);
             head.capture.on_access_unit(&au);
             for p in &head.publishers {

@@ -74,6 +74,8 @@ struct Stats {
     render_us: AtomicU64,
     encode_us: AtomicU64,
     encoded: AtomicU64,
+    /// Access units out of the encoder since the start (the stream is really serving).
+    units: AtomicU64,
 }
 
 impl Head {
@@ -128,6 +130,12 @@ impl Head {
         // The first failure is the one to report: a stage that gave up stopped the others.
         let others = [source, health].map(|t| t.join().unwrap_or(Ok(())));
         result.and(others.into_iter().collect::<Result<Vec<()>, _>>().map(drop))
+    }
+
+    /// Whether the encoder has put out a picture: what `serve` waits for before it says the
+    /// stream is served.
+    pub fn streaming(&self) -> bool {
+        self.stats.units.load(Ordering::Relaxed) > 0
     }
 
     fn set_source_error(&self, e: Option<String>) {

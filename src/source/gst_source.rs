@@ -111,6 +111,17 @@ fn build(
     Ok((pipeline, sink, sync))
 }
 
+/// Whether `spec` can ever open: its file exists and its pipeline builds (nothing is started,
+/// so a camera that is not plugged in yet passes).
+pub fn check(spec: &SourceSpec, fps: u32) -> Result<(), SourceError> {
+    if *spec == SourceSpec::Demo {
+        return Ok(());
+    }
+    let (pipeline, _, _) = build(spec, fps, false)?;
+    let _ = pipeline.set_state(gst::State::Null);
+    Ok(())
+}
+
 /// Builds and starts the pipeline for `spec` (any kind but the demo); frames go to `slot`.
 /// `fps` paces images and sequences; `looped` replays files and sequences at their end.
 pub fn open(

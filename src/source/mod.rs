@@ -7,7 +7,7 @@
 pub mod demo;
 mod gst_source;
 
-pub use gst_source::{Ended, FileFrames, GstSource, open};
+pub use gst_source::{Ended, FileFrames, GstSource, check, open};
 
 use crate::frame::{Frame, FrameError};
 use crate::gst::GstError;

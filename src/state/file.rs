@@ -3,8 +3,44 @@
 //! file and line, or the field and its range.
 
 use super::{Camera, Invalid, MAX_CAMERAS, State};
+use crate::lens::LensCal;
 use crate::units::line_of;
+use serde::Deserialize;
+use std::cell::RefCell;
 use std::path::Path;
+
+thread_local! {
+    /// The lens names (and ids) a state file being parsed may name: `lens = "CIL018"`.
+    static LENS_NAMES: RefCell<Vec<(String, u8)>> = const { RefCell::new(Vec::new()) };
+}
+
+/// `lens`: a lens_id, or a lens's name in the lens.cal the file is read with.
+pub(super) fn lens_id<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u8, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum IdOrName {
+        Id(u8),
+        Name(String),
+    }
+    match IdOrName::deserialize(d)
+        .map_err(|_| serde::de::Error::custom("lens is a lens_id 0..=255 or a lens name"))?
+    {
+        IdOrName::Id(id) => Ok(id),
+        IdOrName::Name(name) => LENS_NAMES.with_borrow(|names| {
+            names
+                .iter()
+                .find(|(n, _)| n.eq_ignore_ascii_case(name.trim()))
+                .map(|(_, id)| *id)
+                .ok_or_else(|| {
+                    let have: Vec<_> = names.iter().map(|(n, id)| format!("{n} ({id})")).collect();
+                    serde::de::Error::custom(format!(
+                        "lens `{name}` is not in lens.cal; it has {}",
+                        have.join(", ")
+                    ))
+                })
+        }),
+    }
+}
 
 #[derive(Debug, thiserror::Error)]
 pub enum StateError {
@@ -24,17 +60,23 @@ pub enum StateError {
 }
 
 impl State {
-    pub fn load(path: &Path) -> Result<State, StateError> {
+    /// A state file; lens names in it are looked up in `cal`.
+    pub fn load(path: &Path, cal: &LensCal) -> Result<State, StateError> {
         let shown = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| StateError::Io {
             path: shown.clone(),
             source,
         })?;
-        State::parse(&text, &shown)
+        State::parse(&text, &shown, cal)
     }
 
-    pub fn parse(text: &str, path: &str) -> Result<State, StateError> {
-        let mut state: State = toml::from_str(text).map_err(|e| StateError::Parse {
+    /// Its fields are checked here; the lens and sensor crop by [`State::validate`].
+    pub fn parse(text: &str, path: &str, cal: &LensCal) -> Result<State, StateError> {
+        let names = cal.entries.iter().map(|e| (e.name.clone(), e.lens_id));
+        LENS_NAMES.set(names.collect());
+        let parsed = toml::from_str::<State>(text);
+        LENS_NAMES.set(Vec::new());
+        let mut state: State = parsed.map_err(|e| StateError::Parse {
             path: path.to_string(),
             line: e.span().map_or(1, |s| line_of(text, s.start)),
             message: e.message().trim().to_string(),
@@ -42,7 +84,7 @@ impl State {
         state.even_output();
         state
             .place_cameras()
-            .and_then(|()| state.validate())
+            .and_then(|()| state.validate_fields())
             .map_err(|source| StateError::Invalid {
                 path: path.to_string(),
                 source,
@@ -83,6 +125,22 @@ impl State {
 mod tests {
     use super::*;
 
+    fn cal() -> LensCal {
+        let text = include_str!("../../lens-cal/lens.cal");
+        LensCal::parse(Path::new("lens.cal"), text).unwrap()
+    }
+
+    #[test]
+    fn a_state_file_names_its_lens_by_id_or_by_name() {
+        let s = State::parse("lens = \"cil018\"", "s.toml", &cal()).unwrap();
+        assert_eq!(s.lens, 1);
+        let e = State::parse("\nlens = \"CIL999\"", "s.toml", &cal()).unwrap_err();
+        let e = e.to_string();
+        assert!(e.starts_with("s.toml:2: lens `CIL999` is not in lens.cal; it has CIL216 (0)"), "{e}");
+        let e = State::parse("lens = 1.5", "s.toml", &cal()).unwrap_err().to_string();
+        assert!(e.contains("lens is a lens_id 0..=255 or a lens name"), "{e}");
+    }
+
     #[test]
     fn a_state_file_reads_degrees_places_cameras_by_id_and_fills_the_rest() {
         let s = State::parse(
@@ -98,6 +156,7 @@ mod tests {
             roll = "20deg"
             "#,
             "s.toml",
+            &cal(),
         )
         .unwrap();
         assert_eq!(s.lens, 2);
@@ -111,7 +170,7 @@ mod tests {
 
     #[test]
     fn bad_state_files_name_the_line_or_the_field() {
-        let err = |text| State::parse(text, "s.toml").unwrap_err().to_string();
+        let err = |text| State::parse(text, "s.toml", &cal()).unwrap_err().to_string();
         let e = err("[output]\nwidht = 3\n");
         assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
         let e = err("[output]\nlayout = 9\n");

@@ -56,14 +56,8 @@ pub struct Live {
 impl Live {
     /// The initial state must be valid and name a lens of `cal`.
     pub fn new(state: State, cal: &LensCal, capture: Box<dyn Capturer>) -> Result<Live, Invalid> {
-        state.validate()?;
         let lenses = Lenses::new(cal);
-        if lenses.get(state.lens).is_none() {
-            return Err(Invalid(format!(
-                "lens_id {} is not in lens.cal",
-                state.lens
-            )));
-        }
+        state.validate(&lenses)?;
         Ok(Live {
             state: ArcSwap::from_pointee(state),
             writer: Mutex::new(()),
@@ -89,7 +83,7 @@ impl Live {
         let _one_writer = self.writer.lock().unwrap_or_else(|e| e.into_inner());
         let mut next = State::clone(&self.state.load());
         let out = change(&mut next)?;
-        next.validate()?;
+        next.validate(&self.lenses)?;
         self.state.store(Arc::new(next));
         Ok(out)
     }

@@ -272,6 +272,9 @@ impl Default for DetectionSettings {
     }
 }
 
+/// The largest fisheye frame, each way (GENERAL_SETTINGS's camera size).
+pub const MAX_SENSOR: u32 = 8192;
+
 /// Ratios the seed accepts: [0, 0.99).
 pub const RATIO_RANGE: std::ops::Range<f64> = 0.0..0.99;
 
@@ -281,7 +284,8 @@ const FRAC_PI_4: f64 = std::f64::consts::FRAC_PI_4;
 #[serde(default, deny_unknown_fields)]
 pub struct State {
     pub output: Output,
-    /// lens_id in lens.cal (0 CIL216, 1 CIL018, 2 LN007).
+    /// lens_id in lens.cal (0 CIL216, 1 CIL018, 2 LN007); a state file may give the name.
+    #[serde(deserialize_with = "file::lens_id")]
     pub lens: u8,
     #[serde(rename = "camera")]
     pub cameras: Vec<Camera>,

@@ -1,7 +1,8 @@
 //! The one check every way into the state goes through (state files, flags, the control
 //! protocol, and what comes later): every field against the range the protocol allows.
 
-use super::{FPS_RANGE, MAX_OUTPUT, MIN_OUTPUT, RATIO_RANGE, State};
+use super::{FPS_RANGE, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, RATIO_RANGE, State};
+use crate::lens::Lenses;
 use crate::geometry::view::{LockFlags, clamp_fov, control, crop, fov_range};
 use crate::layout::{LAYOUT_MODES, OVERLAY_MODES};
 
@@ -32,8 +33,32 @@ impl State {
         }
     }
 
-    /// Checks every field against the range the protocol allows.
-    pub fn validate(&self) -> Result<(), Invalid> {
+    /// The one check of a whole state, whichever way it came in: every field against the
+    /// range the protocol allows, and the lens and the sensor crop against lens.cal.
+    pub fn validate(&self, lenses: &Lenses) -> Result<(), Invalid> {
+        self.validate_fields()?;
+        let Some(lens) = lenses.get(self.lens) else {
+            return invalid(format!("lens_id {} is not in lens.cal", self.lens));
+        };
+        if let Some([x, y, w, h]) = self.sensor.roi {
+            let (cw, ch) = (lens.width, lens.height);
+            let fits = w > 0
+                && h > 0
+                && x.checked_add(w).is_some_and(|r| r <= cw)
+                && y.checked_add(h).is_some_and(|b| b <= ch);
+            if !fits {
+                return invalid(format!(
+                    "sensor crop {w}x{h} at {x},{y} does not fit the lens's {cw}x{ch} \
+                     calibration frame"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Every field against the range the protocol allows (what can be checked without
+    /// lens.cal; [`State::validate`] checks the rest).
+    pub fn validate_fields(&self) -> Result<(), Invalid> {
         let o = &self.output;
         let (lo, hi) = (MIN_OUTPUT, MAX_OUTPUT);
         if !(lo.0..=hi.0).contains(&o.width) || !(lo.1..=hi.1).contains(&o.height) {
@@ -96,8 +121,20 @@ impl State {
             }
         }
         let s = &self.sensor;
-        if s.width == 0 || s.height == 0 {
-            return invalid("sensor size must be positive".into());
+        if !(1..=MAX_SENSOR).contains(&s.width) || !(1..=MAX_SENSOR).contains(&s.height) {
+            return invalid(format!(
+                "sensor size {}x{} is outside 1x1..={MAX_SENSOR}x{MAX_SENSOR}",
+                s.width, s.height
+            ));
+        }
+        if !(1..=240).contains(&s.fps) {
+            return invalid(format!("sensor fps {} is outside 1..=240", s.fps));
+        }
+        let angles = self.cameras.iter().flat_map(|c| [c.yaw, c.pitch, c.roll, c.fov]);
+        let vehicle = &self.vehicle.attitude;
+        let frames = [vehicle.yaw, vehicle.pitch, vehicle.roll, self.mount.yaw, self.mount.pitch];
+        if !angles.chain(frames).chain([self.mount.roll, self.time]).all(f64::is_finite) {
+            return invalid("angles and the scene time must be finite numbers".into());
         }
         let d = &self.detection;
         for (name, v) in [

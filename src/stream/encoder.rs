@@ -19,6 +19,10 @@ const HARDWARE: [&str; 3] = ["nvv4l2h264enc", "vaapih264enc", "v4l2h264enc"];
 /// Frames the encoder may hold before new ones are dropped (it has fallen behind).
 const BACKLOG: usize = 3;
 
+/// The bitrates every entry takes (the config's `encoder.bitrate_kbps`, `render
+/// --bitrate-kbps`), in kbit/s.
+pub const BITRATE_KBPS: (u32, u32) = (100, 100_000);
+
 #[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EncoderConfig {
