@@ -27,7 +27,7 @@ pub enum LensCommand {
         #[arg(long)]
         id: u8,
         /// The valid field of view (e.g. 190deg); by default the widest the frame shows.
-        #[arg(long, value_parser = parse_angle)]
+        #[arg(long, value_parser = parse_fov)]
         fov: Option<f64>,
         /// Which camera of a Kalibr camchain (default: the first).
         #[arg(long)]
@@ -142,7 +142,7 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
             }
             // Into the lens.cal in use; in place of the built-in one, a new file in the
             // user's config directory that starts as its copy.
-            let (_, origin) = locate::lens_cal(flag)?;
+            let origin = locate::lens_cal_origin(flag)?;
             let (path, old) = match origin.path() {
                 Some(p) => (p.to_path_buf(), std::fs::read_to_string(p)?),
                 None => {
@@ -154,9 +154,13 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
                     (dir.join("lens.cal"), text)
                 }
             };
-            append(&path, &old, &entry, &text, replace)?;
+            let replaced = append(&path, &old, &entry, &text, replace)?;
+            let what = match replaced {
+                Some(r) => format!("replaced {r} with"),
+                None => "added".to_string(),
+            };
             eprintln!(
-                "added {} (lens_id {}) to {}",
+                "{what} {} (lens_id {}) in {}",
                 entry.name,
                 entry.lens_id,
                 path.display()
@@ -166,47 +170,115 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
     Ok(())
 }
 
-/// Appends an entry to lens.cal (replacing a clashing one if asked), and only writes a file
-/// that parses.
-fn append(path: &Path, old: &str, entry: &LensEntry, text: &str, replace: bool) -> Result<()> {
-    let cal = LensCal::parse(path, old)?;
-    let clash = cal
-        .entries
+/// `--fov`: an angle in (0, 360°].
+fn parse_fov(text: &str) -> Result<f64, String> {
+    let v = parse_angle(text).map_err(|e| e.to_string())?;
+    if v > 0.0 && v <= std::f64::consts::TAU {
+        return Ok(v);
+    }
+    let hint = if text.trim().parse::<f64>().is_ok() {
+        format!(" (a bare number is radians; for degrees write {}deg)", text.trim())
+    } else {
+        String::new()
+    };
+    Err(format!(
+        "{text} is {:.1}°, outside (0, 360deg]{hint}",
+        v.to_degrees()
+    ))
+}
+
+/// Adds an entry to lens.cal: at the end, or in place of the clashing one with `replace`
+/// (the comments around it stay). Only a file that parses is written. Returns
+/// the replaced entry's name and line.
+fn append(
+    path: &Path,
+    old: &str,
+    entry: &LensEntry,
+    text: &str,
+    replace: bool,
+) -> Result<Option<String>> {
+    let entries = if old.contains("[[lens]]") {
+        LensCal::parse(path, old)?.entries
+    } else {
+        Vec::new()
+    };
+    let clash = entries
         .iter()
         .find(|e| e.name.eq_ignore_ascii_case(&entry.name) || e.lens_id == entry.lens_id);
-    let mut body = old.to_string();
-    if let Some(c) = clash {
-        if !replace {
-            bail!(
-                "{} already has {} (lens_id {}) on line {}; use --replace",
-                path.display(),
-                c.name,
-                c.lens_id,
-                c.line
-            );
+    let (body, replaced) = match clash {
+        Some(c) if !replace => bail!(
+            "{} already has {} (lens_id {}) on line {}; use --replace",
+            path.display(),
+            c.name,
+            c.lens_id,
+            c.line
+        ),
+        Some(c) => (
+            replace_table(old, c.line, text),
+            Some(format!("{} (lens_id {}, line {})", c.name, c.lens_id, c.line)),
+        ),
+        None => {
+            let mut body = old.to_string();
+            if !body.ends_with('\n') && !body.is_empty() {
+                body.push('\n');
+            }
+            body.push('\n');
+            body.push_str(text);
+            (body, None)
         }
-        body = remove_table(old, c.line);
-    }
-    if !body.ends_with('\n') && !body.is_empty() {
-        body.push('\n');
-    }
-    body.push('\n');
-    body.push_str(text);
+    };
     LensCal::parse(path, &body)?;
     let tmp = path.with_extension("cal.tmp");
     std::fs::write(&tmp, &body)?;
     std::fs::rename(&tmp, path)?;
-    Ok(())
+    Ok(replaced)
 }
 
-/// The text without the `[[lens]]` table that starts on 1-based `line`.
-fn remove_table(text: &str, line: usize) -> String {
+/// The text with the `[[lens]]` table that starts on 1-based `line` replaced by `table`: its
+/// keys go; the comments above it, and those between its last key and the next table, stay.
+fn replace_table(text: &str, line: usize, table: &str) -> String {
     let lines: Vec<&str> = text.lines().collect();
     let start = line - 1;
-    let end = (start + 1..lines.len())
+    let mut end = (start + 1..lines.len())
         .find(|&i| lines[i].trim_start().starts_with("[[lens]]"))
         .unwrap_or(lines.len());
-    let mut kept: Vec<&str> = lines[..start].to_vec();
-    kept.extend_from_slice(&lines[end..]);
-    kept.join("\n") + "\n"
+    while end > start + 1 && {
+        let l = lines[end - 1].trim_start();
+        l.is_empty() || l.starts_with('#')
+    } {
+        end -= 1;
+    }
+    let mut out = lines[..start].join("\n");
+    if !out.is_empty() {
+        out.push('\n');
+    }
+    out.push_str(table.trim_end());
+    out.push('\n');
+    if end < lines.len() {
+        out.push('\n');
+        out.push_str(&lines[end..].join("\n"));
+        out.push('\n');
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_replaced_entry_keeps_its_place_and_every_comment_outside_it() {
+        let text = "# lenses of drone 2\n\n# the old one\n[[lens]]\nname = \"A\"\n\
+                    # inside A\n\n# about B\n[[lens]]\nname = \"B\"\n";
+        let out = replace_table(text, 4, "[[lens]]\nname = \"A2\"\n");
+        assert_eq!(
+            out,
+            "# lenses of drone 2\n\n# the old one\n[[lens]]\nname = \"A2\"\n\n\
+             # inside A\n\n# about B\n[[lens]]\nname = \"B\"\n"
+        );
+        let last = replace_table(text, 9, "[[lens]]\nname = \"B2\"\n");
+        assert!(last.ends_with("# about B\n[[lens]]\nname = \"B2\"\n"), "{last}");
+        assert!(parse_fov("7").unwrap_err().contains("for degrees write 7deg"));
+        assert!((parse_fov("190deg").unwrap() - 190f64.to_radians()).abs() < 1e-12);
+    }
 }

@@ -107,18 +107,31 @@ pub fn user_config_dir() -> Option<PathBuf> {
 /// lens.cal, from `--lens-cal`, `DIGIVIEW_LENS_CAL`, `./lens.cal`, `./lens-cal/lens.cal` (a
 /// source checkout), the user's and the system's config directories, or the built-in one.
 pub fn lens_cal(flag: Option<&Path>) -> Result<(LensCal, Origin)> {
-    let origin = find(
-        flag,
-        "--lens-cal",
-        "DIGIVIEW_LENS_CAL",
-        &["lens.cal", "lens-cal/lens.cal"],
-    )?;
+    let origin = lens_cal_origin(flag)?;
     let cal = match origin.path() {
         Some(p) => LensCal::load(p)?,
         None => built_in_lens_cal(),
     };
+    if cal.entries.is_empty() {
+        anyhow::bail!(
+            "{}: no [[lens]] entries; every command needs at least one lens (add one with \
+             `digiview lens import --write`, or remove the file to use the built-in lenses)",
+            cal.path.display()
+        );
+    }
     tracing::info!("lens.cal: {origin}");
     Ok((cal, origin))
+}
+
+/// Which lens.cal is in use, without reading it (`lens import --write` adds to it, even
+/// when it is still empty).
+pub fn lens_cal_origin(flag: Option<&Path>) -> Result<Origin> {
+    find(
+        flag,
+        "--lens-cal",
+        "DIGIVIEW_LENS_CAL",
+        &["lens.cal", "lens-cal/lens.cal"],
+    )
 }
 
 /// The lens.cal built into the binary.

@@ -72,7 +72,25 @@ pub fn detect(path: &Path, text: &str) -> Option<Format> {
         "yaml" | "yml" if text.contains("camera_model") => Some(Format::Kalibr),
         "yaml" | "yml" => Some(Format::Opencv),
         "txt" if text.contains("invpol") || text.contains("DIRECT mapping") => Some(Format::Ocam),
-        _ => None,
+        _ => detect_content(text),
+    }
+}
+
+/// The format from the content alone, for a file whose name says nothing.
+fn detect_content(text: &str) -> Option<Format> {
+    let t = text.trim_start();
+    if t.starts_with('{') {
+        Some(Format::Gyroflow)
+    } else if t.starts_with("<?xml") || t.starts_with("<opencv_storage") {
+        Some(Format::Opencv)
+    } else if t.starts_with("%YAML") {
+        Some(Format::Opencv)
+    } else if text.contains("camera_model") && text.contains("intrinsics") {
+        Some(Format::Kalibr)
+    } else if text.contains("invpol") || text.contains("DIRECT mapping") {
+        Some(Format::Ocam)
+    } else {
+        None
     }
 }
 
