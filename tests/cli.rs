@@ -144,6 +144,22 @@ fn import_writes_a_new_lens_and_replaces_only_when_asked() {
         &cal,
     );
     assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("replaced KAL (lens_id 7, line "),
+        "{}",
+        stderr(&o)
+    );
+    let text = std::fs::read_to_string(&cal).unwrap();
+    let shipped_text = std::fs::read_to_string(shipped()).unwrap();
+    for comment in shipped_text
+        .lines()
+        .filter(|l| l.trim_start().starts_with('#'))
+    {
+        assert!(
+            text.contains(comment),
+            "the comment `{comment}` was dropped"
+        );
+    }
     let list = String::from_utf8_lossy(&digiview(&["lens", "list"], &cal).stdout).into_owned();
     assert_eq!(
         list.lines().count(),
@@ -151,13 +167,43 @@ fn import_writes_a_new_lens_and_replaces_only_when_asked() {
         "header, three shipped lenses, one imported: {list}"
     );
     assert!(list.contains("double_sphere"));
+    // A shipped lens in the middle of the file: its notes, and every other comment, stay.
+    let o = digiview(
+        &[
+            "lens",
+            "import",
+            sample,
+            "--name",
+            "CIL018",
+            "--id",
+            "1",
+            "--write",
+            "--replace",
+        ],
+        &cal,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&cal).unwrap();
+    for comment in shipped_text
+        .lines()
+        .filter(|l| l.trim_start().starts_with('#'))
+    {
+        assert!(
+            text.contains(comment),
+            "the comment `{comment}` was dropped"
+        );
+    }
+    assert!(
+        text.contains("# Notes of the entry this one replaced:\n# 1.8 mm, F/2.8"),
+        "{text}"
+    );
     let o = digiview(&["lens", "check", "KAL"], &cal);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout));
 }
 
 #[test]
 fn bad_flags_and_missing_files_get_clear_errors() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 11] = [
         (
             &[
                 "render",
@@ -184,16 +230,191 @@ fn bad_flags_and_missing_files_get_clear_errors() {
             &["synth", "--truth", "--out", "/tmp/x.png", "--layout", "9"],
             "layout 9 does not exist",
         ),
+        // Checked before any work: nothing is rendered for minutes first.
+        (
+            &["synth", "--out", "/tmp/s.bmp"],
+            "s.bmp: images are written as .png or .jpg",
+        ),
+        (
+            &["synth", "--size", "20000x20000", "--out", "/tmp/x.png"],
+            "sensor size 20000x20000 is outside 1x1..=8192x8192",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--cam", "0:lock=99"],
+            "camera 0: lock flags 99 are outside 0..=7",
+        ),
+        (
+            &["render", "--input", "/tmp", "--out", "/tmp/x.mp4"],
+            "/tmp is a directory; give a video file or an image sequence",
+        ),
+        (
+            &[
+                "render",
+                "--input",
+                "a.mp4",
+                "--out",
+                "b.mp4",
+                "--bitrate-kbps",
+                "0",
+            ],
+            "0 is not a bitrate in 100..=100000 kbit/s",
+        ),
+        (
+            &["synth", "--out", "/no/such/dir/x.png"],
+            "/no/such/dir/x.png: the directory /no/such/dir does not exist",
+        ),
     ];
     for (args, want) in cases {
         let o = digiview(args, &shipped());
+        let err = stderr(&o);
         assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(err.contains(want), "{args:?}: `{err}` lacks `{want}`");
         assert!(
-            stderr(&o).contains(want),
-            "{args:?}: `{}` lacks `{want}`",
-            stderr(&o)
+            !err.contains("panicked") && !err.contains("GLib"),
+            "{args:?}: {err}"
         );
-        assert!(!stderr(&o).contains("panicked"), "{args:?} panicked");
+        assert!(!err.contains("wrote"), "{args:?} wrote something: {err}");
+        // Each cause once: `No such file or directory (os error 2): No such file or …`
+        // was printed twice before.
+        assert!(err.matches("os error").count() <= 1, "{args:?}: {err}");
+        let last = err.lines().last().unwrap_or_default();
+        let parts: Vec<&str> = last.split(": ").collect();
+        for (i, p) in parts.iter().enumerate() {
+            assert!(
+                !parts[i + 1..].contains(p),
+                "{args:?}: `{p}` twice in {last}"
+            );
+        }
+    }
+}
+
+#[test]
+fn state_files_and_lens_cal_mistakes_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let state = p("state.toml");
+    let fish = p("fish.png");
+    let synth = |extra: &[&str]| {
+        let args = [&["synth", "--sensor", "640x480", "--out", &fish][..], extra].concat();
+        digiview(&args, &shipped())
+    };
+    // A lens by name, as the config takes it.
+    std::fs::write(&state, "lens = \"CIL018\"\n").unwrap();
+    let o = synth(&["--state", &state]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(&state, "lens = \"NOPE\"\n").unwrap();
+    let o = synth(&["--state", &state]);
+    assert!(
+        stderr(&o).contains("state.toml:1: lens `NOPE` is not in lens.cal"),
+        "{}",
+        stderr(&o)
+    );
+    // A sensor crop larger than the lens's frame: refused, as over the protocol.
+    std::fs::write(&state, "[sensor]\nroi = [0, 0, 5000, 5000]\n").unwrap();
+    let o = synth(&["--state", &state]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("sensor crop 5000x5000 at 0,0 does not fit"),
+        "{e}"
+    );
+
+    // An empty lens.cal is an error, not an empty list.
+    let empty = dir.path().join("empty.cal");
+    std::fs::write(&empty, "# nothing yet\n").unwrap();
+    let o = digiview(&["lens", "list"], &empty);
+    assert!(
+        !o.status.success() && stderr(&o).contains("no [[lens]] entries"),
+        "{}",
+        stderr(&o)
+    );
+    // A fov given as a bare number is radians, and the error says so (no invented line).
+    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/opencv_fisheye.xml");
+    let args = [
+        "lens",
+        "import",
+        sample.to_str().unwrap(),
+        "--name",
+        "X",
+        "--id",
+        "9",
+    ];
+    let o = digiview(&[&args[..], &["--fov", "7"]].concat(), &shipped());
+    let e = stderr(&o);
+    assert!(
+        e.contains("for degrees write 7deg") && !e.contains("(imported):"),
+        "{e}"
+    );
+    // A file without an extension is recognised by its content.
+    let bare = p("calibration");
+    std::fs::copy(&sample, &bare).unwrap();
+    let o = digiview(
+        &["lens", "import", &bare, "--name", "X", "--id", "9"],
+        &shipped(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("name = \"X\""));
+}
+
+/// `digiview serve` as a script starts it: what it printed on stdout and stderr, and how it
+/// ended, within `limit`.
+fn serve_briefly(args: &[&str], limit: std::time::Duration) -> (Output, bool) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["serve", "--control", "127.0.0.1:0", "--mavlink", "off"])
+        .args(args)
+        .env("DIGIVIEW_LENS_CAL", shipped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let end = std::time::Instant::now() + limit;
+    let mut ended = false;
+    while std::time::Instant::now() < end {
+        if child.try_wait().unwrap().is_some() {
+            ended = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    if !ended {
+        let _ = child.kill();
+    }
+    (child.wait_with_output().unwrap(), ended)
+}
+
+#[test]
+fn serve_fails_at_once_and_says_nothing_on_stdout_when_a_service_cannot_start() {
+    let taken = std::net::TcpListener::bind("0.0.0.0:0").unwrap();
+    let port = taken.local_addr().unwrap().port().to_string();
+    let cases: [(&[&str], &str); 3] = [
+        (&["--rtsp-port", &port], "cannot serve RTSP on 0.0.0.0:"),
+        // Sources that can never open are not retried for ever.
+        (
+            &["--rtsp-port", "0", "--source", "image:/no/such/fish.png"],
+            "/no/such/fish.png: no such file",
+        ),
+        (
+            &[
+                "--rtsp-port",
+                "0",
+                "--source",
+                "gst:videotestsrc ! ! fakesink",
+            ],
+            "syntax error",
+        ),
+    ];
+    for (args, want) in cases {
+        let (o, ended) = serve_briefly(args, std::time::Duration::from_secs(20));
+        let err = stderr(&o);
+        assert!(ended && !o.status.success(), "{args:?}: {err}");
+        assert!(
+            err.contains(want) && err.matches(want).count() == 1,
+            "{args:?}: {err}"
+        );
+        assert_eq!(
+            String::from_utf8_lossy(&o.stdout),
+            "",
+            "{args:?} announced a service"
+        );
     }
 }
 

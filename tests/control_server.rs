@@ -355,7 +355,10 @@ fn a_refusal_says_why_in_ctl_and_in_the_log() {
         .lines()
         .find(|l| l.contains("refused SET CAPTURE"))
         .unwrap_or_else(|| panic!("{log}"));
-    assert!(line.contains("INFO") && line.contains("Not a directory"), "{line}");
+    assert!(
+        line.contains("INFO") && line.contains("Not a directory"),
+        "{line}"
+    );
     let unknown = log.lines().filter(|l| l.contains("refused GET")).count();
     assert!(unknown <= 10, "{unknown} lines for 200 refusals:\n{log}");
 }

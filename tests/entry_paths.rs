@@ -81,7 +81,15 @@ fn agree(
 ) -> Result<(), TestCaseError> {
     let (first, want) = &others[0];
     for (name, got) in &others[1..] {
-        prop_assert_eq!(got.is_ok(), want.is_ok(), "{} {:?} vs {} {:?}", name, got, first, want);
+        prop_assert_eq!(
+            got.is_ok(),
+            want.is_ok(),
+            "{} {:?} vs {} {:?}",
+            name,
+            got,
+            first,
+            want
+        );
     }
     match (want, &protocol) {
         (Ok(s), Ok(p)) => prop_assert!(same(s, p), "{first} {s:?}\nprotocol {p:?}"),

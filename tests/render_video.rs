@@ -184,3 +184,129 @@ fn missing_and_corrupt_inputs_are_clear_errors() {
     let r = digiview(&["render", "--input", bad.to_str().unwrap(), "--out", "x.gif"]);
     assert!(!r.status.success());
 }
+
+/// A test-pattern clip of `frames` frames, 320x240 at 30 fps (fragmented MP4 as DigiView
+/// records, so a cut copy still plays up to the cut).
+fn test_clip(path: &Path, frames: u32) {
+    let made = Command::new("gst-launch-1.0")
+        .args(["-q", "videotestsrc", &format!("num-buffers={frames}")])
+        .args(["!", "video/x-raw,width=320,height=240,framerate=30/1"])
+        .args(["!", "x264enc", "speed-preset=ultrafast", "key-int-max=30"])
+        .args([
+            "!",
+            "h264parse",
+            "!",
+            "mp4mux",
+            "fragment-duration=1000",
+            "streamable=true",
+        ])
+        .args(["!", "filesink", &format!("location={}", path.display())])
+        .status()
+        .unwrap();
+    assert!(made.success());
+}
+
+/// Every file in `dir`, hidden ones too.
+fn files(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn an_output_that_is_the_input_is_refused_and_the_input_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let clip = dir.path().join("same.mp4");
+    test_clip(&clip, 30);
+    let before = std::fs::read(&clip).unwrap();
+    let link = dir.path().join("link.mp4");
+    std::os::unix::fs::symlink(&clip, &link).unwrap();
+    let hard = dir.path().join("hard.mp4");
+    std::fs::hard_link(&clip, &hard).unwrap();
+    let other = format!("{}/./same.mp4", dir.path().display());
+    for out in [
+        clip.to_str().unwrap(),
+        link.to_str().unwrap(),
+        hard.to_str().unwrap(),
+        &other,
+    ] {
+        let r = digiview(&["render", "--input", clip.to_str().unwrap(), "--out", out]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success(), "{out}: {err}");
+        assert!(err.contains("would destroy the input"), "{out}: {err}");
+    }
+    assert_eq!(
+        std::fs::read(&clip).unwrap(),
+        before,
+        "the input is untouched"
+    );
+    assert_eq!(files(dir.path()), ["hard.mp4", "link.mp4", "same.mp4"]);
+}
+
+#[test]
+fn a_stopped_render_leaves_no_file_and_a_cut_input_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let clip = dir.path().join("long.mp4");
+    test_clip(&clip, 900);
+    let out = dir.path().join("out.mp4");
+    // Ctrl-C a second into a render of 30 s of video.
+    let child = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "render",
+            "--input",
+            clip.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--size", "640x480"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let r = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success(), "{err}");
+    assert!(
+        err.contains("interrupted after") && err.contains("was not written"),
+        "{err}"
+    );
+    assert_eq!(
+        files(dir.path()),
+        ["long.mp4"],
+        "no output, no partial file"
+    );
+
+    // The first third of a clip: rendered as far as it goes, and the exit status says so.
+    let cut = dir.path().join("cut.mp4");
+    let whole = std::fs::read(&clip).unwrap();
+    std::fs::write(&cut, &whole[..whole.len() / 3]).unwrap();
+    let r = digiview(&[
+        "render",
+        "--input",
+        cut.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--size",
+        "640x480",
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success(), "{err}");
+    assert!(
+        err.contains("of the 30.00 s its container announces"),
+        "{err}"
+    );
+    let (n, size) = probe_frames(&out);
+    assert!(n > 100 && n < 800 && size == "640x480", "{n} frames {size}");
+    assert!(
+        err.contains(&format!("the {n} frames decoded were rendered")),
+        "{err}"
+    );
+}

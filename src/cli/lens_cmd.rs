@@ -177,7 +177,10 @@ fn parse_fov(text: &str) -> Result<f64, String> {
         return Ok(v);
     }
     let hint = if text.trim().parse::<f64>().is_ok() {
-        format!(" (a bare number is radians; for degrees write {}deg)", text.trim())
+        format!(
+            " (a bare number is radians; for degrees write {}deg)",
+            text.trim()
+        )
     } else {
         String::new()
     };
@@ -215,7 +218,10 @@ fn append(
         ),
         Some(c) => (
             replace_table(old, c.line, text),
-            Some(format!("{} (lens_id {}, line {})", c.name, c.lens_id, c.line)),
+            Some(format!(
+                "{} (lens_id {}, line {})",
+                c.name, c.lens_id, c.line
+            )),
         ),
         None => {
             let mut body = old.to_string();
@@ -235,7 +241,8 @@ fn append(
 }
 
 /// The text with the `[[lens]]` table that starts on 1-based `line` replaced by `table`: its
-/// keys go; the comments above it, and those between its last key and the next table, stay.
+/// keys go, its comments stay above the new table (marked as the replaced entry's notes), and
+/// the comments above it and before the next table stay where they are.
 fn replace_table(text: &str, line: usize, table: &str) -> String {
     let lines: Vec<&str> = text.lines().collect();
     let start = line - 1;
@@ -252,6 +259,19 @@ fn replace_table(text: &str, line: usize, table: &str) -> String {
     if !out.is_empty() {
         out.push('\n');
     }
+    // The replaced entry's own notes are kept above the new one, marked as its.
+    let notes: Vec<&str> = lines[start + 1..end]
+        .iter()
+        .copied()
+        .filter(|l| l.trim_start().starts_with('#'))
+        .collect();
+    if !notes.is_empty() {
+        out.push_str("# Notes of the entry this one replaced:\n");
+        for n in notes {
+            out.push_str(n.trim_start());
+            out.push('\n');
+        }
+    }
     out.push_str(table.trim_end());
     out.push('\n');
     if end < lines.len() {
@@ -267,18 +287,27 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_replaced_entry_keeps_its_place_and_every_comment_outside_it() {
+    fn a_replaced_entry_keeps_its_place_and_every_comment() {
         let text = "# lenses of drone 2\n\n# the old one\n[[lens]]\nname = \"A\"\n\
-                    # inside A\n\n# about B\n[[lens]]\nname = \"B\"\n";
+                    # measured 2025\nlens_id = 0\n# inside A\n\n# about B\n[[lens]]\n\
+                    name = \"B\"\n";
         let out = replace_table(text, 4, "[[lens]]\nname = \"A2\"\n");
         assert_eq!(
             out,
-            "# lenses of drone 2\n\n# the old one\n[[lens]]\nname = \"A2\"\n\n\
-             # inside A\n\n# about B\n[[lens]]\nname = \"B\"\n"
+            "# lenses of drone 2\n\n# the old one\n# Notes of the entry this one \
+             replaced:\n# measured 2025\n[[lens]]\nname = \"A2\"\n\n# inside A\n\n\
+             # about B\n[[lens]]\nname = \"B\"\n"
         );
-        let last = replace_table(text, 9, "[[lens]]\nname = \"B2\"\n");
-        assert!(last.ends_with("# about B\n[[lens]]\nname = \"B2\"\n"), "{last}");
-        assert!(parse_fov("7").unwrap_err().contains("for degrees write 7deg"));
+        let last = replace_table(text, 11, "[[lens]]\nname = \"B2\"\n");
+        assert!(
+            last.ends_with("# about B\n[[lens]]\nname = \"B2\"\n"),
+            "{last}"
+        );
+        assert!(
+            parse_fov("7")
+                .unwrap_err()
+                .contains("for degrees write 7deg")
+        );
         assert!((parse_fov("190deg").unwrap() - 190f64.to_radians()).abs() < 1e-12);
     }
 }

@@ -27,7 +27,11 @@ impl Output {
             _ => Path::new("."),
         };
         if !dir.is_dir() {
-            bail!("{}: the directory {} does not exist", path.display(), dir.display());
+            bail!(
+                "{}: the directory {} does not exist",
+                path.display(),
+                dir.display()
+            );
         }
         let name = path
             .file_name()
@@ -93,14 +97,24 @@ pub fn image_format(path: &Path) -> Result<ImageFormat> {
     }
 }
 
+/// An image to be written at `path`: its format, its directory and that it is no input are
+/// checked now, before the work that makes it.
+pub fn image_output(path: &Path, inputs: &[&Path]) -> Result<Output> {
+    image_format(path)?;
+    Output::create(path, inputs)
+}
+
+/// Writes `img` to `out` and renames it into place.
+pub fn write_image(img: &image::RgbImage, out: Output) -> Result<PathBuf> {
+    let format = image_format(&out.path)?;
+    img.save_with_format(out.temp(), format)
+        .with_context(|| format!("writing {}", out.path.display()))?;
+    out.keep()
+}
+
 /// Saves `img` to `path` through a temporary file.
 pub fn save_image(img: &image::RgbImage, path: &Path, inputs: &[&Path]) -> Result<()> {
-    let format = image_format(path)?;
-    let out = Output::create(path, inputs)?;
-    img.save_with_format(out.temp(), format)
-        .with_context(|| format!("writing {}", path.display()))?;
-    out.keep()?;
-    Ok(())
+    write_image(img, image_output(path, inputs)?).map(drop)
 }
 
 /// Set once Ctrl-C (SIGINT) or SIGTERM arrives, so a long command stops between frames,
@@ -164,7 +178,11 @@ mod tests {
         std::fs::write(o.temp(), b"half").unwrap();
         drop(o);
         assert!(!out.exists());
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 3, "no leftovers");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            3,
+            "no leftovers"
+        );
 
         let o = Output::create(&out, &[&input]).unwrap();
         std::fs::write(o.temp(), b"whole").unwrap();

@@ -61,8 +61,8 @@ pub struct SynthArgs {
     state: StateArgs,
 }
 
-fn save(img: &RgbImage, path: &Path, inputs: &[&Path]) -> Result<()> {
-    output::save_image(img, path, inputs)?;
+fn save(img: &RgbImage, out: output::Output) -> Result<()> {
+    let path = output::write_image(img, out)?;
     eprintln!(
         "wrote {} ({}x{})",
         path.display(),
@@ -113,8 +113,7 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
             args.out.display()
         );
     }
-    output::image_format(&args.out)?;
-    output::refuse_inputs(&args.out, &[&args.input])?;
+    let target = output::image_output(&args.out, &[&args.input])?;
     let input = image::open(&args.input)
         .with_context(|| format!("reading {}", args.input.display()))?
         .to_rgb8();
@@ -134,7 +133,7 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
             render_image(&mut renderer, &input, &plan)?.to_rgb()
         }
     };
-    save(&out, &args.out, &[&args.input])
+    save(&out, target)
 }
 
 impl RenderArgs {
@@ -150,12 +149,11 @@ impl RenderArgs {
 }
 
 pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
-    output::image_format(&args.out)?;
     let world_file: Vec<&Path> = match args.world.as_str() {
         "grid" => vec![],
         w => vec![Path::new(w)],
     };
-    output::refuse_inputs(&args.out, &world_file)?;
+    let target = output::image_output(&args.out, &world_file)?;
     let mut state_args = args.state.clone();
     // Without --truth, --size names the fisheye frame (as in `synth --size 3840x2160`).
     let mut sensor = args.sensor;
@@ -193,5 +191,5 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
         fisheye(world.as_ref(), &lens, &state)
     };
     bar.finish_and_clear();
-    save(&img, &args.out, &world_file)
+    save(&img, target)
 }

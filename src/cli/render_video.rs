@@ -3,6 +3,7 @@
 //! or an image sequence, with a progress bar. Frames are pipelined: frame N uploads and
 //! renders while frame N-1 is read back and encoded.
 
+use super::output::{self, Output};
 use crate::frame::PixelFormat;
 use crate::lens::{LensCal, Lenses};
 use crate::render::gpu::renderer::RenderedFrame;
@@ -12,7 +13,6 @@ use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
 use crate::stream::encoder::AccessUnit;
 use crate::stream::{Encoder, EncoderConfig, Recorder};
-use super::output::{self, Output};
 use anyhow::{Context, Result, anyhow, bail};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -73,7 +73,10 @@ impl Target {
         let names = |p: &Path| -> Vec<PathBuf> {
             let text = p.to_string_lossy();
             match text.contains('%') {
-                true => (0..2).filter_map(|n| numbered(&text, n).ok()).map(PathBuf::from).collect(),
+                true => (0..2)
+                    .filter_map(|n| numbered(&text, n).ok())
+                    .map(PathBuf::from)
+                    .collect(),
                 false => vec![p.to_path_buf()],
             }
         };

@@ -35,7 +35,11 @@ impl Refusals {
         let inner = &mut *g;
         inner.count += 1;
         if inner.last.len() >= PEERS && !inner.last.contains_key(&peer) {
-            let oldest = inner.last.iter().min_by_key(|(_, (n, _))| *n).map(|(p, _)| *p);
+            let oldest = inner
+                .last
+                .iter()
+                .min_by_key(|(_, (n, _))| *n)
+                .map(|(p, _)| *p);
             if let Some(p) = oldest {
                 inner.last.remove(&p);
             }
@@ -48,7 +52,10 @@ impl Refusals {
             .is_none_or(|w| now.duration_since(w) >= Duration::from_secs(1))
         {
             if inner.left_out > 0 {
-                tracing::info!("{} more refusals in the last second not logged", inner.left_out);
+                tracing::info!(
+                    "{} more refusals in the last second not logged",
+                    inner.left_out
+                );
             }
             inner.window = Some(now);
             inner.logged = 0;

@@ -136,9 +136,17 @@ mod tests {
         assert_eq!(s.lens, 1);
         let e = State::parse("\nlens = \"CIL999\"", "s.toml", &cal()).unwrap_err();
         let e = e.to_string();
-        assert!(e.starts_with("s.toml:2: lens `CIL999` is not in lens.cal; it has CIL216 (0)"), "{e}");
-        let e = State::parse("lens = 1.5", "s.toml", &cal()).unwrap_err().to_string();
-        assert!(e.contains("lens is a lens_id 0..=255 or a lens name"), "{e}");
+        assert!(
+            e.starts_with("s.toml:2: lens `CIL999` is not in lens.cal; it has CIL216 (0)"),
+            "{e}"
+        );
+        let e = State::parse("lens = 1.5", "s.toml", &cal())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lens is a lens_id 0..=255 or a lens name"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -170,7 +178,11 @@ mod tests {
 
     #[test]
     fn bad_state_files_name_the_line_or_the_field() {
-        let err = |text| State::parse(text, "s.toml", &cal()).unwrap_err().to_string();
+        let err = |text| {
+            State::parse(text, "s.toml", &cal())
+                .unwrap_err()
+                .to_string()
+        };
         let e = err("[output]\nwidht = 3\n");
         assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
         let e = err("[output]\nlayout = 9\n");

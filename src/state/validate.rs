@@ -2,9 +2,9 @@
 //! protocol, and what comes later): every field against the range the protocol allows.
 
 use super::{FPS_RANGE, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, RATIO_RANGE, State};
-use crate::lens::Lenses;
 use crate::geometry::view::{LockFlags, clamp_fov, control, crop, fov_range};
 use crate::layout::{LAYOUT_MODES, OVERLAY_MODES};
+use crate::lens::Lenses;
 
 /// Why a state is refused: the field, its value and the range it must lie in.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -130,10 +130,23 @@ impl State {
         if !(1..=240).contains(&s.fps) {
             return invalid(format!("sensor fps {} is outside 1..=240", s.fps));
         }
-        let angles = self.cameras.iter().flat_map(|c| [c.yaw, c.pitch, c.roll, c.fov]);
+        let angles = self
+            .cameras
+            .iter()
+            .flat_map(|c| [c.yaw, c.pitch, c.roll, c.fov]);
         let vehicle = &self.vehicle.attitude;
-        let frames = [vehicle.yaw, vehicle.pitch, vehicle.roll, self.mount.yaw, self.mount.pitch];
-        if !angles.chain(frames).chain([self.mount.roll, self.time]).all(f64::is_finite) {
+        let frames = [
+            vehicle.yaw,
+            vehicle.pitch,
+            vehicle.roll,
+            self.mount.yaw,
+            self.mount.pitch,
+        ];
+        if !angles
+            .chain(frames)
+            .chain([self.mount.roll, self.time])
+            .all(f64::is_finite)
+        {
             return invalid("angles and the scene time must be finite numbers".into());
         }
         let d = &self.detection;
