@@ -350,8 +350,22 @@ fn the_demo_flies_through_the_mavlink_link_when_it_listens() {
     let size = ["--demo-size", "640x480", "--size", "640x480"];
     let (_serve, _, mut ctl) = serve_on("udpin", Serve::start_video, &size);
     // Only the link writes the vehicle into the live state: the heading the protocol reports
-    // is the demo's, so it came over MAVLink.
-    until_yaw(&mut ctl, 90.0 * DEG, "the demo's heading over the link");
+    // is the demo's, so it came over MAVLink. The flight heads 90° at its start and turns
+    // 4°/s (a lap in 90 s); `serve` announces itself once its first frame is out, a second or
+    // two into the flight.
+    until(
+        Duration::from_secs(10),
+        "the demo's heading over the link",
+        || (88.0 * DEG..=150.0 * DEG).contains(&centre_yaw(&mut ctl)),
+    );
+    let before = centre_yaw(&mut ctl);
+    std::thread::sleep(Duration::from_secs(2));
+    let turned = wrap(centre_yaw(&mut ctl) - before);
+    assert!(
+        (5.0 * DEG..11.0 * DEG).contains(&turned),
+        "turned {:.1}° in 2 s, not the flight's 8°",
+        turned / DEG
+    );
 }
 
 /// A pseudo-terminal pair: the master end (the autopilot's side of the cable) and the slave's

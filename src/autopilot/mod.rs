@@ -370,7 +370,7 @@ fn apply(
             *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
             if last_live.elapsed() >= LIVE_EVERY {
                 *last_live = Instant::now();
-                let _ = shared.live.update(|s| {
+                let written = shared.live.update(|s| {
                     (
                         s.vehicle.attitude.yaw,
                         s.vehicle.attitude.pitch,
@@ -378,6 +378,9 @@ fn apply(
                     ) = (attitude.yaw, attitude.pitch, attitude.roll);
                     Ok::<_, Invalid>(())
                 });
+                if let Err(e) = written {
+                    tracing::warn!("mavlink: the attitude was refused: {e}");
+                }
             }
         }
         Update::TimeSync { remote_us, ours_us } => {
@@ -393,10 +396,13 @@ fn apply(
         Update::TimeSyncRequest { ts1 } => outgoing::answer_timesync(shared, header, ts1),
         Update::Position(p) => {
             shared.telemetry.position(p);
-            let _ = shared.live.update(|s| {
+            let written = shared.live.update(|s| {
                 s.vehicle.position = p;
                 Ok::<_, Invalid>(())
             });
+            if let Err(e) = written {
+                tracing::warn!("mavlink: the position was refused: {e}");
+            }
         }
     }
 }
