@@ -101,6 +101,9 @@ fn agree(
     Ok(())
 }
 
+/// Reads back the field a case set.
+type Reads = Box<dyn Fn(&State) -> f64>;
+
 fn cal() -> LensCal {
     common::lens_cal()
 }
@@ -150,7 +153,7 @@ proptest! {
         let cal = cal();
         let fov = fov_mrad as f64 / 1000.0;
         // One field at a time, as a client sets them: fov, crop, lock, control.
-        let cases: [(Param, String, String, Box<dyn Fn(&State) -> f64>); 4] = [
+        let cases: [(Param, String, String, Reads); 4] = [
             (Param::CamFov(CamFov { cam_id: 0, fov }), format!("fov={fov}"),
              format!("fov = {fov}"), Box::new(|s: &State| s.cameras[0].fov)),
             (Param::CamCropMode(CamCropMode { cam_id: 0, mode: crop }), format!("crop={crop}"),

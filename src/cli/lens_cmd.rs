@@ -155,12 +155,12 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
                 }
             };
             let replaced = append(&path, &old, &entry, &text, replace)?;
-            let what = match replaced {
-                Some(r) => format!("replaced {r} with"),
-                None => "added".to_string(),
+            let (what, place) = match replaced {
+                Some(r) => (format!("replaced {r} with"), "in"),
+                None => ("added".to_string(), "to"),
             };
             eprintln!(
-                "{what} {} (lens_id {}) in {}",
+                "{what} {} (lens_id {}) {place} {}",
                 entry.name,
                 entry.lens_id,
                 path.display()

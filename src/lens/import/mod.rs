@@ -81,9 +81,7 @@ fn detect_content(text: &str) -> Option<Format> {
     let t = text.trim_start();
     if t.starts_with('{') {
         Some(Format::Gyroflow)
-    } else if t.starts_with("<?xml") || t.starts_with("<opencv_storage") {
-        Some(Format::Opencv)
-    } else if t.starts_with("%YAML") {
+    } else if t.starts_with("<?xml") || t.starts_with("<opencv_storage") || t.starts_with("%YAML") {
         Some(Format::Opencv)
     } else if text.contains("camera_model") && text.contains("intrinsics") {
         Some(Format::Kalibr)
