@@ -266,11 +266,9 @@ fn a_stopped_render_leaves_no_file_and_a_cut_input_is_reported() {
         .spawn()
         .unwrap();
     std::thread::sleep(std::time::Duration::from_secs(2));
-    let sent = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(sent.success());
+    // SAFETY: a signal to the child this test started and has not waited for yet.
+    let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+    assert_eq!(sent, 0);
     let r = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success(), "{err}");
