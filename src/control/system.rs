@@ -12,8 +12,6 @@ use crate::state::{FPS_RANGE, Live, MAX_OUTPUT, MIN_OUTPUT, State};
 
 pub const MAX_EXPOSURE_US: u32 = 40_000;
 pub const MAX_GAIN: u32 = 50_000;
-/// The largest fisheye frame GENERAL_SETTINGS accepts.
-pub const MAX_CAMERA_SIZE: u16 = crate::state::MAX_SENSOR as u16;
 
 pub fn system_status(live: &Live) -> SystemStatus {
     SystemStatus {
@@ -154,20 +152,8 @@ pub fn general(state: &State) -> GeneralSettings {
 /// sensor crop; otherwise it is centred in the lens's calibration frame and must fit in it.
 /// Mount yaw wraps, pitch and roll are taken as given; any non-zero run_ai is on.
 pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<(), Refusal> {
-    if !(1..=MAX_CAMERA_SIZE).contains(&p.camera_width)
-        || !(1..=MAX_CAMERA_SIZE).contains(&p.camera_height)
-    {
-        return Err(Refusal::Data(format!(
-            "camera size {}x{} is outside 1x1..=8192x8192",
-            p.camera_width, p.camera_height
-        )));
-    }
-    if !(1..=240).contains(&p.camera_fps) {
-        return Err(Refusal::Data(format!(
-            "camera fps {} is outside 1..=240",
-            p.camera_fps
-        )));
-    }
+    // The camera's size and rate, and whether the crop fits the lens's calibration frame,
+    // are `State::validate`'s to refuse, as from every other entry.
     let roi = match (p.roi_width as u32, p.roi_height as u32) {
         (0, 0) => None,
         (w, h) => {
@@ -176,12 +162,7 @@ pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<()
                 .get(s.lens)
                 .ok_or_else(|| Refusal::data("the state's lens is not in lens.cal"))?;
             let (cw, ch) = (lens.width, lens.height);
-            if w == 0 || h == 0 || w > cw || h > ch {
-                return Err(Refusal::Data(format!(
-                    "sensor crop {w}x{h} does not fit the lens's {cw}x{ch} calibration frame"
-                )));
-            }
-            Some([(cw - w) / 2, (ch - h) / 2, w, h])
+            Some([cw.saturating_sub(w) / 2, ch.saturating_sub(h) / 2, w, h])
         }
     };
     s.sensor.width = p.camera_width as u32;
