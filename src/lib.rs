@@ -11,10 +11,12 @@
 //! GStreamer plumbing the sources and the stream share, and `scene` synthesises fisheye input
 //! and ground truth from a known world. Beside the path, changing the live state: `protocol`
 //! (the control protocol's codec) and `control` (its request handling, server and client),
-//! and `autopilot` (the MAVLink link the vehicle's attitude and position come in on).
+//! `autopilot` (the MAVLink link the vehicle's attitude and position come in on) and `cameras`
+//! (each view a MAVLink camera and gimbal on that link).
 //! `cli` is the command line.
 
 pub mod autopilot;
+pub mod cameras;
 pub mod cli;
 pub mod control;
 pub mod frame;

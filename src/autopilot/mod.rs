@@ -5,7 +5,9 @@
 //! (`vehicle` makes sense of the messages). Its threads never touch the frame loop: a
 //! receiving thread reopens the link with back-off whenever it fails, a sending thread
 //! (`outgoing`) says DigiView is there (HEARTBEAT), asks the autopilot for the rates it needs
-//! and for its time (TIMESYNC), and watches for the attitude going stale.
+//! and for its time (TIMESYNC), and watches for the attitude going stale. Other components
+//! of DigiView (the views as cameras and gimbals, `crate::cameras`) speak on the same link:
+//! they see every message that arrives and send through an [`Outbox`], on a thread of theirs.
 
 pub mod clock;
 mod outgoing;
@@ -189,6 +191,49 @@ pub struct Link {
     threads: Vec<JoinHandle<()>>,
 }
 
+/// A part of DigiView that speaks on the link as components of its own: it sees every
+/// message that arrives and is ticked every [`TICK`] on a thread of its own.
+pub trait Components: Send + Sync {
+    fn handle(&self, out: &Outbox, from: &MavHeader, msg: &MavMessage);
+    fn tick(&self, out: &Outbox);
+}
+
+/// How often [`Components::tick`] runs.
+pub const TICK: Duration = Duration::from_millis(20);
+
+/// Sends on the link as one of DigiView's components.
+#[derive(Clone)]
+pub struct Outbox(Arc<Shared>);
+
+impl Outbox {
+    /// The system DigiView's components belong to: the autopilot's, once it is known (1
+    /// until then).
+    pub fn system_id(&self) -> u8 {
+        self.0
+            .status
+            .autopilot
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .map_or(1, |a| a.0)
+    }
+
+    /// Sends `msg` from `component` (signed when signing is on); false while the link is
+    /// down.
+    pub fn send(&self, component: u8, msg: &MavMessage) -> bool {
+        let shared = &*self.0;
+        let Some(c) = shared.connection() else {
+            return false;
+        };
+        let header = MavHeader {
+            system_id: self.system_id().into(),
+            component_id: component,
+            sequence: 0,
+        };
+        outgoing::send_one(shared, &c, header, msg);
+        true
+    }
+}
+
 /// What both threads share.
 struct Shared {
     address: String,
@@ -199,17 +244,29 @@ struct Shared {
     connection: Mutex<Option<Connection>>,
     /// The local times (µs) of the TIMESYNC requests not answered yet, newest last.
     syncs_sent: Mutex<VecDeque<u64>>,
+    components: Option<Arc<dyn Components>>,
     /// With signing on: the key, checking what comes in and signing what goes out.
     signing: Option<SigningData>,
     stop: Arc<AtomicBool>,
 }
 
+impl Shared {
+    /// The open connection, while there is one.
+    fn connection(&self) -> Option<Connection> {
+        self.connection
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+}
+
 impl Link {
-    /// Starts the link of `cfg` (None when it is off).
+    /// Starts the link of `cfg` (None when it is off), with `components` speaking on it.
     pub fn start(
         cfg: &MavlinkConfig,
         live: Arc<Live>,
         telemetry: Arc<Telemetry>,
+        components: Option<Arc<dyn Components>>,
     ) -> Result<Option<Link>, EndpointError> {
         let Endpoint::Address(address) = cfg.endpoint.parse()? else {
             return Ok(None);
@@ -224,6 +281,7 @@ impl Link {
             status: status.clone(),
             connection: Mutex::new(None),
             syncs_sent: Mutex::new(VecDeque::new()),
+            components,
             signing: cfg.signing_key.as_deref().map(|k| {
                 SigningData::from_config(SigningConfig::new(signing_key(k), 0, true, false))
             }),
@@ -231,13 +289,28 @@ impl Link {
         });
         let mut threads = vec![];
         for (name, run) in [
-            ("mavlink-rx", receive as fn(&Shared)),
-            ("mavlink-tx", outgoing::send as fn(&Shared)),
+            ("mavlink-rx", receive as fn(&Arc<Shared>)),
+            ("mavlink-tx", |s: &Arc<Shared>| outgoing::send(s)),
         ] {
             let shared = shared.clone();
             if let Ok(t) = std::thread::Builder::new()
                 .name(name.into())
                 .spawn(move || run(&shared))
+            {
+                threads.push(t);
+            }
+        }
+        if let Some(components) = shared.components.clone() {
+            let out = Outbox(shared.clone());
+            let stop = stop.clone();
+            if let Ok(t) = std::thread::Builder::new()
+                .name("mavlink-components".into())
+                .spawn(move || {
+                    while !stop.load(Ordering::Relaxed) {
+                        std::thread::sleep(TICK);
+                        components.tick(&out);
+                    }
+                })
             {
                 threads.push(t);
             }
@@ -265,7 +338,7 @@ impl Drop for Link {
 
 /// Opens the link, reads it until it fails, again with back-off (1 s doubling to 10 s, back
 /// to 1 s after a link that held 10 s).
-fn receive(shared: &Shared) {
+fn receive(shared: &Arc<Shared>) {
     let mut backoff = Duration::from_secs(1);
     let mut vehicle = Vehicle::new(shared.cfg.system_id);
     while !shared.stop.load(Ordering::Relaxed) {
@@ -293,7 +366,8 @@ fn receive(shared: &Shared) {
 }
 
 /// Reads an open link until it fails (why) or the link stops (None).
-fn read(shared: &Shared, connection: Connection, vehicle: &mut Vehicle) -> Option<String> {
+fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> Option<String> {
+    let out = Outbox(shared.clone());
     *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
     shared.status.connected.store(true, Ordering::Relaxed);
     let mut last_live = Instant::now() - LIVE_EVERY;
@@ -305,6 +379,9 @@ fn read(shared: &Shared, connection: Connection, vehicle: &mut Vehicle) -> Optio
             Ok(raw) => {
                 if let Some((header, msg)) = accept(shared, &raw) {
                     apply(shared, vehicle, &header, &msg, &mut last_live);
+                    if let Some(c) = &shared.components {
+                        c.handle(&out, &header, &msg);
+                    }
                 }
             }
             Err(mavlink::error::MessageReadError::Io(e))

@@ -57,11 +57,7 @@ pub(super) fn send(shared: &Shared) {
             next_report += REPORT_EVERY;
             reported = report(&shared.status, reported);
         }
-        let connection = shared
-            .connection
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone();
+        let connection = shared.connection();
         let autopilot = *shared
             .status
             .autopilot
@@ -197,18 +193,14 @@ fn request_timesync(shared: &Shared, connection: &Connection, header: MavHeader)
     let request = MavMessage::TIMESYNC(TIMESYNC_DATA {
         tc1: 0,
         ts1: now as i64 * 1000,
+        ..Default::default()
     });
     send_one(shared, connection, header, &request);
 }
 
 /// Answers the autopilot's TIMESYNC request (PX4 asks a companion computer for its time).
 pub(super) fn answer_timesync(shared: &Shared, to: &MavHeader, ts1: i64) {
-    let connection = shared
-        .connection
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .clone();
-    let Some(c) = connection else {
+    let Some(c) = shared.connection() else {
         return;
     };
     let header = MavHeader {
@@ -219,6 +211,8 @@ pub(super) fn answer_timesync(shared: &Shared, to: &MavHeader, ts1: i64) {
     let answer = MavMessage::TIMESYNC(TIMESYNC_DATA {
         tc1: clock_us() as i64 * 1000,
         ts1,
+        target_system: to.system_id as u8,
+        target_component: to.component_id,
     });
     send_one(shared, &c, header, &answer);
 }

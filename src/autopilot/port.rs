@@ -3,21 +3,35 @@
 //! every read error inside its receive call, a timeout and a vanished device alike, so an
 //! unplugged USB adapter would spin there unseen and the link could never reopen: here a
 //! serial read waits at most [`SERIAL_WAIT`] and a hang-up ends the link like any other
-//! failure.
+//! failure. A listening UDP port (`udpin`) is opened here too: the crate's replies go to
+//! whoever sent last, but a companion computer's port is shared by the autopilot and the
+//! ground stations (each camera and gimbal must reach the ground station, the rate requests
+//! the autopilot), so here everything sent goes to every peer heard in the last
+//! [`PEER_SILENCE`], as mavlink-router does.
 
 use mavlink::dialects::common::MavMessage;
 use mavlink::error::{MessageReadError, MessageWriteError};
 use mavlink::{MAVLinkMessageRaw, MavConnection, MavHeader, MavlinkReader, MavlinkVersion};
 use serialport::TTYPort;
-use std::io::{self, Write};
-use std::sync::Mutex;
-use std::time::Duration;
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// How long a serial read waits for a byte before the link's loop looks around.
 const SERIAL_WAIT: Duration = Duration::from_millis(100);
+/// A UDP peer silent for this long is sent nothing more until it is heard again.
+pub const PEER_SILENCE: Duration = Duration::from_secs(10);
+/// The most UDP peers sent to at once (the newest kept).
+const MAX_PEERS: usize = 16;
 
 pub enum Port {
     Net(Box<dyn MavConnection<MavMessage> + Send + Sync>),
+    Listening {
+        reader: Mutex<MavlinkReader<PeerRead>>,
+        socket: UdpSocket,
+        peers: Peers,
+    },
     Serial {
         reader: Mutex<MavlinkReader<TTYPort>>,
         writer: Mutex<TTYPort>,
@@ -27,6 +41,19 @@ pub enum Port {
 impl Port {
     /// Opens `address` (an endpoint as [`super::Endpoint`] checked it).
     pub fn open(address: &str) -> io::Result<Port> {
+        if let Some(bind) = address.strip_prefix("udpin:") {
+            let socket = UdpSocket::bind(bind)?;
+            socket.set_read_timeout(Some(SERIAL_WAIT))?;
+            let peers = Peers::default();
+            return Ok(Port::Listening {
+                reader: Mutex::new(MavlinkReader::new(PeerRead {
+                    socket: socket.try_clone()?,
+                    peers: peers.clone(),
+                })),
+                socket,
+                peers,
+            });
+        }
         let Some(serial) = address.strip_prefix("serial:") else {
             return mavlink::connect::<MavMessage>(address).map(|c| Port::Net(Box::new(c)));
         };
@@ -49,6 +76,10 @@ impl Port {
     pub fn recv_raw(&self) -> Result<MAVLinkMessageRaw, MessageReadError> {
         match self {
             Port::Net(c) => c.recv_raw(),
+            Port::Listening { reader, .. } => reader
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .read_any_raw_message::<MavMessage>(),
             Port::Serial { reader, .. } => reader
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
@@ -57,13 +88,14 @@ impl Port {
     }
 
     pub fn send_raw(&self, raw: &MAVLinkMessageRaw) -> Result<(), MessageWriteError> {
+        let bytes = match raw {
+            MAVLinkMessageRaw::V1(r) => r.raw_bytes(),
+            MAVLinkMessageRaw::V2(r) => r.raw_bytes(),
+        };
         match self {
             Port::Net(c) => c.send_raw(raw).map(drop),
+            Port::Listening { socket, peers, .. } => Ok(peers.send(socket, bytes)?),
             Port::Serial { writer, .. } => {
-                let bytes = match raw {
-                    MAVLinkMessageRaw::V1(r) => r.raw_bytes(),
-                    MAVLinkMessageRaw::V2(r) => r.raw_bytes(),
-                };
                 let mut w = writer.lock().unwrap_or_else(|e| e.into_inner());
                 Ok(w.write_all(bytes)?)
             }
@@ -73,10 +105,60 @@ impl Port {
     pub fn send(&self, header: MavHeader, msg: &MavMessage) -> Result<(), MessageWriteError> {
         match self {
             Port::Net(c) => c.send(&header, msg).map(drop),
+            Port::Listening { socket, peers, .. } => {
+                let mut bytes = Vec::with_capacity(280);
+                mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, msg)?;
+                Ok(peers.send(socket, &bytes)?)
+            }
             Port::Serial { writer, .. } => {
                 let mut w = writer.lock().unwrap_or_else(|e| e.into_inner());
                 mavlink::write_versioned_msg(&mut *w, MavlinkVersion::V2, header, msg).map(drop)
             }
         }
+    }
+}
+
+/// The addresses a listening UDP port has heard from, and when last.
+#[derive(Clone, Default)]
+pub struct Peers(Arc<Mutex<Vec<(SocketAddr, Instant)>>>);
+
+impl Peers {
+    fn heard(&self, from: SocketAddr) {
+        let mut peers = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        match peers.iter_mut().find(|(a, _)| *a == from) {
+            Some(p) => p.1 = Instant::now(),
+            None => {
+                if peers.len() == MAX_PEERS {
+                    peers.sort_by_key(|p| std::cmp::Reverse(p.1));
+                    peers.pop();
+                }
+                peers.push((from, Instant::now()));
+            }
+        }
+    }
+
+    /// `bytes` to every peer heard lately; an unreachable one does not stop the others.
+    fn send(&self, socket: &UdpSocket, bytes: &[u8]) -> io::Result<()> {
+        let mut peers = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        peers.retain(|p| p.1.elapsed() < PEER_SILENCE);
+        for (to, _) in peers.iter() {
+            let _ = socket.send_to(bytes, to);
+        }
+        Ok(())
+    }
+}
+
+/// A listening UDP socket read as a byte stream (each datagram whole, as MAVLink over UDP
+/// sends them), remembering who sent.
+pub struct PeerRead {
+    socket: UdpSocket,
+    peers: Peers,
+}
+
+impl Read for PeerRead {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let (n, from) = self.socket.recv_from(buf)?;
+        self.peers.heard(from);
+        Ok(n)
     }
 }

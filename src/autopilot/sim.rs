@@ -120,7 +120,11 @@ fn answer_timesync(link: Arc<Port>, header: MavHeader, start: Instant) {
                     && t.tc1 == 0
                 {
                     let tc1 = start.elapsed().as_nanos() as i64;
-                    let answer = MavMessage::TIMESYNC(TIMESYNC_DATA { tc1, ts1: t.ts1 });
+                    let answer = MavMessage::TIMESYNC(TIMESYNC_DATA {
+                        tc1,
+                        ts1: t.ts1,
+                        ..Default::default()
+                    });
                     let _ = link.send(header, &answer);
                 }
                 if Arc::strong_count(&link) == 1 {

@@ -4,7 +4,8 @@
 //! server alone on the live state, so the protocol can be exercised on any machine.
 
 use super::StateArgs;
-use crate::autopilot::Link;
+use crate::autopilot::{Components, Link};
+use crate::cameras::{self, Cameras, Streams, ViewShooter};
 use crate::control::Controller;
 use crate::control::permissions::{Allow, Permissions};
 use crate::control::server::{self, Shutdown};
@@ -169,7 +170,15 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     };
     let live = Arc::new(Live::new(state, cal, hook)?);
     let telemetry = Arc::new(Telemetry::new(cfg.mavlink.attitude_sample));
-    let link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone())?;
+    let cameras = cfg.cameras.enabled.then(|| {
+        let shooter: Option<Arc<dyn ViewShooter>> = match args.no_video {
+            true => None,
+            false => Some(capture.clone()),
+        };
+        Arc::new(Cameras::new(live.clone(), cfg.cameras.clone(), shooter))
+    });
+    let components = cameras.clone().map(|c| c as Arc<dyn Components>);
+    let link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone(), components)?;
     let controller = Arc::new(Controller {
         autopilot: link.as_ref().map(|l| l.status.clone()),
         ..Controller::new(live.clone(), permissions)
@@ -202,6 +211,13 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
             rtsp.port(),
             rtsp.path()
         ));
+        if let Some(c) = &cameras {
+            let public = cameras::public_host(&cfg.cameras, &cfg.rtsp.address);
+            c.set_streams(Streams {
+                base: format!("rtsp://{public}:{}{}", rtsp.port(), rtsp.path()),
+                bitrate_kbps: cfg.encoder.bitrate_kbps,
+            });
+        }
         let publishers = cfg
             .publish_targets()?
             .into_iter()

@@ -1,7 +1,8 @@
 //! CAPTURE: stills of the output frame (and, configurable, the raw fisheye frame) as JPEG or
 //! PNG, and recordings of the encoded stream to fragmented MP4. Files are named by local time
 //! and a running index; free disk space is checked before anything starts, so a full disk is
-//! an error reply rather than a truncated file.
+//! an error reply rather than a truncated file. A MAVLink camera's still is of its view alone
+//! (`crate::cameras`): asked for here, rendered by the frame loop, written and reported back.
 
 use super::config::{CaptureConfig, StillFormat};
 use crate::frame::PlaneLayout;
@@ -14,9 +15,14 @@ use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use tracing::{error, info, warn};
 
+/// Called with the file a view's still was written to, or why it was not.
+pub type StillDone = Box<dyn FnOnce(Result<PathBuf, String>) + Send>;
+
 pub struct Capture {
     cfg: CaptureConfig,
     still_wanted: AtomicBool,
+    /// Stills of single views asked for and not rendered yet.
+    view_stills: Mutex<Vec<(usize, StillDone)>>,
     /// Set when the encoder should send a key frame (a recording starts).
     key_wanted: AtomicBool,
     recorder: Mutex<Option<Recorder>>,
@@ -36,6 +42,7 @@ impl Capture {
         Capture {
             cfg,
             still_wanted: AtomicBool::new(false),
+            view_stills: Mutex::default(),
             key_wanted: AtomicBool::new(false),
             recorder: Mutex::new(None),
             images: AtomicU16::new(0),
@@ -83,6 +90,50 @@ impl Capture {
         self.still_wanted.swap(false, Ordering::Relaxed)
     }
 
+    /// The views whose stills were asked for since the last frame, with whom to tell.
+    pub fn take_view_stills(&self) -> Vec<(usize, StillDone)> {
+        std::mem::take(&mut *self.view_stills.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+
+    /// Writes a view's still on a thread of its own and says where (or why not) to `done`.
+    pub fn save_view_still(
+        self: &Arc<Self>,
+        data: Vec<u8>,
+        layout: PlaneLayout,
+        view: usize,
+        done: StillDone,
+    ) {
+        let path = self.name(&format!("-cam{view}.{}", self.cfg.still_format.extension()));
+        let this = self.clone();
+        std::thread::spawn(move || {
+            let written = this.write_image(&path, &data, &layout);
+            match &written {
+                Ok(()) => {
+                    info!("still of camera {view}: {}", path.display());
+                    this.images.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(e) => error!("still {}: {e}", path.display()),
+            }
+            done(written.map(|()| std::fs::canonicalize(&path).unwrap_or(path)));
+        });
+    }
+
+    /// Encodes one picture to `path` in the configured format.
+    fn write_image(
+        &self,
+        path: &std::path::Path,
+        data: &[u8],
+        layout: &PlaneLayout,
+    ) -> Result<(), String> {
+        let img = crate::frame::yuv::decode(data, layout).map_err(|e| e.to_string())?;
+        let format = match self.cfg.still_format {
+            StillFormat::Jpeg => image::ImageFormat::Jpeg,
+            StillFormat::Png => image::ImageFormat::Png,
+        };
+        img.save_with_format(path, format)
+            .map_err(|e| e.to_string())
+    }
+
     /// Whether the encoder should send a key frame now (clears the ask).
     pub fn take_key_request(&self) -> bool {
         self.key_wanted.swap(false, Ordering::Relaxed)
@@ -101,17 +152,7 @@ impl Capture {
                 files.push((PathBuf::from(name), raw));
             }
             for (path, (data, layout)) in files {
-                let written = crate::frame::yuv::decode(&data, &layout)
-                    .map_err(|e| e.to_string())
-                    .and_then(|img| {
-                        let format = match this.cfg.still_format {
-                            StillFormat::Jpeg => image::ImageFormat::Jpeg,
-                            StillFormat::Png => image::ImageFormat::Png,
-                        };
-                        img.save_with_format(&path, format)
-                            .map_err(|e| e.to_string())
-                    });
-                match written {
+                match this.write_image(&path, &data, &layout) {
                     Ok(()) => info!("still: {}", path.display()),
                     Err(e) => {
                         error!("still {}: {e}", path.display());
@@ -137,6 +178,21 @@ impl Capture {
     /// Ends a running recording cleanly (shutdown).
     pub fn finish(&self) {
         let _ = self.record(false);
+    }
+}
+
+impl crate::cameras::ViewShooter for Capture {
+    fn shoot(&self, view: usize, done: StillDone) -> Result<(), String> {
+        self.ready().map_err(|e| e.to_string())?;
+        self.view_stills
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push((view, done));
+        Ok(())
+    }
+
+    fn dir(&self) -> &std::path::Path {
+        &self.cfg.dir
     }
 }
 

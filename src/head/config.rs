@@ -2,6 +2,7 @@
 //! (or none) runs the demo source with the stream at rtsp://HOST:8554/digiview; docs/serve.md
 //! lists them all. Unknown keys are errors that name the key.
 
+use crate::cameras::CamerasConfig;
 use crate::frame::PixelFormat;
 use crate::source::SpecError;
 use crate::stream::PublishTarget;
@@ -30,6 +31,8 @@ pub struct Config {
     pub encoder: EncoderConfig,
     pub capture: CaptureConfig,
     pub mavlink: MavlinkConfig,
+    /// The views as MAVLink cameras, and their own streams.
+    pub cameras: CamerasConfig,
     /// Relays to publish the stream to: `rtsp://HOST:PORT/PATH` (RTSP RECORD) or
     /// `srt://HOST:PORT` (MPEG-TS over SRT).
     pub publish: Vec<String>,
@@ -51,6 +54,7 @@ impl Default for Config {
             encoder: EncoderConfig::default(),
             capture: CaptureConfig::default(),
             mavlink: MavlinkConfig::default(),
+            cameras: CamerasConfig::default(),
             publish: Vec::new(),
             health_interval_s: 10.0,
         }
@@ -274,6 +278,27 @@ impl Config {
             return out_of_range(format!("demo fps {} is outside 1..=120", d.fps));
         }
         self.rtsp.check()?;
+        let c = &self.cameras;
+        let ((lo_w, lo_h), (hi_w, hi_h)) = (crate::state::MIN_OUTPUT, crate::state::MAX_OUTPUT);
+        if c.width < lo_w || c.height < lo_h || c.width > hi_w || c.height > hi_h {
+            return out_of_range(format!(
+                "cameras size {}x{} is outside {lo_w}x{lo_h}..{hi_w}x{hi_h}",
+                c.width, c.height
+            ));
+        }
+        if c.width % 2 == 1 || c.height % 2 == 1 {
+            return out_of_range(format!(
+                "cameras size {}x{} must be even",
+                c.width, c.height
+            ));
+        }
+        if let Some(h) = &c.public_host
+            && (h.is_empty() || h.contains(['/', ' ', '@']) || h == "0.0.0.0" || h == "::")
+        {
+            return out_of_range(format!(
+                "cameras public_host {h:?} must be a host name or address ground stations reach"
+            ));
+        }
         self.publish_targets()?;
         self.mavlink
             .endpoint

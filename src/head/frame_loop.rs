@@ -5,9 +5,11 @@
 
 use super::pacing::Pacer;
 use super::supervise::Fault;
+use super::views::ViewOutputs;
 use super::{Head, HeadError, no_signal};
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
 use crate::head::capture::Still;
+use crate::lens::Lens;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::render::{Filter, FramePlan};
 use crate::state::{Failure, RunStatus, State};
@@ -63,15 +65,16 @@ impl Head {
 
     /// The stream's renderer: I420 out, mip filtering, ready from its first frame for a
     /// LENS SET to any lens of lens.cal.
-    fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
+    pub(super) fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
         let mut renderer = Renderer::new(gpu, PixelFormat::I420, Filter::Mip)?;
         renderer.expect_lens_models(self.live.lenses().models());
         Ok(renderer)
     }
 
     pub(super) fn frame_loop(self: &Arc<Head>) -> Result<(), HeadError> {
-        let gpu = Gpu::new()?;
+        let mut gpu = Gpu::new()?;
         let mut renderer = self.renderer(&gpu)?;
+        let mut views = ViewOutputs::default();
         let mut encoder = self.encoder(self.live.snapshot().output.fps)?;
         let start = Instant::now();
         let mut pacer = Pacer::default();
@@ -110,8 +113,16 @@ impl Head {
             shown = Some(state.clone());
             let pts = pacer.pts(start.elapsed());
             let t0 = Instant::now();
+            // The state and lens the frame was rendered with, for the views alone.
+            let mut framed = None;
             let rendered = match (&last_frame, signal) {
-                (Some(frame), true) => self.render(&mut renderer, frame, &state),
+                (Some(frame), true) => {
+                    self.render(&mut renderer, frame, &state)
+                        .map(|(data, layout, s, lens)| {
+                            framed = Some((s, lens));
+                            (data, layout)
+                        })
+                }
                 _ => Ok(no_signal::frame(state.output.width, state.output.height)),
             };
             let (data, layout) = match rendered {
@@ -126,10 +137,11 @@ impl Head {
                     self.live.set_failure(Failure::Gpu);
                     healthy = Some(false);
                     std::thread::sleep(Duration::from_secs(1));
-                    match Gpu::new().and_then(|g| self.renderer(&g)) {
-                        Ok(r) => renderer = r,
+                    match Gpu::new().and_then(|g| Ok((self.renderer(&g)?, g))) {
+                        Ok((r, g)) => (renderer, gpu) = (r, g),
                         Err(e) => error!("GPU: {e}"),
                     }
+                    views.reset_gpu();
                     continue;
                 }
             };
@@ -153,6 +165,11 @@ impl Head {
             self.stats
                 .encoder_dropped
                 .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
+            let context = match (&last_frame, &framed) {
+                (Some(f), Some((s, lens))) => Some((f, s, lens)),
+                _ => None,
+            };
+            self.render_views(&mut views, &gpu, context, pts, state.output.fps);
             let now_ok = health(signal, self.source_error().is_some(), last_frame.is_some());
             if now_ok != healthy {
                 match now_ok {
@@ -197,13 +214,14 @@ impl Head {
         });
     }
 
-    /// Renders `frame` with `state`, the vehicle as the telemetry had it at capture time.
+    /// Renders `frame` with `state`, the vehicle as the telemetry had it at capture time;
+    /// also gives that state and the lens at the frame's size.
     fn render(
         &self,
         renderer: &mut Renderer,
         frame: &Frame,
         state: &State,
-    ) -> Result<(Vec<u8>, PlaneLayout), RenderFailure> {
+    ) -> Result<(Vec<u8>, PlaneLayout, State, Lens), RenderFailure> {
         let mut s = state.clone();
         let (attitude, position) = self.telemetry.at(frame.captured_us);
         if let Some(a) = attitude {
@@ -229,7 +247,7 @@ impl Head {
                 GpuError::Failed(_) | GpuError::Device { .. } => RenderFailure::Gpu(e.to_string()),
                 other => RenderFailure::Frame(other.to_string()),
             })?;
-        Ok((out.data, out.layout))
+        Ok((out.data, out.layout, s, lens))
     }
 }
 

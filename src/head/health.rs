@@ -15,7 +15,16 @@ impl Head {
             return;
         }
         let every = Duration::from_secs_f64(every);
-        let mut last = (Instant::now(), self.slot.stats(), 0u64, 0u64, 0u64, 0u64);
+        let mut last = (
+            Instant::now(),
+            self.slot.stats(),
+            0u64,
+            0u64,
+            0u64,
+            0u64,
+            0u64,
+            0u64,
+        );
         let mut next = Instant::now() + every;
         while !self.stop.load(Ordering::Relaxed) {
             std::thread::sleep(Duration::from_millis(100));
@@ -31,13 +40,15 @@ impl Head {
                 s.render_us.load(Ordering::Relaxed),
                 s.encoded.load(Ordering::Relaxed),
                 s.encode_us.load(Ordering::Relaxed),
+                s.views.load(Ordering::Relaxed),
+                s.view_us.load(Ordering::Relaxed),
             );
             let secs = (now.0 - last.0).as_secs_f64();
             let out = now.2 - last.2;
             let encoded = now.4 - last.4;
             info!(
                 "health: in {:.1} fps, out {:.1} fps, dropped {} (renderer behind) + {} \
-                 (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients{}{}",
+                 (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients{}{}{}",
                 (now.1.received - last.1.received) as f64 / secs,
                 out as f64 / secs,
                 now.1.dropped - last.1.dropped,
@@ -45,6 +56,14 @@ impl Head {
                 (now.3 - last.3) as f64 / 1000.0 / out.max(1) as f64,
                 (now.5 - last.5) as f64 / 1000.0 / encoded.max(1) as f64,
                 self.rtsp.clients(),
+                match now.6 - last.6 {
+                    0 => String::new(),
+                    n => format!(
+                        ", views alone {:.1} fps, {:.1} ms each",
+                        n as f64 / secs,
+                        (now.7 - last.7) as f64 / 1000.0 / n as f64
+                    ),
+                },
                 match self.publishers.len() {
                     0 => String::new(),
                     n => format!(

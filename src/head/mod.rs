@@ -4,7 +4,7 @@
 //! paced by `pacing`) takes the newest, renders it with the live state and the attitude at its
 //! capture time (`telemetry`), and feeds the encoder, whose access units go to the RTSP
 //! clients, the recorder (`capture`) and the relays it publishes to. Output size and rate follow the live state's
-//! VIDEO_OUTPUT at each frame. A failed source is retried with back-off while a "no signal"
+//! VIDEO_OUTPUT at each frame. Watched views get streams of their own (`views`). A failed source is retried with back-off while a "no signal"
 //! frame is streamed; a failed encoder or GPU is rebuilt; `health` logs a summary line.
 
 pub mod capture;
@@ -16,6 +16,7 @@ pub mod pacing;
 mod source_thread;
 mod supervise;
 pub mod telemetry;
+mod views;
 
 use crate::frame::FrameError;
 use crate::lens::LensError;
@@ -76,6 +77,9 @@ struct Stats {
     encoded: AtomicU64,
     /// Access units out of the encoder since the start (the stream is really serving).
     units: AtomicU64,
+    /// Views rendered alone (their own streams and stills), and the time it took.
+    views: AtomicU64,
+    view_us: AtomicU64,
 }
 
 impl Head {

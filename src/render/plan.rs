@@ -99,6 +99,44 @@ impl FramePlan {
         Ok(plan)
     }
 
+    /// Camera `i` alone, filling a `width` × `height` frame: a per-view stream's picture and a
+    /// camera's still, with the same crop mode, fov and aim as in the composed frame.
+    pub fn single_view(state: &State, lens: &Lens, i: usize, width: u32, height: u32) -> FramePlan {
+        let rect = Rect::new(0, 0, width, height);
+        let vehicle = &state.vehicle;
+        let lens_from_world = lens_from_world(vehicle.attitude.euler(), state.mount.euler());
+        let cam = &state.cameras[i];
+        let world_from_view = cam
+            .steering()
+            .world_from_view(vehicle.attitude.euler(), &vehicle.position);
+        let map = camera_map(
+            rect,
+            cam.crop,
+            cam.fov,
+            world_from_view,
+            lens,
+            &lens_from_world,
+        );
+        let mut plan = FramePlan {
+            layout: Layout {
+                width,
+                height,
+                views: vec![(rect, Slot::Square)],
+                overlay_box: Rect::new(0, 0, 0, 0),
+                tiles: vec![],
+            },
+            views: vec![PlannedView {
+                rect,
+                map,
+                samples: 1,
+            }],
+            lens: lens.clone(),
+            lens_from_world,
+        };
+        plan.views[0].samples = plan.samples_for(&plan.views[0]);
+        plan
+    }
+
     /// Camera `i`'s view as the frame draws it or, when the layout does not show that camera,
     /// as a square of [`UNSHOWN_VIEW`] pixels (what CAM_OFFSET and CAM_TARGET measure in).
     pub fn camera_view(&self, state: &State, i: usize) -> PlannedView {

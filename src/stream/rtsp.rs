@@ -3,7 +3,9 @@
 //! encode. A client's stream starts at a key frame: one is asked of the encoder when it joins
 //! (the caller is told) and the units before it are not sent to that client, so every
 //! player's first frame decodes whole. A client that vanishes is the server's business and
-//! costs the frame path nothing. Optional basic authentication.
+//! costs the frame path nothing. Optional basic authentication. Beside the composed frame,
+//! each view has a mount of its own (`PATH/cam0` .. `cam3`, the MAVLink cameras' streams),
+//! fed only while someone watches it.
 
 use super::{H264_CAPS, Restamp, StreamError};
 use gstreamer as gst;
@@ -12,7 +14,7 @@ use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
 use gstreamer_rtsp_server as rtsp;
 use gstreamer_rtsp_server::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
@@ -80,10 +82,21 @@ struct Media {
 
 type Medias = Arc<Mutex<Vec<Media>>>;
 
+/// The views with a mount of their own.
+pub const VIEW_MOUNTS: usize = crate::state::MAX_CAMERAS;
+
+/// A view's mount: its clients' media, and whether a joining one owes a key frame.
+#[derive(Default)]
+struct ViewMount {
+    medias: Medias,
+    key_wanted: Arc<AtomicBool>,
+}
+
 pub struct Rtsp {
     main_loop: glib::MainLoop,
     thread: Option<JoinHandle<()>>,
     medias: Medias,
+    views: [ViewMount; VIEW_MOUNTS],
     clients: Arc<AtomicUsize>,
     port: u16,
     path: String,
@@ -101,43 +114,6 @@ impl Rtsp {
         let server = rtsp::RTSPServer::new();
         server.set_address(&cfg.address);
         server.set_service(&cfg.port.to_string());
-        let factory = rtsp::RTSPMediaFactory::new();
-        // The access units already carry SPS and PPS before every key frame (the encoder's
-        // h264parse puts them there once per unit). Inserting them again here would put them
-        // before each slice of a key frame that has several (x264's sliced threads make two),
-        // and FFmpeg, VLC and most players then take each slice for a frame of its own.
-        factory.set_launch(&format!(
-            "( appsrc name=digiview_h264 is-live=true format=time min-latency=0 caps={H264_CAPS} \
-             ! rtph264pay name=pay0 pt=96 )"
-        ));
-        // A media per client: each starts at its own key frame (a shared one would send a
-        // joining client the delta frames before it, which players report as errors).
-        factory.set_shared(false);
-        factory.set_latency(0);
-        let medias: Medias = Arc::default();
-        {
-            let medias = medias.clone();
-            let on_join = on_join.clone();
-            factory.connect_media_configure(move |_, m| {
-                let Some(src) = m
-                    .element()
-                    .downcast::<gst::Bin>()
-                    .ok()
-                    .and_then(|bin| bin.by_name_recurse_up("digiview_h264"))
-                    .and_then(|e| e.downcast::<gst_app::AppSrc>().ok())
-                else {
-                    return;
-                };
-                lock(&medias).push(Media {
-                    src: src.clone(),
-                    clock: Restamp::default(),
-                    started: false,
-                });
-                let gone = medias.clone();
-                m.connect_unprepared(move |_| lock(&gone).retain(|m| m.src != src));
-                on_join();
-            });
-        }
         if let (Some(user), Some(password)) = (&cfg.user, &cfg.password) {
             let auth = rtsp::RTSPAuth::new();
             let token = rtsp::RTSPToken::builder()
@@ -145,12 +121,18 @@ impl Rtsp {
                 .build();
             auth.add_basic(rtsp::RTSPAuth::make_basic(user, password).as_str(), &token);
             server.set_auth(Some(&auth));
-            factory.add_role_from_structure(
-                &gst::Structure::builder("viewer")
-                    .field(rtsp::RTSP_PERM_MEDIA_FACTORY_ACCESS, true)
-                    .field(rtsp::RTSP_PERM_MEDIA_FACTORY_CONSTRUCT, true)
-                    .build(),
-            );
+        }
+        let medias: Medias = Arc::default();
+        let mounts = server.mount_points().ok_or(StreamError::NoMountPoints)?;
+        let join = on_join.clone();
+        mounts.add_factory(&cfg.path, factory(cfg, &medias, move || join()));
+        let views: [ViewMount; VIEW_MOUNTS] = Default::default();
+        for (i, view) in views.iter().enumerate() {
+            let wanted = view.key_wanted.clone();
+            let f = factory(cfg, &view.medias, move || {
+                wanted.store(true, Ordering::Relaxed)
+            });
+            mounts.add_factory(&format!("{}/cam{i}", cfg.path), f);
         }
         let clients = Arc::new(AtomicUsize::new(0));
         {
@@ -165,10 +147,6 @@ impl Rtsp {
                 client.connect_play_request(move |_, _| on_join());
             });
         }
-        server
-            .mount_points()
-            .ok_or(StreamError::NoMountPoints)?
-            .add_factory(&cfg.path, factory);
         let context = glib::MainContext::new();
         let main_loop = glib::MainLoop::new(Some(&context), false);
         let attached = context
@@ -190,6 +168,7 @@ impl Rtsp {
             main_loop,
             thread: Some(thread),
             medias,
+            views,
             clients,
             port,
             path: cfg.path.clone(),
@@ -213,21 +192,97 @@ impl Rtsp {
     /// Hands one access unit to the watching clients (nothing happens when none watch); a
     /// client that has not had a key frame yet gets none before one.
     pub fn push(&self, au: &gst::Buffer) {
-        let key = !au.flags().contains(gst::BufferFlags::DELTA_UNIT);
-        let ready: Vec<_> = lock(&self.medias)
-            .iter_mut()
-            .filter_map(|m| {
-                m.started |= key;
-                if !m.started {
-                    return None;
-                }
-                let now = m.src.current_running_time()?;
-                Some((m.src.clone(), m.clock.restamped(au, now)?))
-            })
-            .collect();
-        for (src, buffer) in ready {
-            let _ = src.push_buffer(buffer);
+        push(&self.medias, au);
+    }
+
+    /// Whether anyone watches view `i`'s own stream.
+    pub fn view_watched(&self, i: usize) -> bool {
+        self.views
+            .get(i)
+            .is_some_and(|v| !lock(&v.medias).is_empty())
+    }
+
+    /// Whether a client joined view `i`'s stream since last asked (it owes a key frame).
+    pub fn view_key_wanted(&self, i: usize) -> bool {
+        self.views
+            .get(i)
+            .is_some_and(|v| v.key_wanted.swap(false, Ordering::Relaxed))
+    }
+
+    /// As [`Rtsp::push`], for view `i`'s own stream.
+    pub fn push_view(&self, i: usize, au: &gst::Buffer) {
+        if let Some(v) = self.views.get(i) {
+            push(&v.medias, au);
         }
+    }
+}
+
+/// A mount's factory: a media per client, fed by `medias`; `on_join` runs as one starts.
+fn factory(
+    cfg: &RtspConfig,
+    medias: &Medias,
+    on_join: impl Fn() + Send + Sync + 'static,
+) -> rtsp::RTSPMediaFactory {
+    let factory = rtsp::RTSPMediaFactory::new();
+    // The access units already carry SPS and PPS before every key frame (the encoder's
+    // h264parse puts them there once per unit). Inserting them again here would put them
+    // before each slice of a key frame that has several (x264's sliced threads make two),
+    // and FFmpeg, VLC and most players then take each slice for a frame of its own.
+    factory.set_launch(&format!(
+        "( appsrc name=digiview_h264 is-live=true format=time min-latency=0 caps={H264_CAPS} \
+         ! rtph264pay name=pay0 pt=96 )"
+    ));
+    // A media per client: each starts at its own key frame (a shared one would send a
+    // joining client the delta frames before it, which players report as errors).
+    factory.set_shared(false);
+    factory.set_latency(0);
+    let medias = medias.clone();
+    factory.connect_media_configure(move |_, m| {
+        let Some(src) = m
+            .element()
+            .downcast::<gst::Bin>()
+            .ok()
+            .and_then(|bin| bin.by_name_recurse_up("digiview_h264"))
+            .and_then(|e| e.downcast::<gst_app::AppSrc>().ok())
+        else {
+            return;
+        };
+        lock(&medias).push(Media {
+            src: src.clone(),
+            clock: Restamp::default(),
+            started: false,
+        });
+        let gone = medias.clone();
+        m.connect_unprepared(move |_| lock(&gone).retain(|m| m.src != src));
+        on_join();
+    });
+    if cfg.user.is_some() && cfg.password.is_some() {
+        factory.add_role_from_structure(
+            &gst::Structure::builder("viewer")
+                .field(rtsp::RTSP_PERM_MEDIA_FACTORY_ACCESS, true)
+                .field(rtsp::RTSP_PERM_MEDIA_FACTORY_CONSTRUCT, true)
+                .build(),
+        );
+    }
+    factory
+}
+
+/// One access unit to every client of a mount that has had its key frame (or gets one now).
+fn push(medias: &Medias, au: &gst::Buffer) {
+    let key = !au.flags().contains(gst::BufferFlags::DELTA_UNIT);
+    let ready: Vec<_> = lock(medias)
+        .iter_mut()
+        .filter_map(|m| {
+            m.started |= key;
+            if !m.started {
+                return None;
+            }
+            let now = m.src.current_running_time()?;
+            Some((m.src.clone(), m.clock.restamped(au, now)?))
+        })
+        .collect();
+    for (src, buffer) in ready {
+        let _ = src.push_buffer(buffer);
     }
 }
 

@@ -153,6 +153,7 @@ fn answer_timesync(
                 let answer = MavMessage::TIMESYNC(TIMESYNC_DATA {
                     tc1: now,
                     ts1: t.ts1,
+                    ..Default::default()
                 });
                 if tx.send(answer).is_err() {
                     break;

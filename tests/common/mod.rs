@@ -5,6 +5,7 @@
 pub mod autopilot;
 pub mod direct;
 pub mod frames;
+pub mod gcs;
 pub mod gpu;
 pub mod relay;
 pub mod serve;

@@ -1,0 +1,364 @@
+//! The camera commands a ground station sends (COMMAND_LONG or COMMAND_INT), each answered
+//! with COMMAND_ACK first and then what it asked for: the information requests (both
+//! MAV_CMD_REQUEST_MESSAGE and the older REQUEST_* commands), zoom, image and video capture,
+//! streaming and storage. The gimbal's commands are in `gimbal`. A command with a value that
+//! is not a number, or out of its range, is DENIED and changes nothing; one not known here is
+//! UNSUPPORTED when it names the camera, and left to others when it was sent to every
+//! component.
+
+use super::info::COMPOSED_STREAM;
+use super::{Cameras, Shooting, zoom};
+use crate::autopilot::Outbox;
+use crate::geometry::view::{clamp_fov, zoomed_fov};
+use crate::state::{Invalid, State};
+use mavlink::dialects::common::*;
+use mavlink::{MavHeader, MessageData};
+use std::time::{Duration, Instant};
+use tracing::{info, warn};
+
+/// A command, whichever message carried it. `location` is params 5 to 7 read as a place:
+/// degrees from COMMAND_LONG, degE7 from COMMAND_INT.
+pub struct Command {
+    pub command: MavCmd,
+    pub params: [f32; 7],
+    pub location: (f64, f64, f64),
+}
+
+impl Command {
+    pub fn long(c: &COMMAND_LONG_DATA) -> Command {
+        let params = [
+            c.param1, c.param2, c.param3, c.param4, c.param5, c.param6, c.param7,
+        ];
+        Command {
+            command: c.command,
+            params,
+            location: (c.param5 as f64, c.param6 as f64, c.param7 as f64),
+        }
+    }
+
+    pub fn int(c: &COMMAND_INT_DATA) -> Command {
+        let (x, y) = (c.x as f64 * 1e-7, c.y as f64 * 1e-7);
+        Command {
+            command: c.command,
+            params: [
+                c.param1, c.param2, c.param3, c.param4, x as f32, y as f32, c.z,
+            ],
+            location: (x, y, c.z as f64),
+        }
+    }
+
+    /// Param `n` (1-based) as a whole number, when it is one in range.
+    fn whole(&self, n: usize, max: f32) -> Option<u32> {
+        let v = self.params[n - 1];
+        (v.is_finite() && v >= 0.0 && v <= max && v.fract() == 0.0).then_some(v as u32)
+    }
+}
+
+/// What a command came to: its COMMAND_ACK's result and the messages that follow it.
+pub struct Answer {
+    pub result: MavResult,
+    pub then: Vec<MavMessage>,
+}
+
+impl Answer {
+    fn accepted(then: Vec<MavMessage>) -> Answer {
+        Answer {
+            result: MavResult::MAV_RESULT_ACCEPTED,
+            then,
+        }
+    }
+    pub fn denied(why: impl std::fmt::Display) -> Answer {
+        warn!("mavlink camera: command denied: {why}");
+        Answer {
+            result: MavResult::MAV_RESULT_DENIED,
+            then: vec![],
+        }
+    }
+    fn failed(why: impl std::fmt::Display) -> Answer {
+        warn!("mavlink camera: command failed: {why}");
+        Answer {
+            result: MavResult::MAV_RESULT_FAILED,
+            then: vec![],
+        }
+    }
+}
+
+impl Cameras {
+    /// Runs `cmd` for camera `i` and answers `from`: the ACK, then what follows. Unknown
+    /// commands sent to every component are left to the others.
+    pub(super) fn command(
+        &self,
+        out: &Outbox,
+        from: &MavHeader,
+        i: usize,
+        cmd: &Command,
+        broadcast: bool,
+    ) {
+        let answer = match self.run(from, i, cmd) {
+            Some(a) => a,
+            None if broadcast => return,
+            None => Answer {
+                result: MavResult::MAV_RESULT_UNSUPPORTED,
+                then: vec![],
+            },
+        };
+        let component = super::FIRST_COMPONENT + i as u8;
+        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: cmd.command,
+            result: answer.result,
+            target_system: from.system_id as u8,
+            target_component: from.component_id,
+            ..Default::default()
+        });
+        out.send(component, &ack);
+        for m in &answer.then {
+            out.send(component, m);
+        }
+    }
+
+    /// The answer to `cmd`, None when it is not a camera's command. The REQUEST_* commands
+    /// that REQUEST_MESSAGE superseded are answered too: ground stations still send them.
+    #[allow(deprecated)]
+    fn run(&self, from: &MavHeader, i: usize, cmd: &Command) -> Option<Answer> {
+        use MavCmd::*;
+        let state = self.live.snapshot();
+        let s = &*state;
+        let p = &cmd.params;
+        Some(match cmd.command {
+            MAV_CMD_REQUEST_MESSAGE => {
+                let Some(id) = cmd.whole(1, 1e6) else {
+                    return Some(Answer::denied("REQUEST_MESSAGE without a message id"));
+                };
+                return self.requested(s, i, id, cmd);
+            }
+            MAV_CMD_REQUEST_CAMERA_INFORMATION => Answer::accepted(vec![self.information(s, i)]),
+            MAV_CMD_REQUEST_CAMERA_SETTINGS => Answer::accepted(vec![self.settings(s, i)]),
+            MAV_CMD_REQUEST_STORAGE_INFORMATION => Answer::accepted(vec![self.storage()]),
+            MAV_CMD_REQUEST_CAMERA_CAPTURE_STATUS => Answer::accepted(vec![self.capture_status(i)]),
+            MAV_CMD_REQUEST_VIDEO_STREAM_INFORMATION | MAV_CMD_REQUEST_VIDEO_STREAM_STATUS => {
+                let Some(id) = cmd.whole(1, COMPOSED_STREAM as f32) else {
+                    return Some(Answer::denied(format!("no video stream {}", p[0])));
+                };
+                let info = cmd.command == MAV_CMD_REQUEST_VIDEO_STREAM_INFORMATION;
+                Answer::accepted(match info {
+                    true => self.stream_information(s, i, id as u8),
+                    false => self.stream_status(s, i, id as u8),
+                })
+            }
+            MAV_CMD_REQUEST_CAMERA_IMAGE_CAPTURE => match cmd.whole(1, i32::MAX as f32) {
+                Some(index) => self.image_again(i, index),
+                None => Answer::denied(format!("no image index {}", p[0])),
+            },
+            MAV_CMD_SET_CAMERA_MODE => match cmd.whole(2, 1.0) {
+                // Stills and video are both taken in either mode.
+                Some(_) => Answer::accepted(vec![self.settings(s, i)]),
+                None => Answer::denied(format!("camera mode {}", p[1])),
+            },
+            MAV_CMD_SET_CAMERA_ZOOM => self.zoom(i, p[0], p[1]),
+            MAV_CMD_IMAGE_START_CAPTURE => self.start_images(i, p[1], p[2]),
+            MAV_CMD_IMAGE_STOP_CAPTURE => {
+                self.periodic().cameras[i].shooting = None;
+                Answer::accepted(vec![self.capture_status(i)])
+            }
+            MAV_CMD_VIDEO_START_CAPTURE | MAV_CMD_VIDEO_STOP_CAPTURE => {
+                let on = cmd.command == MAV_CMD_VIDEO_START_CAPTURE;
+                match self.live.capture().record(on) {
+                    Ok(()) => Answer::accepted(vec![self.capture_status(i)]),
+                    Err(e) => Answer::failed(e),
+                }
+            }
+            // The streams are served whenever someone watches them.
+            MAV_CMD_VIDEO_START_STREAMING | MAV_CMD_VIDEO_STOP_STREAMING => {
+                match cmd.whole(1, COMPOSED_STREAM as f32) {
+                    Some(_) => Answer::accepted(vec![]),
+                    None => Answer::denied(format!("no video stream {}", p[0])),
+                }
+            }
+            MAV_CMD_STORAGE_FORMAT => self.format(i, cmd),
+            MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW
+            | MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE
+            | MAV_CMD_DO_SET_ROI_LOCATION
+            | MAV_CMD_DO_SET_ROI_NONE => return self.gimbal_command(from, i, cmd),
+            _ => return None,
+        })
+    }
+
+    /// MAV_CMD_REQUEST_MESSAGE: the message `id` (param 2 the stream id or image index).
+    fn requested(&self, s: &State, i: usize, id: u32, cmd: &Command) -> Option<Answer> {
+        let p2 = cmd.params[1];
+        Some(match id {
+            CAMERA_INFORMATION_DATA::ID => Answer::accepted(vec![self.information(s, i)]),
+            CAMERA_SETTINGS_DATA::ID => Answer::accepted(vec![self.settings(s, i)]),
+            STORAGE_INFORMATION_DATA::ID => Answer::accepted(vec![self.storage()]),
+            CAMERA_CAPTURE_STATUS_DATA::ID => Answer::accepted(vec![self.capture_status(i)]),
+            VIDEO_STREAM_INFORMATION_DATA::ID | VIDEO_STREAM_STATUS_DATA::ID => {
+                let Some(stream) = cmd.whole(2, COMPOSED_STREAM as f32) else {
+                    return Some(Answer::denied(format!("no video stream {p2}")));
+                };
+                Answer::accepted(match id {
+                    VIDEO_STREAM_INFORMATION_DATA::ID => {
+                        self.stream_information(s, i, stream as u8)
+                    }
+                    _ => self.stream_status(s, i, stream as u8),
+                })
+            }
+            CAMERA_IMAGE_CAPTURED_DATA::ID => match cmd.whole(2, i32::MAX as f32) {
+                Some(index) => self.image_again(i, index),
+                None => Answer::denied(format!("no image index {p2}")),
+            },
+            GIMBAL_MANAGER_INFORMATION_DATA::ID => {
+                Answer::accepted(vec![self.manager_information()])
+            }
+            GIMBAL_MANAGER_STATUS_DATA::ID => Answer::accepted(vec![self.manager_status(s, i)]),
+            GIMBAL_DEVICE_ATTITUDE_STATUS_DATA::ID => {
+                Answer::accepted(vec![self.device_attitude(s, i)])
+            }
+            _ => return None,
+        })
+    }
+
+    /// SET_CAMERA_ZOOM: a step (each ±1 is ±8 of CAM_ZOOM's 32 to a doubling), continuous
+    /// (-1, 0, 1: the fov doubles or halves each second until stopped), a range 0..=100, a
+    /// focal length (mm, 35 mm frame) or a horizontal fov (degrees).
+    fn zoom(&self, i: usize, kind: f32, value: f32) -> Answer {
+        if !value.is_finite() || kind.fract() != 0.0 {
+            return Answer::denied(format!("zoom type {kind}, value {value}"));
+        }
+        let v = value as f64;
+        let fov = |c: &crate::state::Camera| -> Option<f64> {
+            match kind as i32 {
+                0 if (-32.0..=32.0).contains(&v) => {
+                    Some(zoomed_fov(c.fov, (8.0 * v) as i8, c.crop))
+                }
+                2 if (0.0..=100.0).contains(&v) => Some(zoom::fov_at_level(v, c.crop)),
+                3 if v > 0.0 => Some(clamp_fov(zoom::fov_of_focal_length(v), c.crop)),
+                4 if v > 0.0 && v <= 360.0 => Some(clamp_fov(v.to_radians(), c.crop)),
+                _ => None,
+            }
+        };
+        if kind == 1.0 {
+            if !(-1.0..=1.0).contains(&v) {
+                return Answer::denied(format!("continuous zoom {v}"));
+            }
+            self.periodic().cameras[i].zooming = v;
+            let s = self.live.snapshot();
+            return Answer::accepted(vec![self.settings(&s, i)]);
+        }
+        let set = self.live.update(|s| {
+            let c = &mut s.cameras[i];
+            c.fov = fov(c).ok_or_else(|| Invalid(format!("zoom {kind} {value}")))?;
+            Ok::<_, Invalid>(())
+        });
+        match set {
+            Ok(()) => {
+                self.periodic().cameras[i].zooming = 0.0;
+                let s = self.live.snapshot();
+                Answer::accepted(vec![self.settings(&s, i)])
+            }
+            Err(e) => Answer::denied(e),
+        }
+    }
+
+    /// IMAGE_START_CAPTURE: `count` images (0: until stopped), `interval` s apart.
+    fn start_images(&self, i: usize, interval: f32, count: f32) -> Answer {
+        let count_ok = count.is_finite() && count >= 0.0 && count.fract() == 0.0;
+        if !count_ok || !interval.is_finite() || interval < 0.0 {
+            return Answer::denied(format!("image capture of {count} every {interval} s"));
+        }
+        if count != 1.0 && interval < 0.1 {
+            return Answer::denied(format!(
+                "an image interval of {interval} s (0.1 s at least)"
+            ));
+        }
+        let Some(shooter) = &self.shooter else {
+            return Answer::failed("there is no video pipeline to take images from");
+        };
+        // The directory and its room are checked before the first image is promised.
+        if let Some(dir) = super::info::space_mib(shooter.dir())
+            && dir.1 < 1.0
+        {
+            return Answer::failed(format!("{} is full", shooter.dir().display()));
+        }
+        self.periodic().cameras[i].shooting = Some(Shooting {
+            interval: interval as f64,
+            left: (count > 0.0).then_some(count as u32),
+            next: Instant::now(),
+        });
+        info!("camera {i}: taking {count} images every {interval} s (0: until stopped)");
+        Answer::accepted(vec![])
+    }
+
+    /// CAMERA_IMAGE_CAPTURED of image `index` again.
+    fn image_again(&self, i: usize, index: u32) -> Answer {
+        match self.periodic().cameras[i].images.get(index as usize) {
+            Some(m) => Answer::accepted(vec![MavMessage::CAMERA_IMAGE_CAPTURED(m.clone())]),
+            None => Answer::denied(format!("camera {i} has no image {index}")),
+        }
+    }
+
+    /// STORAGE_FORMAT: removes DigiView's stills and recordings from the capture directory
+    /// (nothing else there), and with param 3 starts the image indices again.
+    fn format(&self, i: usize, cmd: &Command) -> Answer {
+        if cmd.whole(1, 1.0).is_none() || cmd.params[1] != 1.0 {
+            return Answer::denied("STORAGE_FORMAT of storage 1 (or 0, all) with param 2 = 1");
+        }
+        let Some(shooter) = &self.shooter else {
+            return Answer::failed("there is no capture directory");
+        };
+        let removed = match remove_captures(shooter.dir()) {
+            Ok(n) => n,
+            Err(e) => return Answer::failed(format!("{}: {e}", shooter.dir().display())),
+        };
+        info!(
+            "storage format: {removed} captures removed from {}",
+            shooter.dir().display()
+        );
+        if cmd.params[2] == 1.0 {
+            self.periodic().cameras[i].images.clear();
+        }
+        Answer::accepted(vec![self.storage()])
+    }
+
+    /// Continuous zoom and gimbal rates, advanced by `dt` seconds.
+    pub(super) fn apply_motion(&self, n: usize, dt: f64) {
+        type Motion = (usize, f64, Option<(f64, f64)>);
+        let moving: Vec<Motion> = {
+            let p = self.periodic();
+            (0..n)
+                .map(|i| (i, p.cameras[i].zooming, p.cameras[i].rates))
+                .filter(|(_, z, r)| *z != 0.0 || r.is_some())
+                .collect()
+        };
+        for (i, zooming, rates) in moving {
+            let _ = self.live.update(|s| {
+                let c = &mut s.cameras[i];
+                if zooming != 0.0 {
+                    c.fov = clamp_fov(c.fov * 2f64.powf(-zooming * dt), c.crop);
+                }
+                if let Some((yaw_rate, pitch_rate)) = rates {
+                    super::gimbal::turn(c, yaw_rate * dt, pitch_rate * dt);
+                }
+                Ok::<_, Invalid>(())
+            });
+        }
+    }
+}
+
+/// Removes the files DigiView names `digiview-*` from `dir`; how many.
+fn remove_captures(dir: &std::path::Path) -> std::io::Result<usize> {
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name();
+        if name.to_string_lossy().starts_with("digiview-") && entry.file_type()?.is_file() {
+            std::fs::remove_file(entry.path())?;
+            n += 1;
+        }
+    }
+    Ok(n)
+}
+
+/// When the next interval image is due after one taken at `t`.
+pub(super) fn next_after(t: Instant, interval: f64) -> Instant {
+    t + Duration::from_secs_f64(interval.max(0.1))
+}

@@ -1,0 +1,405 @@
+//! Each camera is the gimbal manager of its own view (Gimbal Protocol v2), the view being a
+//! gimbal with no motors. Pitch and roll are always from the horizon; yaw is from the
+//! vehicle's nose unless the command says earth frame (or yaw lock, as older ground stations
+//! send it). The protocol's roll, pitch and yaw lock flags are DigiView's lock flags (a locked
+//! axis is held in the world): a command sets them, and the angles are turned into the view's
+//! CAM_EULER under them, so the view points where the command says. Rates turn the view every
+//! tick until another command; DO_SET_ROI_LOCATION aims it at a place (coordinate control,
+//! followed as the vehicle flies) and DO_SET_ROI_NONE leaves it pointing where it points.
+
+use super::commands::{Answer, Command};
+use super::info::{GIMBAL_DEVICE_ID, view_quaternion};
+use super::{ATTITUDE_EVERY, ATTITUDE_SOONEST, Cameras, FIRST_COMPONENT, boot_ms};
+use crate::autopilot::Outbox;
+use crate::geometry::GeoPoint;
+use crate::geometry::rotation::{Euler, wrap_pi, yaw_pitch};
+use crate::geometry::view::{LockFlags, aim, control};
+use crate::state::{Camera, Invalid, State};
+use glam::{DQuat, DVec3, EulerRot};
+use mavlink::MavHeader;
+use mavlink::dialects::common::*;
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::time::Instant;
+
+/// Who may point a gimbal (DO_GIMBAL_MANAGER_CONFIGURE): (system, component), 0 for none.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Control {
+    pub primary: (u8, u8),
+    pub secondary: (u8, u8),
+}
+
+impl Control {
+    /// Anyone while no primary control is set; then only the primary and secondary.
+    fn allows(&self, from: &MavHeader) -> bool {
+        let who = (from.system_id as u8, from.component_id);
+        self.primary == (0, 0) || who == self.primary || who == self.secondary
+    }
+}
+
+/// Whether a gimbal device id names this camera's gimbal (0: all of them).
+pub fn for_this_gimbal(id: u8) -> bool {
+    id == 0 || id == GIMBAL_DEVICE_ID
+}
+
+/// What a gimbal command asks for, radians and rad/s; None where it leaves an axis alone.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Aim {
+    yaw: Option<f64>,
+    pitch: Option<f64>,
+    roll: Option<f64>,
+    yaw_rate: Option<f64>,
+    pitch_rate: Option<f64>,
+    /// A value that is infinite: the command is refused.
+    bad: bool,
+}
+
+/// NaN means "leave it"; an infinity is an error.
+fn given(v: f32, bad: &mut bool) -> Option<f64> {
+    *bad |= v.is_infinite();
+    v.is_finite().then_some(v as f64)
+}
+
+impl Aim {
+    pub fn pitch_yaw(pitch: f32, yaw: f32, pitch_rate: f32, yaw_rate: f32) -> Aim {
+        let mut bad = false;
+        Aim {
+            pitch: given(pitch, &mut bad),
+            yaw: given(yaw, &mut bad),
+            roll: None,
+            pitch_rate: given(pitch_rate, &mut bad),
+            yaw_rate: given(yaw_rate, &mut bad),
+            bad,
+        }
+    }
+
+    /// GIMBAL_MANAGER_SET_ATTITUDE: a quaternion (NaN: rates only) and angular velocities.
+    pub fn attitude(m: &GIMBAL_MANAGER_SET_ATTITUDE_DATA) -> Aim {
+        let mut bad = m.q.iter().any(|v| v.is_infinite());
+        let [w, x, y, z] = m.q.map(|v| v as f64);
+        let q = DQuat::from_xyzw(x, y, z, w);
+        let (yaw, pitch, roll) = if q.is_finite() && q.length() > 0.5 {
+            let (yaw, pitch, roll) = q.normalize().to_euler(EulerRot::ZYX);
+            (Some(yaw), Some(pitch), Some(roll))
+        } else {
+            (None, None, None)
+        };
+        Aim {
+            yaw,
+            pitch,
+            roll,
+            pitch_rate: given(m.angular_velocity_y, &mut bad),
+            yaw_rate: given(m.angular_velocity_z, &mut bad),
+            bad,
+        }
+    }
+}
+
+/// The lock flags a gimbal command's flags set.
+fn locks_of(flags: GimbalManagerFlags) -> u8 {
+    use GimbalManagerFlags as F;
+    let mut l = 0;
+    for (f, bit) in [
+        (F::GIMBAL_MANAGER_FLAGS_ROLL_LOCK, LockFlags::ROLL),
+        (F::GIMBAL_MANAGER_FLAGS_PITCH_LOCK, LockFlags::PITCH),
+        (F::GIMBAL_MANAGER_FLAGS_YAW_LOCK, LockFlags::YAW),
+    ] {
+        if flags.contains(f) {
+            l |= bit;
+        }
+    }
+    l
+}
+
+/// Turns a view by yaw and pitch deltas (a rate's tick), pitch held within ±90°.
+pub fn turn(c: &mut Camera, dyaw: f64, dpitch: f64) {
+    c.yaw = wrap_pi(c.yaw + dyaw);
+    c.pitch = (c.pitch + dpitch).clamp(-FRAC_PI_2, FRAC_PI_2);
+    steer_by_hand(c);
+}
+
+fn steer_by_hand(c: &mut Camera) {
+    if matches!(c.control, control::PILOT | control::COORDINATE) {
+        c.control = control::DIRECTIONAL;
+    }
+}
+
+impl Cameras {
+    /// Points camera `i` as a gimbal command from `from` says.
+    pub(super) fn aim(
+        &self,
+        from: &MavHeader,
+        i: usize,
+        flags: GimbalManagerFlags,
+        aim: Aim,
+    ) -> Result<(), String> {
+        if aim.bad {
+            return Err("an angle or rate that is infinite".into());
+        }
+        if !self.periodic().cameras[i].control.allows(from) {
+            return Err(format!(
+                "{}/{} is not in control of gimbal {i}",
+                from.system_id, from.component_id
+            ));
+        }
+        let earth = flags.intersects(
+            GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME
+                | GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK,
+        );
+        let locks = LockFlags(locks_of(flags));
+        self.live
+            .update(|s| {
+                let vehicle = s.vehicle.attitude.euler();
+                let position = s.vehicle.position;
+                let c = &mut s.cameras[i];
+                let now = Euler::from_matrix(&c.steering().world_from_view(vehicle, &position));
+                let yaw = aim
+                    .yaw
+                    .map_or(now.yaw, |y| y + if earth { 0.0 } else { vehicle.yaw });
+                let pitch = aim
+                    .pitch
+                    .map_or(now.pitch, |p| p.clamp(-FRAC_PI_2, FRAC_PI_2));
+                let roll = aim
+                    .roll
+                    .map_or(now.roll, |r| r.clamp(-FRAC_PI_2, FRAC_PI_2));
+                let (yaw, pitch) = locks.decompose(yaw, pitch, vehicle);
+                c.lock = locks.0;
+                c.yaw = yaw;
+                c.pitch = pitch;
+                c.roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
+                steer_by_hand(c);
+                Ok::<_, Invalid>(())
+            })
+            .map_err(|e| e.to_string())?;
+        let rates = match (aim.yaw_rate, aim.pitch_rate) {
+            (None, None) => None,
+            (y, p) => Some((
+                if aim.yaw.is_some() {
+                    0.0
+                } else {
+                    y.unwrap_or(0.0)
+                },
+                if aim.pitch.is_some() {
+                    0.0
+                } else {
+                    p.unwrap_or(0.0)
+                },
+            )),
+        };
+        self.periodic().cameras[i].rates = rates.filter(|r| *r != (0.0, 0.0));
+        Ok(())
+    }
+
+    /// The gimbal's commands: PITCHYAW (degrees), CONFIGURE, ROI_LOCATION and ROI_NONE.
+    pub(super) fn gimbal_command(
+        &self,
+        from: &MavHeader,
+        i: usize,
+        cmd: &Command,
+    ) -> Option<Answer> {
+        use MavCmd::*;
+        let p = &cmd.params;
+        let device = match cmd.command {
+            MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW | MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => p[6],
+            _ => p[0],
+        };
+        if !(device.is_nan() || for_this_gimbal(device as u8) && device.fract() == 0.0) {
+            return Some(Answer::denied(format!("no gimbal device {device}")));
+        }
+        let done = |r: Result<(), String>| match r {
+            Ok(()) => Answer {
+                result: MavResult::MAV_RESULT_ACCEPTED,
+                then: vec![],
+            },
+            Err(e) => Answer::denied(e),
+        };
+        Some(match cmd.command {
+            MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW => {
+                let deg = |v: f32| v.to_radians();
+                let whole = p[4].fract() == 0.0 && (0.0..=u32::MAX as f32).contains(&p[4]);
+                if !whole {
+                    return Some(Answer::denied(format!("gimbal manager flags {}", p[4])));
+                }
+                let flags = GimbalManagerFlags::from_bits_truncate(p[4] as u32);
+                let aim = Aim::pitch_yaw(deg(p[0]), deg(p[1]), deg(p[2]), deg(p[3]));
+                done(self.aim(from, i, flags, aim))
+            }
+            MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => done(self.configure(from, i, p)),
+            MAV_CMD_DO_SET_ROI_LOCATION => {
+                let (lat, lon, alt) = cmd.location;
+                done(self.roi(from, i, Some(GeoPoint { lat, lon, alt })))
+            }
+            _ => done(self.roi(from, i, None)),
+        })
+    }
+
+    /// DO_GIMBAL_MANAGER_CONFIGURE: -1 leaves a controller, -2 makes it the sender, -3
+    /// releases it, other values name it.
+    fn configure(&self, from: &MavHeader, i: usize, p: &[f32; 7]) -> Result<(), String> {
+        let sender = (from.system_id as u8, from.component_id);
+        let mut periodic = self.periodic();
+        let control = &mut periodic.cameras[i].control;
+        let pick = |sys: f32, comp: f32, now: (u8, u8)| -> Result<(u8, u8), String> {
+            match (sys, comp) {
+                (-1.0, _) => Ok(now),
+                (-2.0, _) => Ok(sender),
+                (-3.0, _) => Ok((0, 0)),
+                (s, c) if (0.0..=255.0).contains(&s) && (0.0..=255.0).contains(&c) => {
+                    Ok((s as u8, c as u8))
+                }
+                (s, c) => Err(format!("gimbal controller {s}/{c}")),
+            }
+        };
+        let primary = pick(p[0], p[1], control.primary)?;
+        let secondary = pick(p[2], p[3], control.secondary)?;
+        *control = Control { primary, secondary };
+        Ok(())
+    }
+
+    /// Aims camera `i` at a place and follows it (coordinate control), or (None) leaves it
+    /// pointing where it points now, steered by its angles again.
+    fn roi(&self, from: &MavHeader, i: usize, place: Option<GeoPoint>) -> Result<(), String> {
+        if !self.periodic().cameras[i].control.allows(from) {
+            return Err(format!(
+                "{}/{} is not in control of gimbal {i}",
+                from.system_id, from.component_id
+            ));
+        }
+        if let Some(g) = place {
+            let ok = (-90.0..=90.0).contains(&g.lat) && (-180.0..=180.0).contains(&g.lon);
+            if !ok || !g.alt.is_finite() {
+                return Err(format!("{}, {}, {} m is not a place", g.lat, g.lon, g.alt));
+            }
+        }
+        self.live
+            .update(|s| {
+                let vehicle = s.vehicle.attitude.euler();
+                let position = s.vehicle.position;
+                let c = &mut s.cameras[i];
+                match place {
+                    Some(g) => {
+                        c.target = Some(g);
+                        c.control = control::COORDINATE;
+                    }
+                    None if c.control == control::COORDINATE => {
+                        let m = c.steering().world_from_view(vehicle, &position);
+                        let e = aim(m * DVec3::X, c.euler(), c.locks(), vehicle);
+                        (c.yaw, c.pitch) = (e.yaw, e.pitch);
+                        c.control = control::DIRECTIONAL;
+                    }
+                    None => {}
+                }
+                Ok::<_, Invalid>(())
+            })
+            .map_err(|e| e.to_string())?;
+        self.periodic().cameras[i].rates = None;
+        Ok(())
+    }
+
+    pub(super) fn manager_information(&self) -> MavMessage {
+        use GimbalManagerCapFlags as C;
+        MavMessage::GIMBAL_MANAGER_INFORMATION(GIMBAL_MANAGER_INFORMATION_DATA {
+            time_boot_ms: boot_ms(),
+            cap_flags: C::GIMBAL_MANAGER_CAP_FLAGS_HAS_ROLL_AXIS
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_ROLL_FOLLOW
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_ROLL_LOCK
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_AXIS
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_FOLLOW
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_LOCK
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_AXIS
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_FOLLOW
+                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_LOCK
+                | C::GIMBAL_MANAGER_CAP_FLAGS_SUPPORTS_INFINITE_YAW
+                | C::GIMBAL_MANAGER_CAP_FLAGS_SUPPORTS_YAW_IN_EARTH_FRAME
+                | C::GIMBAL_MANAGER_CAP_FLAGS_CAN_POINT_LOCATION_GLOBAL,
+            roll_min: -FRAC_PI_2 as f32,
+            roll_max: FRAC_PI_2 as f32,
+            pitch_min: -FRAC_PI_2 as f32,
+            pitch_max: FRAC_PI_2 as f32,
+            yaw_min: -PI as f32,
+            yaw_max: PI as f32,
+            gimbal_device_id: GIMBAL_DEVICE_ID,
+        })
+    }
+
+    pub(super) fn manager_status(&self, state: &State, i: usize) -> MavMessage {
+        let control = self.periodic().cameras[i].control;
+        MavMessage::GIMBAL_MANAGER_STATUS(GIMBAL_MANAGER_STATUS_DATA {
+            time_boot_ms: boot_ms(),
+            flags: GimbalManagerFlags::from_bits_truncate(device_flags(state, i).bits() as u32),
+            gimbal_device_id: GIMBAL_DEVICE_ID,
+            primary_control_sysid: control.primary.0,
+            primary_control_compid: control.primary.1,
+            secondary_control_sysid: control.secondary.0,
+            secondary_control_compid: control.secondary.1,
+        })
+    }
+
+    /// The view's attitude: earth frame, with its yaw from the vehicle's nose beside it.
+    pub(super) fn device_attitude(&self, state: &State, i: usize) -> MavMessage {
+        let q = view_quaternion(state, i);
+        let rates = self.periodic().cameras[i].rates.unwrap_or((0.0, 0.0));
+        let [w, x, y, z] = q.map(|v| v as f64);
+        let (yaw, _) = yaw_pitch(DQuat::from_xyzw(x, y, z, w) * DVec3::X);
+        MavMessage::GIMBAL_DEVICE_ATTITUDE_STATUS(GIMBAL_DEVICE_ATTITUDE_STATUS_DATA {
+            time_boot_ms: boot_ms(),
+            q,
+            angular_velocity_x: 0.0,
+            angular_velocity_y: rates.1 as f32,
+            angular_velocity_z: rates.0 as f32,
+            failure_flags: GimbalDeviceErrorFlags::empty(),
+            flags: device_flags(state, i),
+            target_system: 0,
+            target_component: 0,
+            delta_yaw: wrap_pi(yaw - state.vehicle.attitude.yaw) as f32,
+            delta_yaw_velocity: f32::NAN,
+            gimbal_device_id: GIMBAL_DEVICE_ID,
+        })
+    }
+
+    /// Sends camera `i`'s attitude every [`ATTITUDE_EVERY`], and at once (at most every
+    /// [`ATTITUDE_SOONEST`]) when the view is steered: its angles, locks, control or target
+    /// change. The vehicle's own motion waits for the next regular report, so a link is not
+    /// flooded while an unlocked view follows a turning vehicle.
+    pub(super) fn report_attitude(&self, out: &Outbox, state: &State, i: usize, now: Instant) {
+        let c = &state.cameras[i];
+        let steering = [c.yaw, c.pitch, c.roll, c.lock as f64, c.control as f64]
+            .into_iter()
+            .chain(c.target.map_or([f64::NAN; 3], |t| [t.lat, t.lon, t.alt]))
+            .map(f64::to_bits)
+            .collect::<Vec<u64>>();
+        let due = {
+            let mut p = self.periodic();
+            let last = &mut p.cameras[i].reported;
+            let due = match last {
+                None => true,
+                Some((t, old)) => {
+                    now - *t >= ATTITUDE_EVERY || (*old != steering && now - *t >= ATTITUDE_SOONEST)
+                }
+            };
+            if due {
+                *last = Some((now, steering));
+            }
+            due
+        };
+        if due {
+            out.send(FIRST_COMPONENT + i as u8, &self.device_attitude(state, i));
+        }
+    }
+}
+
+/// The lock flags as the gimbal protocol's, yaw reported in the earth frame.
+fn device_flags(state: &State, i: usize) -> GimbalDeviceFlags {
+    use GimbalDeviceFlags as F;
+    let l = state.cameras[i].locks();
+    let mut f = F::GIMBAL_DEVICE_FLAGS_YAW_IN_EARTH_FRAME;
+    for (on, flag) in [
+        (l.roll(), F::GIMBAL_DEVICE_FLAGS_ROLL_LOCK),
+        (l.pitch(), F::GIMBAL_DEVICE_FLAGS_PITCH_LOCK),
+        (l.yaw(), F::GIMBAL_DEVICE_FLAGS_YAW_LOCK),
+    ] {
+        if on {
+            f |= flag;
+        }
+    }
+    f
+}

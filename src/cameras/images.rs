@@ -1,0 +1,109 @@
+//! Image capture of a camera's view: interval shooting (IMAGE_START_CAPTURE's count and
+//! interval) asks the head for stills of the view alone, and each still written is announced
+//! with CAMERA_IMAGE_CAPTURED (where the vehicle was, where the view looked, the file, the
+//! image's index) and remembered so a ground station can ask for it again.
+
+use super::info::view_quaternion;
+use super::{Cameras, FIRST_COMPONENT, IMAGES_KEPT, Shot, Taken, boot_ms, utc_us};
+use crate::autopilot::Outbox;
+use mavlink::dialects::common::{CAMERA_IMAGE_CAPTURED_DATA, MavBool, MavMessage};
+use std::time::Instant;
+use tracing::warn;
+
+impl Cameras {
+    /// Asks for the stills that are due.
+    pub(super) fn shoot_due(&self, n: usize, now: Instant) {
+        let Some(shooter) = &self.shooter else {
+            return;
+        };
+        let state = self.live.snapshot();
+        for i in 0..n {
+            let due = {
+                let mut p = self.periodic();
+                let cam = &mut p.cameras[i];
+                match &mut cam.shooting {
+                    Some(s) if s.next <= now => {
+                        s.next = super::commands::next_after(now, s.interval);
+                        if let Some(left) = &mut s.left {
+                            *left -= 1;
+                            if *left == 0 {
+                                cam.shooting = None;
+                            }
+                        }
+                        cam.pending += 1;
+                        true
+                    }
+                    _ => false,
+                }
+            };
+            if !due {
+                continue;
+            }
+            let taken = Taken {
+                time_utc_us: utc_us(),
+                time_boot_ms: boot_ms(),
+                state_q: view_quaternion(&state, i),
+                position: state.vehicle.position,
+            };
+            let shots = self.shots.clone();
+            let done = Box::new(move |file| {
+                let shot = Shot {
+                    camera: i,
+                    taken,
+                    file,
+                };
+                shots.lock().unwrap_or_else(|e| e.into_inner()).push(shot);
+            });
+            if let Err(e) = shooter.shoot(i, done) {
+                warn!("camera {i}: no image: {e}");
+                let mut p = self.periodic();
+                p.cameras[i].pending -= 1;
+                p.cameras[i].shooting = None;
+            }
+        }
+    }
+
+    /// Announces the stills written since the last tick.
+    pub(super) fn deliver_shots(&self, out: &Outbox) {
+        let shots: Vec<Shot> =
+            std::mem::take(&mut *self.shots.lock().unwrap_or_else(|e| e.into_inner()));
+        for shot in shots {
+            let i = shot.camera;
+            let t = shot.taken;
+            let (url, ok) = match &shot.file {
+                Ok(path) => (format!("file://{}", path.display()), true),
+                Err(e) => {
+                    warn!("camera {i}: image not written: {e}");
+                    (String::new(), false)
+                }
+            };
+            let msg = {
+                let mut p = self.periodic();
+                let cam = &mut p.cameras[i];
+                cam.pending = cam.pending.saturating_sub(1);
+                let data = CAMERA_IMAGE_CAPTURED_DATA {
+                    time_utc: t.time_utc_us,
+                    time_boot_ms: t.time_boot_ms,
+                    lat: (t.position.lat * 1e7).round() as i32,
+                    lon: (t.position.lon * 1e7).round() as i32,
+                    alt: (t.position.alt * 1e3).round() as i32,
+                    relative_alt: (t.position.relative_alt * 1e3).round() as i32,
+                    q: t.state_q,
+                    image_index: cam.images.len() as i32,
+                    camera_id: 0,
+                    capture_result: if ok {
+                        MavBool::MAV_BOOL_TRUE
+                    } else {
+                        MavBool::MAV_BOOL_FALSE
+                    },
+                    file_url: url.as_str().into(),
+                };
+                if ok && cam.images.len() < IMAGES_KEPT {
+                    cam.images.push(data.clone());
+                }
+                MavMessage::CAMERA_IMAGE_CAPTURED(data)
+            };
+            out.send(FIRST_COMPONENT + i as u8, &msg);
+        }
+    }
+}

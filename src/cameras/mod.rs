@@ -1,0 +1,337 @@
+//! The views as MAVLink cameras and gimbals, beside the frame path. Each user camera of the
+//! current layout is a camera component (MAV_COMP_ID_CAMERA + i, under the autopilot's system
+//! id) that a ground station discovers by its HEARTBEAT, asks what it is (`info`), zooms,
+//! takes pictures and video with (`commands`) and points as the gimbal manager of its own
+//! view (`gimbal`). What they change goes through the live state, the one the DigiView
+//! protocol changes, and what they report is read from it, so each side sees the other at
+//! once. This module routes the link's messages to the cameras they address and runs what
+//! is periodic: heartbeats, the gimbals' attitude, angular rates and continuous zoom, and
+//! interval shooting.
+
+mod commands;
+mod gimbal;
+mod images;
+mod info;
+pub mod zoom;
+
+use crate::autopilot::{Components, Outbox};
+use crate::layout::{Slot, layout};
+use crate::source::clock_us;
+use crate::state::{Live, MAX_CAMERAS, State};
+use mavlink::MavHeader;
+use mavlink::dialects::common::{
+    CAMERA_IMAGE_CAPTURED_DATA, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState,
+    MavType,
+};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Camera i is component 100 + i (MAV_COMP_ID_CAMERA .. MAV_COMP_ID_CAMERA4).
+pub const FIRST_COMPONENT: u8 = 100;
+/// How often each camera's gimbal attitude is sent, and how soon after the last when the
+/// view is steered.
+const ATTITUDE_EVERY: Duration = Duration::from_millis(200);
+const ATTITUDE_SOONEST: Duration = Duration::from_millis(50);
+/// How often the heartbeats and the gimbal managers' status go out.
+const BEAT_EVERY: Duration = Duration::from_secs(1);
+/// Captured images remembered per camera for ground stations that ask again by index.
+const IMAGES_KEPT: usize = 10_000;
+
+/// `[cameras]` in the config: the views as MAVLink cameras, and their own streams.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CamerasConfig {
+    /// Each user camera a MAVLink camera and gimbal on the autopilot link.
+    pub enabled: bool,
+    /// A view's own stream and stills: its picture's size.
+    pub width: u32,
+    pub height: u32,
+    /// The host put in the stream URLs given to ground stations (default: the RTSP
+    /// server's address, or this machine's first network address when that is 0.0.0.0).
+    pub public_host: Option<String>,
+}
+
+impl Default for CamerasConfig {
+    fn default() -> Self {
+        CamerasConfig {
+            enabled: true,
+            width: 1280,
+            height: 720,
+            public_host: None,
+        }
+    }
+}
+
+/// Takes a still of one view alone; `done` gets the file written, or why not.
+pub trait ViewShooter: Send + Sync {
+    fn shoot(&self, view: usize, done: crate::head::capture::StillDone) -> Result<(), String>;
+    /// The directory stills and recordings go to (STORAGE_INFORMATION measures it).
+    fn dir(&self) -> &Path;
+}
+
+/// Where the streams are served, once the RTSP server runs.
+#[derive(Clone, Debug, Default)]
+pub struct Streams {
+    /// `rtsp://HOST:PORT/PATH` of the composed frame; a view's is this plus `/camN`.
+    pub base: String,
+    pub bitrate_kbps: u32,
+}
+
+/// The views as cameras: the link's [`Components`].
+pub struct Cameras {
+    live: Arc<Live>,
+    cfg: CamerasConfig,
+    shooter: Option<Arc<dyn ViewShooter>>,
+    streams: Mutex<Streams>,
+    state: Mutex<Periodic>,
+    /// Stills written since the last tick: camera, sequence, the file or why not.
+    shots: Arc<Mutex<Vec<Shot>>>,
+    /// When the running recording started, as first seen.
+    recording_since: Mutex<Option<Instant>>,
+}
+
+struct Shot {
+    camera: usize,
+    taken: Taken,
+    file: Result<PathBuf, String>,
+}
+
+/// The view and vehicle when a still was asked for (what CAMERA_IMAGE_CAPTURED reports).
+#[derive(Clone, Copy)]
+struct Taken {
+    time_utc_us: u64,
+    time_boot_ms: u32,
+    state_q: [f32; 4],
+    position: crate::geometry::GeoPosition,
+}
+
+/// What each camera does over time.
+#[derive(Default)]
+struct Periodic {
+    beat: Option<Instant>,
+    /// The last tick: rates and continuous zoom advance by the time since.
+    ticked: Option<Instant>,
+    cameras: [PerCamera; MAX_CAMERAS],
+}
+
+#[derive(Default)]
+struct PerCamera {
+    /// Yaw and pitch rates (rad/s) being applied, from a gimbal command.
+    rates: Option<(f64, f64)>,
+    /// Continuous zoom: -1 out, 0 stop, 1 in.
+    zooming: f64,
+    /// The gimbal's controllers (DO_GIMBAL_MANAGER_CONFIGURE): primary, secondary.
+    control: gimbal::Control,
+    /// When the attitude was last reported, and the view's steering then (bits).
+    reported: Option<(Instant, Vec<u64>)>,
+    shooting: Option<Shooting>,
+    /// CAMERA_IMAGE_CAPTURED of every image taken, by index.
+    images: Vec<CAMERA_IMAGE_CAPTURED_DATA>,
+    /// Images asked for and not written yet.
+    pending: u32,
+}
+
+/// Interval shooting: every `interval` s, `left` more (None: until stopped).
+struct Shooting {
+    interval: f64,
+    left: Option<u32>,
+    next: Instant,
+}
+
+impl Cameras {
+    pub fn new(
+        live: Arc<Live>,
+        cfg: CamerasConfig,
+        shooter: Option<Arc<dyn ViewShooter>>,
+    ) -> Cameras {
+        Cameras {
+            live,
+            cfg,
+            shooter,
+            streams: Mutex::default(),
+            state: Mutex::default(),
+            shots: Arc::default(),
+            recording_since: Mutex::default(),
+        }
+    }
+
+    /// Where the streams are, once the RTSP server serves.
+    pub fn set_streams(&self, streams: Streams) {
+        *self.streams.lock().unwrap_or_else(|e| e.into_inner()) = streams;
+    }
+
+    fn streams(&self) -> Streams {
+        self.streams
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    fn periodic(&self) -> std::sync::MutexGuard<'_, Periodic> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The cameras a ground station sees now: the user cameras of the current layout.
+    pub fn count(state: &State) -> usize {
+        let out = &state.output;
+        layout(out.width, out.height, out.layout, out.overlay)
+            .map(|l| l.views.iter().filter(|v| v.1 != Slot::Debug).count())
+            .unwrap_or(0)
+    }
+
+    /// The camera a component id names, if the layout shows it.
+    fn camera_of(component: u8, state: &State) -> Option<usize> {
+        let i = component.checked_sub(FIRST_COMPONENT)? as usize;
+        (i < Cameras::count(state)).then_some(i)
+    }
+
+    /// The cameras a message for `(system, component)` addresses: one, all (component 0),
+    /// or none (another system or component).
+    fn addressed(&self, out: &Outbox, system: u8, component: u8, state: &State) -> Vec<usize> {
+        if system != 0 && system != out.system_id() {
+            return vec![];
+        }
+        match component {
+            0 => (0..Cameras::count(state)).collect(),
+            c => Cameras::camera_of(c, state).into_iter().collect(),
+        }
+    }
+}
+
+impl Components for Cameras {
+    fn handle(&self, out: &Outbox, from: &MavHeader, msg: &MavMessage) {
+        let state = self.live.snapshot();
+        match msg {
+            MavMessage::COMMAND_LONG(c) => {
+                let command = commands::Command::long(c);
+                for i in self.addressed(out, c.target_system, c.target_component, &state) {
+                    self.command(out, from, i, &command, c.target_component == 0);
+                }
+            }
+            MavMessage::COMMAND_INT(c) => {
+                let command = commands::Command::int(c);
+                for i in self.addressed(out, c.target_system, c.target_component, &state) {
+                    self.command(out, from, i, &command, c.target_component == 0);
+                }
+            }
+            MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(m) => {
+                for i in self.addressed(out, m.target_system, m.target_component, &state) {
+                    if gimbal::for_this_gimbal(m.gimbal_device_id) {
+                        let aim = gimbal::Aim::pitch_yaw(m.pitch, m.yaw, m.pitch_rate, m.yaw_rate);
+                        let _ = self.aim(from, i, m.flags, aim);
+                    }
+                }
+            }
+            MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(m) => {
+                for i in self.addressed(out, m.target_system, m.target_component, &state) {
+                    if gimbal::for_this_gimbal(m.gimbal_device_id) {
+                        let aim = gimbal::Aim::attitude(m);
+                        let _ = self.aim(from, i, m.flags, aim);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn tick(&self, out: &Outbox) {
+        let state = self.live.snapshot();
+        let n = Cameras::count(&state);
+        let now = Instant::now();
+        let dt = {
+            let mut p = self.periodic();
+            let dt = p.ticked.map_or(0.0, |t| (now - t).as_secs_f64().min(0.2));
+            p.ticked = Some(now);
+            dt
+        };
+        self.apply_motion(n, dt);
+        self.deliver_shots(out);
+        self.shoot_due(n, now);
+        let beat = {
+            let mut p = self.periodic();
+            let due = p.beat.is_none_or(|b| now - b >= BEAT_EVERY);
+            if due {
+                p.beat = Some(now);
+            }
+            due
+        };
+        for i in 0..n {
+            let component = FIRST_COMPONENT + i as u8;
+            if beat {
+                out.send(component, &heartbeat());
+                out.send(component, &self.manager_status(&state, i));
+            }
+            self.report_attitude(out, &state, i, now);
+        }
+    }
+}
+
+/// A camera's HEARTBEAT (MAV_TYPE_CAMERA).
+fn heartbeat() -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_CAMERA,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    })
+}
+
+/// Milliseconds since this machine booted, the time base of what the cameras send.
+fn boot_ms() -> u32 {
+    (clock_us() / 1000) as u32
+}
+
+/// The wall clock in µs since 1970 (CAMERA_IMAGE_CAPTURED's time_utc).
+fn utc_us() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+/// The host ground stations are told to fetch streams from: `public_host`, else the RTSP
+/// server's own address, else (it listens on every address) this machine's first network
+/// address that is up and not loopback, else loopback.
+pub fn public_host(cfg: &CamerasConfig, rtsp_address: &str) -> String {
+    if let Some(h) = &cfg.public_host {
+        return h.clone();
+    }
+    match rtsp_address {
+        "0.0.0.0" | "::" | "" => first_address().unwrap_or_else(|| "127.0.0.1".into()),
+        a => a.to_string(),
+    }
+}
+
+/// This machine's first IPv4 address on an interface that is up, not loopback.
+fn first_address() -> Option<String> {
+    let mut list: *mut libc::ifaddrs = std::ptr::null_mut();
+    // SAFETY: getifaddrs fills `list` with a linked list that freeifaddrs releases; each
+    // node's ifa_addr is null or points to a sockaddr of the family it names.
+    unsafe {
+        if libc::getifaddrs(&mut list) != 0 {
+            return None;
+        }
+        let mut found = None;
+        let mut node = list;
+        while !node.is_null() && found.is_none() {
+            let ifa = &*node;
+            let up = ifa.ifa_flags & libc::IFF_UP as u32 != 0;
+            let loopback = ifa.ifa_flags & libc::IFF_LOOPBACK as u32 != 0;
+            if up
+                && !loopback
+                && !ifa.ifa_addr.is_null()
+                && (*ifa.ifa_addr).sa_family as i32 == libc::AF_INET
+            {
+                let sin = &*(ifa.ifa_addr as *const libc::sockaddr_in);
+                let ip = std::net::Ipv4Addr::from(u32::from_be(sin.sin_addr.s_addr));
+                found = Some(ip.to_string());
+            }
+            node = ifa.ifa_next;
+        }
+        libc::freeifaddrs(list);
+        found
+    }
+}

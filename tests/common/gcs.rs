@@ -1,0 +1,178 @@
+//! A ground station written with the `mavlink` crate, as QGroundControl or a MAVSDK app
+//! speaks to cameras: system 255, component 190 (MAV_COMP_ID_MISSIONPLANNER), a HEARTBEAT a
+//! second, commands answered by COMMAND_ACK, everything heard kept in order for the test.
+
+use mavlink::dialects::common::*;
+use mavlink::{MavConnection, MavHeader};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, channel};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+pub const SYSTEM: u8 = 255;
+pub const COMPONENT: u8 = 190;
+
+pub struct Gcs {
+    link: Arc<dyn MavConnection<MavMessage> + Send + Sync>,
+    heard: Mutex<Receiver<(MavHeader, MavMessage)>>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Gcs {
+    /// Talks to DigiView's link at `udpout:127.0.0.1:PORT`.
+    pub fn connect(port: u16) -> Gcs {
+        let link: Arc<dyn MavConnection<MavMessage> + Send + Sync> = Arc::from(
+            mavlink::connect::<MavMessage>(&format!("udpout:127.0.0.1:{port}"))
+                .expect("the ground station's link"),
+        );
+        let (tx, rx) = channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        {
+            let link = link.clone();
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    match link.recv() {
+                        Ok(m) => {
+                            if tx.send(m).is_err() {
+                                break;
+                            }
+                        }
+                        Err(mavlink::error::MessageReadError::Io(_)) => break,
+                        Err(_) => {}
+                    }
+                }
+            });
+        }
+        {
+            let link = link.clone();
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    let beat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                        mavtype: MavType::MAV_TYPE_GCS,
+                        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+                        system_status: MavState::MAV_STATE_ACTIVE,
+                        mavlink_version: 3,
+                        ..Default::default()
+                    });
+                    let _ = link.send(&header(), &beat);
+                    std::thread::sleep(Duration::from_secs(1));
+                }
+            });
+        }
+        Gcs {
+            link,
+            heard: Mutex::new(rx),
+            stop,
+        }
+    }
+
+    pub fn send(&self, msg: &MavMessage) {
+        self.link.send(&header(), msg).unwrap();
+    }
+
+    /// Drops everything heard so far.
+    pub fn forget(&self) {
+        let rx = self.heard.lock().unwrap();
+        while rx.try_recv().is_ok() {}
+    }
+
+    /// The first message within `limit` for which `pick` gives something.
+    pub fn wait_for<T>(
+        &self,
+        limit: Duration,
+        mut pick: impl FnMut(&MavHeader, &MavMessage) -> Option<T>,
+    ) -> Option<T> {
+        let rx = self.heard.lock().unwrap();
+        let end = Instant::now() + limit;
+        while let Some(left) = end.checked_duration_since(Instant::now()) {
+            match rx.recv_timeout(left) {
+                Ok((h, m)) => {
+                    if let Some(t) = pick(&h, &m) {
+                        return Some(t);
+                    }
+                }
+                Err(_) => return None,
+            }
+        }
+        None
+    }
+
+    /// Everything heard within `limit`.
+    pub fn collect(&self, limit: Duration) -> Vec<(MavHeader, MavMessage)> {
+        let mut all = vec![];
+        self.wait_for::<()>(limit, |h, m| {
+            all.push((*h, m.clone()));
+            None
+        });
+        all
+    }
+
+    /// Sends COMMAND_LONG `command` to `(system, component)` and returns its ACK's result and
+    /// the messages from that component that came after the ACK within 0.5 s (None: no ACK
+    /// within 3 s).
+    pub fn command(
+        &self,
+        system: u8,
+        component: u8,
+        command: MavCmd,
+        params: [f32; 7],
+    ) -> Option<(MavResult, Vec<MavMessage>)> {
+        self.forget();
+        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            target_system: system,
+            target_component: component,
+            command,
+            param1: params[0],
+            param2: params[1],
+            param3: params[2],
+            param4: params[3],
+            param5: params[4],
+            param6: params[5],
+            param7: params[6],
+            confirmation: 0,
+        }));
+        let result = self.wait_for(Duration::from_secs(3), |h, m| match m {
+            MavMessage::COMMAND_ACK(a) if h.component_id == component && a.command == command => {
+                Some(a.result)
+            }
+            _ => None,
+        })?;
+        let after = self
+            .collect(Duration::from_millis(500))
+            .into_iter()
+            .filter(|(h, m)| {
+                h.component_id == component
+                    && !matches!(
+                        m,
+                        MavMessage::HEARTBEAT(_)
+                            | MavMessage::GIMBAL_DEVICE_ATTITUDE_STATUS(_)
+                            | MavMessage::GIMBAL_MANAGER_STATUS(_)
+                    )
+            })
+            .map(|(_, m)| m)
+            .collect();
+        Some((result, after))
+    }
+}
+
+impl Drop for Gcs {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
+fn header() -> MavHeader {
+    MavHeader {
+        system_id: SYSTEM.into(),
+        component_id: COMPONENT,
+        sequence: 0,
+    }
+}
+
+/// A NUL-padded text field as a string.
+pub fn text(bytes: &[u8]) -> String {
+    let end = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
+    String::from_utf8_lossy(&bytes[..end]).into_owned()
+}

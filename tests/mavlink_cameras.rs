@@ -1,0 +1,556 @@
+//! The views as MAVLink cameras and gimbals, end to end: a ground station written with the
+//! `mavlink` crate (tests/common/gcs.rs) against `digiview serve` on its autopilot link.
+//! Cameras are discovered by their heartbeats and answer both REQUEST_MESSAGE and the older
+//! commands; zoom and gimbal commands steer the views, as the control protocol reads them
+//! back and as the picture shows; a view's own stream is the offline render of that view;
+//! image capture writes the view's still and says so; hostile commands change nothing.
+
+mod common;
+
+use common::autopilot::free_udp_port;
+use common::gcs::{Gcs, text};
+use common::serve::Serve;
+use common::viewer::Viewer;
+use digiview::control::client::Client;
+use digiview::image_ops;
+use digiview::layout::Rect;
+use digiview::protocol::Param;
+use digiview::protocol::params::{CamEuler, CamFov};
+use image::RgbImage;
+use mavlink::dialects::common::*;
+use std::collections::BTreeSet;
+use std::f64::consts::PI;
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+const DEG: f64 = PI / 180.0;
+const REQUEST: MavCmd = MavCmd::MAV_CMD_REQUEST_MESSAGE;
+
+/// The system and component ids of the cameras heard within 5 s.
+fn cameras(gcs: &Gcs) -> (u8, BTreeSet<u8>) {
+    let mut seen = BTreeSet::new();
+    let mut system = 0;
+    gcs.wait_for(Duration::from_secs(5), |h, m| {
+        if let MavMessage::HEARTBEAT(b) = m
+            && b.mavtype == MavType::MAV_TYPE_CAMERA
+        {
+            seen.insert(h.component_id);
+            system = h.system_id as u8;
+        }
+        (seen.len() == 4).then_some(())
+    });
+    (system, seen)
+}
+
+fn params(p: &[f32]) -> [f32; 7] {
+    let mut all = [0.0; 7];
+    all[..p.len()].copy_from_slice(p);
+    all
+}
+
+/// CAM_EULER (yaw, pitch, roll) of camera `cam`, degrees.
+fn euler(ctl: &mut Client, cam: u8) -> (f64, f64, f64) {
+    match ctl
+        .get_one(Param::CamEuler(CamEuler {
+            cam_id: cam,
+            ..Default::default()
+        }))
+        .unwrap()
+    {
+        Param::CamEuler(e) => (e.yaw / DEG, e.pitch / DEG, e.roll / DEG),
+        other => panic!("{other:?}"),
+    }
+}
+
+fn fov(ctl: &mut Client, cam: u8) -> f64 {
+    match ctl
+        .get_one(Param::CamFov(CamFov {
+            cam_id: cam,
+            ..Default::default()
+        }))
+        .unwrap()
+    {
+        Param::CamFov(f) => f.fov / DEG,
+        other => panic!("{other:?}"),
+    }
+}
+
+fn accepted(answer: Option<(MavResult, Vec<MavMessage>)>, what: &str) -> Vec<MavMessage> {
+    let (result, then) = answer.unwrap_or_else(|| panic!("{what}: no COMMAND_ACK"));
+    assert_eq!(result, MavResult::MAV_RESULT_ACCEPTED, "{what}");
+    then
+}
+
+#[test]
+fn four_cameras_are_discovered_both_ways_and_bad_commands_change_nothing() {
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let serve = Serve::start(&["--mavlink", &link]);
+    let gcs = Gcs::connect(port);
+    let (system, seen) = cameras(&gcs);
+    assert_eq!(seen, (100..=103).collect(), "layout 4's cameras");
+
+    for c in 100..=103u8 {
+        for (how, cmd, p) in [
+            ("REQUEST_MESSAGE", REQUEST, params(&[259.0])),
+            (
+                "REQUEST_CAMERA_INFORMATION",
+                #[allow(deprecated)]
+                MavCmd::MAV_CMD_REQUEST_CAMERA_INFORMATION,
+                params(&[1.0]),
+            ),
+        ] {
+            let then = accepted(gcs.command(system, c, cmd, p), how);
+            let info = then
+                .iter()
+                .find_map(|m| match m {
+                    MavMessage::CAMERA_INFORMATION(i) => Some(i.clone()),
+                    _ => None,
+                })
+                .unwrap_or_else(|| panic!("camera {c} by {how}: no CAMERA_INFORMATION"));
+            assert_eq!(text(&info.vendor_name), "DigiView");
+            assert_eq!(
+                text(&info.model_name),
+                format!("virtual camera {}", c - 100)
+            );
+            assert_eq!((info.resolution_h, info.resolution_v), (1280, 720));
+            // The default 90° view: an 18 mm lens on a 36 mm wide frame.
+            assert!(
+                (info.focal_length - 18.0).abs() < 0.01,
+                "{}",
+                info.focal_length
+            );
+            assert_eq!(info.sensor_size_h, 36.0);
+            use CameraCapFlags as F;
+            for f in [
+                F::CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM,
+                F::CAMERA_CAP_FLAGS_HAS_BASIC_ZOOM,
+                F::CAMERA_CAP_FLAGS_CAPTURE_IMAGE,
+                F::CAMERA_CAP_FLAGS_CAPTURE_VIDEO,
+            ] {
+                assert!(info.flags.contains(f), "{f:?}");
+            }
+            assert_eq!(info.gimbal_device_id, 1);
+        }
+    }
+
+    // The rest of what a ground station asks a camera, the new way.
+    let one = |id: f32, p2: f32| {
+        accepted(
+            gcs.command(system, 101, REQUEST, params(&[id, p2])),
+            "request",
+        )
+    };
+    match &one(260.0, 0.0)[..] {
+        [MavMessage::CAMERA_SETTINGS(s), ..] => {
+            assert!((0.0..=100.0).contains(&s.zoomLevel), "{}", s.zoomLevel)
+        }
+        other => panic!("{other:?}"),
+    }
+    let streams = one(269.0, 0.0);
+    let ids: Vec<u8> = streams
+        .iter()
+        .filter_map(|m| match m {
+            MavMessage::VIDEO_STREAM_INFORMATION(v) => {
+                assert_eq!(v.count, 2);
+                Some(v.stream_id)
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(ids, [1, 2], "the view's own stream and the composed frame");
+    assert!(matches!(
+        one(261.0, 0.0)[..],
+        [MavMessage::STORAGE_INFORMATION(_), ..]
+    ));
+    assert!(matches!(
+        one(262.0, 0.0)[..],
+        [MavMessage::CAMERA_CAPTURE_STATUS(_), ..]
+    ));
+    match &one(280.0, 0.0)[..] {
+        [MavMessage::GIMBAL_MANAGER_INFORMATION(g), ..] => {
+            assert_eq!(g.gimbal_device_id, 1);
+            assert!(g.pitch_min < -1.5 && g.pitch_max > 1.5);
+        }
+        other => panic!("{other:?}"),
+    }
+
+    // Hostile and foreign commands: answered DENIED or UNSUPPORTED, or not at all, and the
+    // views stay as they were.
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let before = (euler(&mut ctl, 1), fov(&mut ctl, 1));
+    let result = |a: Option<(MavResult, Vec<MavMessage>)>| a.map(|a| a.0);
+    let cmd = |cmd, p: &[f32]| result(gcs.command(system, 101, cmd, params(p)));
+    use MavCmd::*;
+    let denied = MavResult::MAV_RESULT_DENIED;
+    for (command, p, want, what) in [
+        (
+            MAV_CMD_SET_CAMERA_ZOOM,
+            &[4.0, f32::NAN][..],
+            denied,
+            "a NaN fov",
+        ),
+        (
+            MAV_CMD_SET_CAMERA_ZOOM,
+            &[4.0, -20.0],
+            denied,
+            "a negative fov",
+        ),
+        (
+            MAV_CMD_SET_CAMERA_ZOOM,
+            &[9.0, 1.0],
+            denied,
+            "no such zoom type",
+        ),
+        (
+            MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+            &[f32::INFINITY, 10.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            denied,
+            "an infinite pitch",
+        ),
+        (
+            MAV_CMD_DO_SET_ROI_LOCATION,
+            &[0.0, 0.0, 0.0, 0.0, 123.0, 8.0, 100.0],
+            denied,
+            "latitude 123°",
+        ),
+        (
+            MAV_CMD_DO_SET_SERVO,
+            &[1.0, 1500.0],
+            MavResult::MAV_RESULT_UNSUPPORTED,
+            "not a camera's command",
+        ),
+    ] {
+        assert_eq!(cmd(command, p), Some(want), "{what}");
+    }
+    let other_system = system.wrapping_add(1);
+    let zoom_in = params(&[4.0, 30.0]);
+    assert!(
+        gcs.command(other_system, 101, MAV_CMD_SET_CAMERA_ZOOM, zoom_in)
+            .is_none(),
+        "a command for another system is not answered"
+    );
+    assert!(
+        gcs.command(system, 105, MAV_CMD_SET_CAMERA_ZOOM, zoom_in)
+            .is_none(),
+        "nor one for a camera the layout does not show"
+    );
+    // A flood of commands to every camera with values that are no numbers or far out of any
+    // range, and of gimbal messages with random bits to camera 3: camera 1 stays as it was
+    // and nothing stops answering.
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        rng
+    };
+    for _ in 0..2000 {
+        let hostile = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            1e30,
+            -1e30,
+            f32::MAX,
+        ];
+        let p: [f32; 7] = std::array::from_fn(|_| hostile[next() as usize % hostile.len()]);
+        let bits: [f32; 7] = std::array::from_fn(|_| f32::from_bits(next() as u32));
+        let pick = next();
+        let msg = match pick % 3 {
+            0 => MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+                target_system: system,
+                target_component: 100 + (pick >> 8) as u8 % 6,
+                command: [
+                    MAV_CMD_SET_CAMERA_ZOOM,
+                    MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+                    MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE,
+                    MAV_CMD_DO_SET_ROI_LOCATION,
+                    MAV_CMD_REQUEST_MESSAGE,
+                    MAV_CMD_STORAGE_FORMAT,
+                ][(pick >> 16) as usize % 6],
+                param1: p[0],
+                param2: p[1],
+                param3: p[2],
+                param4: p[3],
+                param5: p[4],
+                param6: p[5],
+                param7: p[6],
+                confirmation: 0,
+            }),
+            1 => MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(GIMBAL_MANAGER_SET_PITCHYAW_DATA {
+                flags: GimbalManagerFlags::from_bits_truncate(next() as u32),
+                pitch: bits[0],
+                yaw: bits[1],
+                pitch_rate: bits[2],
+                yaw_rate: bits[3],
+                target_system: system,
+                target_component: 103,
+                gimbal_device_id: (pick >> 8) as u8 % 3,
+            }),
+            _ => MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(GIMBAL_MANAGER_SET_ATTITUDE_DATA {
+                flags: GimbalManagerFlags::from_bits_truncate(next() as u32),
+                q: [bits[0], bits[1], bits[2], bits[3]],
+                angular_velocity_x: bits[4],
+                angular_velocity_y: bits[5],
+                angular_velocity_z: bits[6],
+                target_system: system,
+                target_component: 103,
+                gimbal_device_id: 0,
+            }),
+        };
+        gcs.send(&msg);
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(
+        (euler(&mut ctl, 1), fov(&mut ctl, 1)),
+        before,
+        "camera 1 changed"
+    );
+    // Still alive and answering.
+    accepted(
+        gcs.command(system, 100, REQUEST, params(&[259.0])),
+        "after the flood",
+    );
+    let e = euler(&mut ctl, 3);
+    assert!(
+        e.0.is_finite() && e.1.abs() <= 90.05 && e.2.abs() <= 90.05,
+        "{e:?}"
+    );
+}
+
+/// The offline render of camera `cam` of serve's default state alone at `size`x`size`
+/// (layout 0 is one centred square: the whole frame), from `fish`.
+fn offline_view(dir: &Path, cam: &str, size: u32, out: &str) -> RgbImage {
+    let size = format!("{size}x{size}");
+    let run = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "render", "--input", "fish.png", "--out", out, "--size", &size,
+        ])
+        .args(["--layout", "0", "--overlay", "0", "--cam", cam])
+        .current_dir(dir)
+        .env("DIGIVIEW_LENS_CAL", common::lens_cal_path())
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    image::open(dir.join(out)).unwrap().to_rgb8()
+}
+
+fn psnr(a: &RgbImage, b: &RgbImage) -> f64 {
+    image_ops::psnr(a, b, Rect::new(0, 0, a.width(), a.height()))
+}
+
+#[test]
+fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
+    const SIZE: u32 = 640;
+    let dir = tempfile::tempdir().unwrap();
+    let synth = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["synth", "--out", "fish.png", "--sensor", "1280x720"])
+        .current_dir(dir.path())
+        .env("DIGIVIEW_LENS_CAL", common::lens_cal_path())
+        .output()
+        .unwrap();
+    assert!(synth.status.success());
+    let captures = dir.path().join("captures");
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[cameras]\nwidth = {SIZE}\nheight = {SIZE}\npublic_host = \"127.0.0.1\"\n\
+             [capture]\ndir = {:?}\nmin_free_mb = 1\n",
+            captures.to_str().unwrap()
+        ),
+    )
+    .unwrap();
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let source = format!("image:{}", dir.path().join("fish.png").display());
+    let serve = Serve::start_video(&[
+        "--config",
+        config.to_str().unwrap(),
+        "--mavlink",
+        &link,
+        "--source",
+        &source,
+    ]);
+    let rtsp = serve.rtsp.clone().unwrap();
+    let gcs = Gcs::connect(port);
+    let (system, seen) = cameras(&gcs);
+    assert!(seen.contains(&102));
+
+    // Camera 2's stream 1: its view alone, the offline render of that view.
+    let then = accepted(
+        gcs.command(system, 102, REQUEST, params(&[269.0, 1.0])),
+        "stream 1",
+    );
+    let uri = match &then[..] {
+        [MavMessage::VIDEO_STREAM_INFORMATION(v), ..] => {
+            assert_eq!((v.resolution_h, v.resolution_v), (SIZE as u16, SIZE as u16));
+            assert_eq!(v.hfov, 90);
+            v.uri.to_str().unwrap().to_string()
+        }
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(uri, format!("{rtsp}/cam2"));
+    let viewer = Viewer::open(&uri);
+    let got = viewer.frame_after(Duration::from_secs(1));
+    assert_eq!(got.dimensions(), (SIZE, SIZE));
+    let want = offline_view(dir.path(), "0:yaw=180deg,pitch=-30deg", SIZE, "cam2.png");
+    let db = psnr(&want, &got);
+    eprintln!("camera 2's own stream: {db:.1} dB against the offline render of its view");
+    assert!(db >= 30.0, "{db:.1} dB");
+
+    // Zoom to a 40° fov and point the gimbal at yaw 60°, pitch -50° (earth frame): the
+    // control protocol reads both back and the picture is the render of the new view.
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let then = accepted(
+        gcs.command(
+            system,
+            102,
+            MavCmd::MAV_CMD_SET_CAMERA_ZOOM,
+            params(&[4.0, 40.0]),
+        ),
+        "zoom",
+    );
+    assert!(matches!(then[..], [MavMessage::CAMERA_SETTINGS(_), ..]));
+    // CAM_EULER and CAM_FOV carry angles to about 0.02° on the wire.
+    assert!((fov(&mut ctl, 2) - 40.0).abs() < 0.05);
+    let locks = (GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_ROLL_LOCK
+        | GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_PITCH_LOCK
+        | GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK)
+        .bits() as f32;
+    accepted(
+        gcs.command(
+            system,
+            102,
+            MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+            params(&[-50.0, 60.0, f32::NAN, f32::NAN, locks, 0.0, 0.0]),
+        ),
+        "pitch and yaw",
+    );
+    let (yaw, pitch, _) = euler(&mut ctl, 2);
+    assert!(
+        (yaw - 60.0).abs() < 0.05 && (pitch + 50.0).abs() < 0.05,
+        "{yaw} {pitch}"
+    );
+    let got = viewer.frame_after(Duration::from_secs(1));
+    let want = offline_view(
+        dir.path(),
+        "0:yaw=60deg,pitch=-50deg,fov=40deg",
+        SIZE,
+        "aimed.png",
+    );
+    let db = psnr(&want, &got);
+    eprintln!("after zoom and gimbal: {db:.1} dB against the offline render");
+    assert!(db >= 30.0, "{db:.1} dB");
+
+    // A CAM_EULER over the DigiView protocol shows in the gimbal's attitude within 0.2 s.
+    gcs.forget();
+    ctl.set(Param::CamEuler(CamEuler {
+        cam_id: 2,
+        is_delta: 0,
+        yaw: -45.0 * DEG,
+        pitch: -20.0 * DEG,
+        roll: 0.0,
+    }))
+    .unwrap();
+    let set_at = Instant::now();
+    let seen_at = gcs.wait_for(Duration::from_secs(2), |h, m| match m {
+        MavMessage::GIMBAL_DEVICE_ATTITUDE_STATUS(a) if h.component_id == 102 => {
+            let [w, x, y, z] = a.q.map(f64::from);
+            let q = glam::DQuat::from_xyzw(x, y, z, w);
+            let (yaw, pitch, _) = q.to_euler(glam::EulerRot::ZYX);
+            ((yaw / DEG + 45.0).abs() < 0.1 && (pitch / DEG + 20.0).abs() < 0.1).then(Instant::now)
+        }
+        _ => None,
+    });
+    let lag = seen_at.expect("the new attitude reported") - set_at;
+    eprintln!(
+        "CAM_EULER to GIMBAL_DEVICE_ATTITUDE_STATUS: {} ms",
+        lag.as_millis()
+    );
+    assert!(lag < Duration::from_millis(200), "{lag:?}");
+
+    // An angular rate turns the view at that rate, until a zero rate stops it.
+    let yaw_rate = |rate: f64| {
+        gcs.send(&MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(
+            GIMBAL_MANAGER_SET_PITCHYAW_DATA {
+                flags: GimbalManagerFlags::from_bits_truncate(locks as u32),
+                pitch: f32::NAN,
+                yaw: f32::NAN,
+                pitch_rate: 0.0,
+                yaw_rate: (rate * DEG) as f32,
+                target_system: system,
+                target_component: 102,
+                gimbal_device_id: 0,
+            },
+        ))
+    };
+    yaw_rate(20.0);
+    let t0 = Instant::now();
+    std::thread::sleep(Duration::from_millis(300));
+    let (a, ta) = (euler(&mut ctl, 2).0, t0.elapsed());
+    std::thread::sleep(Duration::from_secs(2));
+    let (b, tb) = (euler(&mut ctl, 2).0, t0.elapsed());
+    let rate = (b - a) / (tb - ta).as_secs_f64();
+    eprintln!("yaw rate asked 20°/s, turned at {rate:.2}°/s");
+    assert!((rate - 20.0).abs() < 2.0, "{rate}");
+    yaw_rate(0.0);
+    std::thread::sleep(Duration::from_millis(200));
+    let stopped = euler(&mut ctl, 2).0;
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(euler(&mut ctl, 2).0, stopped, "a zero rate stops it");
+
+    // Image capture of camera 2's view: two images, each a file of the view's size,
+    // announced with its index.
+    let then = accepted(
+        gcs.command(
+            system,
+            102,
+            MavCmd::MAV_CMD_IMAGE_START_CAPTURE,
+            params(&[0.0, 0.5, 2.0]),
+        ),
+        "image capture",
+    );
+    let mut images: Vec<_> = then
+        .into_iter()
+        .filter_map(|m| match m {
+            MavMessage::CAMERA_IMAGE_CAPTURED(c) => Some(c),
+            _ => None,
+        })
+        .collect();
+    gcs.wait_for(Duration::from_secs(10), |h, m| {
+        if let MavMessage::CAMERA_IMAGE_CAPTURED(c) = m
+            && h.component_id == 102
+        {
+            images.push(c.clone());
+        }
+        (images.len() == 2).then_some(())
+    });
+    assert_eq!(images.len(), 2, "two CAMERA_IMAGE_CAPTURED");
+    for (i, c) in images.iter().enumerate() {
+        assert_eq!(c.image_index, i as i32);
+        assert_eq!(c.capture_result, MavBool::MAV_BOOL_TRUE);
+        let url = c.file_url.to_str().unwrap();
+        let path = url
+            .strip_prefix("file://")
+            .unwrap_or_else(|| panic!("{url}"));
+        let img = image::open(path).unwrap();
+        assert_eq!((img.width(), img.height()), (SIZE, SIZE));
+    }
+    // Asked for again by index.
+    let then = accepted(
+        gcs.command(system, 102, REQUEST, params(&[263.0, 1.0])),
+        "image 1",
+    );
+    match &then[..] {
+        [MavMessage::CAMERA_IMAGE_CAPTURED(c), ..] => assert_eq!(c.image_index, 1),
+        other => panic!("{other:?}"),
+    }
+    drop(viewer);
+}
