@@ -554,3 +554,138 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
     }
     drop(viewer);
 }
+
+/// The centroid of the red landmark's pixels in `img` (red far above green and blue, as
+/// nothing else in the synthetic world is), when there are enough of them.
+fn red(img: &RgbImage) -> Option<(f64, f64)> {
+    let (mut n, mut sx, mut sy) = (0usize, 0.0, 0.0);
+    for (x, y, p) in img.enumerate_pixels() {
+        let [r, g, b] = p.0.map(i32::from);
+        if r > 150 && r - g > 90 && r - b > 90 {
+            n += 1;
+            sx += x as f64 + 0.5;
+            sy += y as f64 + 0.5;
+        }
+    }
+    (n >= 30).then(|| (sx / n as f64, sy / n as f64))
+}
+
+/// The yaw (degrees, world) of camera `component`'s next reported attitude.
+fn gimbal_yaw(gcs: &Gcs, component: u8) -> f64 {
+    gcs.forget();
+    gcs.wait_for(Duration::from_secs(2), |h, m| match m {
+        MavMessage::GIMBAL_DEVICE_ATTITUDE_STATUS(a) if h.component_id == component => {
+            let [w, x, y, z] = a.q.map(f64::from);
+            let q = glam::DQuat::from_xyzw(x, y, z, w);
+            Some(q.to_euler(glam::EulerRot::ZYX).0 / DEG)
+        }
+        _ => None,
+    })
+    .expect("the gimbal's attitude")
+}
+
+#[test]
+fn roi_location_keeps_a_landmark_centred_while_the_vehicle_flies_past() {
+    use digiview::geometry::ground::from_ned;
+    use digiview::scene::GridWorld;
+    use digiview::scene::synth::world_origin;
+    const W: u32 = 640;
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!("[cameras]\nwidth = {W}\nheight = 480\npublic_host = \"127.0.0.1\"\n"),
+    )
+    .unwrap();
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    // The demo flies its circle and is the autopilot on the link: system 1.
+    let serve = Serve::start_video(&["--config", config.to_str().unwrap(), "--mavlink", &link]);
+    let gcs = Gcs::connect(port);
+    let (system, seen) = cameras(&gcs);
+    assert!(seen.contains(&100));
+    let t = Instant::now();
+    while system_of_autopilot(&serve) != 1 {
+        assert!(
+            t.elapsed() < Duration::from_secs(10),
+            "the demo's autopilot is not heard"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    // The red landmark, on the ground: altitude 0 above home.
+    let state = digiview::state::State::default();
+    let red_ned = GridWorld::default()
+        .landmarks
+        .iter()
+        .find(|l| l.name == "red")
+        .unwrap()
+        .position;
+    let place = from_ned(
+        world_origin(&state.vehicle.position),
+        glam::DVec3::new(red_ned.x, red_ned.y, 0.0),
+    );
+    accepted(
+        gcs.command(
+            system,
+            100,
+            MavCmd::MAV_CMD_SET_CAMERA_ZOOM,
+            params(&[4.0, 30.0]),
+        ),
+        "zoom",
+    );
+    gcs.send(&MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+        target_system: system,
+        target_component: 100,
+        command: MavCmd::MAV_CMD_DO_SET_ROI_LOCATION,
+        frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        x: (place.lat * 1e7).round() as i32,
+        y: (place.lon * 1e7).round() as i32,
+        z: 0.0,
+        ..Default::default()
+    }));
+    let acked = gcs.wait_for(Duration::from_secs(3), |h, m| match m {
+        MavMessage::COMMAND_ACK(a)
+            if h.component_id == 100 && a.command == MavCmd::MAV_CMD_DO_SET_ROI_LOCATION =>
+        {
+            Some(a.result)
+        }
+        _ => None,
+    });
+    assert_eq!(acked, Some(MavResult::MAV_RESULT_ACCEPTED));
+
+    let uri = format!("{}/cam0", serve.rtsp.clone().unwrap());
+    let viewer = Viewer::open(&uri);
+    let _ = viewer.frame_after(Duration::from_secs(1));
+    let yaw_before = gimbal_yaw(&gcs, 100);
+    let mut worst: f64 = 0.0;
+    for _ in 0..12 {
+        let img = viewer.frame_after(Duration::from_millis(500));
+        let (x, y) = red(&img).expect("the red landmark in camera 0's view");
+        let off = (x - W as f64 / 2.0).hypot(y - 240.0);
+        worst = worst.max(off);
+    }
+    let turned = (gimbal_yaw(&gcs, 100) - yaw_before).abs();
+    eprintln!(
+        "ROI: the landmark at most {worst:.1} px ({:.2}% of the width) from the centre while \
+         the view turned {turned:.1}° to follow it",
+        100.0 * worst / W as f64
+    );
+    assert!(
+        turned > 3.0,
+        "the vehicle did not fly past: the view turned {turned:.1}°"
+    );
+    assert!(worst < 0.02 * W as f64, "{worst:.1} px off centre");
+}
+
+/// The autopilot's system id as `serve` knows it (AUTOPILOT over the control protocol).
+fn system_of_autopilot(serve: &Serve) -> u8 {
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    match ctl
+        .get_one(digiview::protocol::ParamType::Autopilot.zeroed())
+        .unwrap()
+    {
+        Param::Autopilot(a) => a.system_id,
+        other => panic!("{other:?}"),
+    }
+}

@@ -17,11 +17,14 @@ use std::time::{Duration, Instant};
 use tracing::{info, warn};
 
 /// A command, whichever message carried it. `location` is params 5 to 7 read as a place:
-/// degrees from COMMAND_LONG, degE7 from COMMAND_INT.
+/// degrees from COMMAND_LONG, degE7 from COMMAND_INT; its altitude is above mean sea level,
+/// or above home where `above_home` (COMMAND_INT's relative and terrain frames: DigiView's
+/// ground is a plane at home's altitude).
 pub struct Command {
     pub command: MavCmd,
     pub params: [f32; 7],
     pub location: (f64, f64, f64),
+    pub above_home: bool,
 }
 
 impl Command {
@@ -33,9 +36,12 @@ impl Command {
             command: c.command,
             params,
             location: (c.param5 as f64, c.param6 as f64, c.param7 as f64),
+            above_home: false,
         }
     }
 
+    /// The `_INT` frames are superseded by their plain names, and still sent.
+    #[allow(deprecated)]
     pub fn int(c: &COMMAND_INT_DATA) -> Command {
         let (x, y) = (c.x as f64 * 1e-7, c.y as f64 * 1e-7);
         Command {
@@ -44,6 +50,13 @@ impl Command {
                 c.param1, c.param2, c.param3, c.param4, x as f32, y as f32, c.z,
             ],
             location: (x, y, c.z as f64),
+            above_home: matches!(
+                c.frame,
+                MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT
+                    | MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+                    | MavFrame::MAV_FRAME_GLOBAL_TERRAIN_ALT
+                    | MavFrame::MAV_FRAME_GLOBAL_TERRAIN_ALT_INT
+            ),
         }
     }
 

@@ -226,7 +226,16 @@ impl Cameras {
             MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => done(self.configure(from, i, p)),
             MAV_CMD_DO_SET_ROI_LOCATION => {
                 let (lat, lon, alt) = cmd.location;
-                done(self.roi(from, i, Some(GeoPoint { lat, lon, alt })))
+                let home = match cmd.above_home {
+                    true => self.live.snapshot().vehicle.position.home_alt(),
+                    false => 0.0,
+                };
+                let place = GeoPoint {
+                    lat,
+                    lon,
+                    alt: alt + home,
+                };
+                done(self.roi(from, i, Some(place)))
             }
             _ => done(self.roi(from, i, None)),
         })
