@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=target/release/digiview
 out=$(mktemp)
-"$bin" serve --no-video --control 127.0.0.1:0 --track yaw=10deg,pitch=-40deg,size=3deg,score=90 >"$out" 2>/dev/null &
+"$bin" serve --no-video --control 127.0.0.1:0 --http off --track yaw=10deg,pitch=-40deg,size=3deg,score=90 >"$out" 2>/dev/null &
 server=$!
 trap 'kill $server 2>/dev/null || true; rm -f "$out"' EXIT
 for _ in $(seq 50); do [ -s "$out" ] && break; sleep 0.1; done

@@ -13,7 +13,7 @@ cargo build --release --quiet --bin digiview || exit 1
 bin=target/release/digiview
 ctl() { "$bin" ctl --addr 127.0.0.1:5611 "$@" >/dev/null; }
 
-RUST_LOG=info "$bin" serve --size 1280x720 --control 127.0.0.1:5611 --rtsp-port 8611 \
+RUST_LOG=info "$bin" serve --size 1280x720 --control 127.0.0.1:5611 --rtsp-port 8611 --http 127.0.0.1:0 \
   --capture-dir "$work/captures" >"$work/stdout" 2>"$work/serve.log" &
 pid=$!
 trap 'kill $pid 2>/dev/null; kill $(jobs -p) 2>/dev/null' EXIT

@@ -12,7 +12,7 @@
 //! and ground truth from a known world. Beside the path, changing the live state: `protocol`
 //! (the control protocol's codec) and `control` (its request handling, server and client),
 //! `autopilot` (the MAVLink link the vehicle's attitude and position come in on) and `cameras`
-//! (each view a MAVLink camera and gimbal on that link).
+//! (each view a MAVLink camera and gimbal on that link); `http` is the head's HTTP server.
 //! `cli` is the command line.
 
 pub mod autopilot;
@@ -23,6 +23,7 @@ pub mod frame;
 pub mod geometry;
 pub mod gst;
 pub mod head;
+pub mod http;
 pub mod image_ops;
 pub mod layout;
 pub mod lens;

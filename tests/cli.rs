@@ -359,7 +359,15 @@ fn state_files_and_lens_cal_mistakes_are_named() {
 /// ended, within `limit`.
 fn serve_briefly(args: &[&str], limit: std::time::Duration) -> (Output, bool) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
-        .args(["serve", "--control", "127.0.0.1:0", "--mavlink", "off"])
+        .args([
+            "serve",
+            "--control",
+            "127.0.0.1:0",
+            "--mavlink",
+            "off",
+            "--http",
+            "127.0.0.1:0",
+        ])
         .args(args)
         .env("DIGIVIEW_LENS_CAL", shipped())
         .stdout(std::process::Stdio::piped())

@@ -90,7 +90,14 @@ fn lens_names(place: &Place, args: &[&str]) -> (Vec<String>, String) {
 /// `serve --no-video` in `place`: its answer to GET LENS, and its log.
 fn serve_lens(place: &Place) -> (Param, String) {
     let mut child = place
-        .command(&["serve", "--no-video", "--control", "127.0.0.1:0"])
+        .command(&[
+            "serve",
+            "--no-video",
+            "--control",
+            "127.0.0.1:0",
+            "--http",
+            "127.0.0.1:0",
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

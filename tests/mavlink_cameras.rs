@@ -86,7 +86,8 @@ fn accepted(answer: Option<(MavResult, Vec<MavMessage>)>, what: &str) -> Vec<Mav
 fn four_cameras_are_discovered_both_ways_and_bad_commands_change_nothing() {
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
-    let serve = Serve::start(&["--mavlink", &link]);
+    // On the demo (layout 4), whose simulated autopilot on the link is system 1.
+    let serve = Serve::start_video(&["--mavlink", &link, "--demo-size", "640x480"]);
     let gcs = Gcs::connect(port);
     let (system, seen) = cameras(&gcs);
     assert_eq!(seen, (100..=103).collect(), "layout 4's cameras");
@@ -176,9 +177,56 @@ fn four_cameras_are_discovered_both_ways_and_bad_commands_change_nothing() {
         other => panic!("{other:?}"),
     }
 
+    // Zoom by range (100 %: the narrowest fov, 0.1 rad) and by steps (-4: twice as wide).
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let zoom = MavCmd::MAV_CMD_SET_CAMERA_ZOOM;
+    accepted(
+        gcs.command(system, 100, zoom, params(&[2.0, 100.0])),
+        "zoom range",
+    );
+    assert!(
+        (fov(&mut ctl, 0) - 0.1 / DEG).abs() < 0.05,
+        "{}",
+        fov(&mut ctl, 0)
+    );
+    accepted(
+        gcs.command(system, 100, zoom, params(&[0.0, -4.0])),
+        "zoom steps",
+    );
+    assert!(
+        (fov(&mut ctl, 0) - 0.2 / DEG).abs() < 0.05,
+        "{}",
+        fov(&mut ctl, 0)
+    );
+
+    // A gimbal with a primary controller takes pointing commands from it alone.
+    let configure = MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE;
+    let pitch_yaw = MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW;
+    // Every axis held in the world (ROLL_LOCK | PITCH_LOCK | YAW_LOCK): the demo flies.
+    let aim = params(&[-10.0, 20.0, f32::NAN, f32::NAN, 28.0]);
+    accepted(
+        gcs.command(system, 100, configure, params(&[42.0, 1.0, -1.0, -1.0])),
+        "configure",
+    );
+    let taken = gcs.command(system, 100, pitch_yaw, aim).map(|a| a.0);
+    assert_eq!(
+        taken,
+        Some(MavResult::MAV_RESULT_DENIED),
+        "42/1 is in control"
+    );
+    accepted(
+        gcs.command(system, 100, configure, params(&[-3.0, 0.0, -1.0, -1.0])),
+        "release",
+    );
+    accepted(gcs.command(system, 100, pitch_yaw, aim), "after release");
+    let (yaw, pitch, _) = euler(&mut ctl, 0);
+    assert!(
+        (yaw - 20.0).abs() < 0.05 && (pitch + 10.0).abs() < 0.05,
+        "{yaw} {pitch}"
+    );
+
     // Hostile and foreign commands: answered DENIED or UNSUPPORTED, or not at all, and the
     // views stay as they were.
-    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
     let before = (euler(&mut ctl, 1), fov(&mut ctl, 1));
     let result = |a: Option<(MavResult, Vec<MavMessage>)>| a.map(|a| a.0);
     let cmd = |cmd, p: &[f32]| result(gcs.command(system, 101, cmd, params(p)));
@@ -383,6 +431,21 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
     let (system, seen) = cameras(&gcs);
     assert!(seen.contains(&102));
 
+    // Every camera's stream 1 plays, its view at the configured size.
+    for c in [100, 101, 103] {
+        let then = accepted(
+            gcs.command(system, c, REQUEST, params(&[269.0, 1.0])),
+            "stream",
+        );
+        let uri = match &then[..] {
+            [MavMessage::VIDEO_STREAM_INFORMATION(v), ..] => v.uri.to_str().unwrap().to_string(),
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(uri, format!("{rtsp}/cam{}", c - 100));
+        let frame = Viewer::open(&uri).frame().0;
+        assert_eq!(frame.dimensions(), (SIZE, SIZE), "{uri}");
+    }
+
     // Camera 2's stream 1: its view alone, the offline render of that view.
     let then = accepted(
         gcs.command(system, 102, REQUEST, params(&[269.0, 1.0])),
@@ -552,6 +615,61 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
         [MavMessage::CAMERA_IMAGE_CAPTURED(c), ..] => assert_eq!(c.image_index, 1),
         other => panic!("{other:?}"),
     }
+
+    // Video capture starts and stops the recording; CAMERA_CAPTURE_STATUS says which.
+    let video_status = |then: Vec<MavMessage>| match &then[..] {
+        [MavMessage::CAMERA_CAPTURE_STATUS(c), ..] => c.video_status,
+        other => panic!("{other:?}"),
+    };
+    let start = MavCmd::MAV_CMD_VIDEO_START_CAPTURE;
+    let stop = MavCmd::MAV_CMD_VIDEO_STOP_CAPTURE;
+    assert_eq!(
+        video_status(accepted(
+            gcs.command(system, 102, start, params(&[])),
+            "video"
+        )),
+        1
+    );
+    std::thread::sleep(Duration::from_secs(1));
+    assert_eq!(
+        video_status(accepted(
+            gcs.command(system, 102, stop, params(&[])),
+            "stop"
+        )),
+        0
+    );
+    let ours = || -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(&captures)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    assert_eq!(
+        ours().iter().filter(|n| n.ends_with(".mp4")).count(),
+        1,
+        "{:?}",
+        ours()
+    );
+
+    // STORAGE_FORMAT removes DigiView's captures and nothing else.
+    std::fs::write(captures.join("notes.txt"), "the pilot's").unwrap();
+    let format = MavCmd::MAV_CMD_STORAGE_FORMAT;
+    let then = accepted(
+        gcs.command(system, 102, format, params(&[1.0, 1.0, 1.0])),
+        "format",
+    );
+    assert!(matches!(then[..], [MavMessage::STORAGE_INFORMATION(_), ..]));
+    assert_eq!(ours(), ["notes.txt"]);
+    let gone = gcs
+        .command(system, 102, REQUEST, params(&[263.0, 0.0]))
+        .map(|a| a.0);
+    assert_eq!(
+        gone,
+        Some(MavResult::MAV_RESULT_DENIED),
+        "image indices start again"
+    );
     drop(viewer);
 }
 
@@ -676,6 +794,29 @@ fn roi_location_keeps_a_landmark_centred_while_the_vehicle_flies_past() {
         "the vehicle did not fly past: the view turned {turned:.1}°"
     );
     assert!(worst < 0.02 * W as f64, "{worst:.1} px off centre");
+
+    // ROI_NONE: steered by its angles again, pointing where it pointed.
+    let before = gimbal_yaw(&gcs, 100);
+    let none = MavCmd::MAV_CMD_DO_SET_ROI_NONE;
+    accepted(gcs.command(system, 100, none, params(&[])), "ROI none");
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    match ctl
+        .get_one(Param::CamControlMode(
+            digiview::protocol::params::CamControlMode {
+                cam_id: 0,
+                ..Default::default()
+            },
+        ))
+        .unwrap()
+    {
+        Param::CamControlMode(c) => assert_eq!(c.mode, 1),
+        other => panic!("{other:?}"),
+    }
+    let after = gimbal_yaw(&gcs, 100);
+    assert!(
+        (after - before).abs() < 2.0,
+        "the view jumped from {before:.1}° to {after:.1}°"
+    );
 }
 
 /// The autopilot's system id as `serve` knows it (AUTOPILOT over the control protocol).
@@ -686,6 +827,231 @@ fn system_of_autopilot(serve: &Serve) -> u8 {
         .unwrap()
     {
         Param::Autopilot(a) => a.system_id,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// An HTTP GET of `url` (`http://HOST:PORT/PATH`) with std alone: the status and the body.
+fn http_get(url: &str) -> (u16, String) {
+    use std::io::{Read, Write};
+    let rest = url.strip_prefix("http://").unwrap();
+    let (host, path) = rest.split_at(rest.find('/').unwrap());
+    let mut s = std::net::TcpStream::connect(host).unwrap_or_else(|e| panic!("{url}: {e}"));
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut reply = String::new();
+    s.read_to_string(&mut reply).unwrap();
+    let status = reply[9..12].parse().unwrap();
+    let body = reply.split_once("\r\n\r\n").unwrap().1.to_string();
+    (status, body)
+}
+
+/// CAMERA_INFORMATION's definition URI and version, and the file there.
+fn definition(gcs: &Gcs, system: u8) -> (String, u16, String) {
+    let then = accepted(gcs.command(system, 100, REQUEST, params(&[259.0])), "info");
+    let info = match &then[..] {
+        [MavMessage::CAMERA_INFORMATION(i), ..] => i.clone(),
+        other => panic!("{other:?}"),
+    };
+    let uri = info.cam_definition_uri.to_str().unwrap().to_string();
+    let (status, xml) = http_get(&uri);
+    assert_eq!(status, 200, "{uri}");
+    (uri, info.cam_definition_version, xml)
+}
+
+fn ext_value(m: &MavMessage) -> Option<(String, u8, u16)> {
+    match m {
+        MavMessage::PARAM_EXT_VALUE(v) => Some((
+            v.param_id.to_str().unwrap().to_string(),
+            v.param_value[0],
+            v.param_count,
+        )),
+        _ => None,
+    }
+}
+
+fn ext_set(gcs: &Gcs, system: u8, name: &str, v: u8) -> ParamAck {
+    let mut value = [0u8; 128];
+    value[0] = v;
+    gcs.forget();
+    gcs.send(&MavMessage::PARAM_EXT_SET(PARAM_EXT_SET_DATA {
+        target_system: system,
+        target_component: 101,
+        param_id: name.into(),
+        param_value: value.into(),
+        param_type: MavParamExtType::MAV_PARAM_EXT_TYPE_UINT8,
+    }));
+    gcs.wait_for(Duration::from_secs(3), |h, m| match m {
+        MavMessage::PARAM_EXT_ACK(a) if h.component_id == 101 => Some(a.param_result),
+        _ => None,
+    })
+    .expect("PARAM_EXT_ACK")
+}
+
+#[test]
+fn settings_are_parameters_described_by_a_definition_file_served_over_http() {
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let serve = Serve::start(&["--mavlink", &link]);
+    let gcs = Gcs::connect(port);
+    let (system, _) = cameras(&gcs);
+
+    // The file: the protocol's XML, its version the one CAMERA_INFORMATION gives, a
+    // parameter for each setting, the lenses of lens.cal as LENS's options.
+    let (uri, version, xml) = definition(&gcs, system);
+    assert!(
+        uri.starts_with("http://127.0.0.1:") && uri.ends_with("/camera.xml"),
+        "{uri}"
+    );
+    let doc = roxmltree::Document::parse(&xml).unwrap();
+    let root = doc.root_element();
+    assert_eq!(root.tag_name().name(), "mavlinkcamera");
+    let def = root
+        .children()
+        .find(|n| n.has_tag_name("definition"))
+        .unwrap();
+    assert_eq!(def.attribute("version"), Some(version.to_string().as_str()));
+    assert_ne!(version, 0);
+    let names: Vec<&str> = root
+        .descendants()
+        .filter(|n| n.has_tag_name("parameter"))
+        .map(|n| n.attribute("name").unwrap())
+        .collect();
+    let want = [
+        "LAYOUT",
+        "OVERLAY",
+        "LENS",
+        "CROP",
+        "LOCK",
+        "CONTROL",
+        "SORTING",
+        "DETECTION",
+    ];
+    assert_eq!(names, want);
+    let lens = root
+        .descendants()
+        .find(|n| n.attribute("name") == Some("LENS"))
+        .unwrap();
+    let lenses: Vec<&str> = lens
+        .descendants()
+        .filter(|n| n.has_tag_name("option"))
+        .map(|n| n.attribute("name").unwrap())
+        .collect();
+    assert_eq!(lenses, ["CIL216", "CIL018", "LN007"]);
+
+    // Every parameter listed with its value from the live state.
+    gcs.forget();
+    gcs.send(&MavMessage::PARAM_EXT_REQUEST_LIST(
+        PARAM_EXT_REQUEST_LIST_DATA {
+            target_system: system,
+            target_component: 101,
+        },
+    ));
+    let mut listed = vec![];
+    gcs.wait_for(Duration::from_secs(3), |h, m| {
+        if h.component_id == 101
+            && let Some(v) = ext_value(m)
+        {
+            assert_eq!(v.2 as usize, want.len());
+            listed.push((v.0, v.1));
+        }
+        (listed.len() == want.len()).then_some(())
+    });
+    let names: Vec<&str> = listed.iter().map(|l| l.0.as_str()).collect();
+    assert_eq!(names, want);
+    assert_eq!(listed[0].1, 4, "layout 4");
+    assert_eq!(listed[4].1, 7, "camera 1 locks every axis");
+
+    // A SET here is a SET there, and the other way round.
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    assert_eq!(
+        ext_set(&gcs, system, "LOCK", 3),
+        ParamAck::PARAM_ACK_ACCEPTED
+    );
+    assert_eq!(listed_lock(&mut ctl), 3);
+    ctl.set(Param::CamCropMode(
+        digiview::protocol::params::CamCropMode { cam_id: 1, mode: 2 },
+    ))
+    .unwrap();
+    gcs.forget();
+    gcs.send(&MavMessage::PARAM_EXT_REQUEST_READ(
+        PARAM_EXT_REQUEST_READ_DATA {
+            target_system: system,
+            target_component: 101,
+            param_id: "CROP".into(),
+            param_index: -1,
+        },
+    ));
+    let crop = gcs.wait_for(Duration::from_secs(3), |h, m| {
+        (h.component_id == 101).then(|| ext_value(m)).flatten()
+    });
+    assert_eq!(crop.map(|c| (c.0, c.1)), Some(("CROP".to_string(), 2)));
+
+    // What is not an option, and what the state cannot take, changes nothing.
+    let unsupported = ParamAck::PARAM_ACK_VALUE_UNSUPPORTED;
+    assert_eq!(ext_set(&gcs, system, "LOCK", 9), unsupported);
+    assert_eq!(
+        ext_set(&gcs, system, "CONTROL", 2),
+        unsupported,
+        "no target yet"
+    );
+    assert_eq!(
+        ext_set(&gcs, system, "NOSUCH", 1),
+        ParamAck::PARAM_ACK_FAILED
+    );
+    assert_eq!(listed_lock(&mut ctl), 3);
+
+    // LAYOUT 2 has two views: cameras 102 and 103 go quiet.
+    assert_eq!(
+        ext_set(&gcs, system, "LAYOUT", 2),
+        ParamAck::PARAM_ACK_ACCEPTED
+    );
+    std::thread::sleep(Duration::from_millis(200));
+    let beats: BTreeSet<u8> = gcs
+        .collect(Duration::from_millis(2500))
+        .iter()
+        .filter(
+            |(_, m)| matches!(m, MavMessage::HEARTBEAT(b) if b.mavtype == MavType::MAV_TYPE_CAMERA),
+        )
+        .map(|(h, _)| h.component_id)
+        .collect();
+    assert_eq!(beats, [100, 101].into());
+
+    // Another lens.cal, another file: another version.
+    let dir = tempfile::tempdir().unwrap();
+    let cal = dir.path().join("lens.cal");
+    let shipped = std::fs::read_to_string(common::lens_cal_path()).unwrap();
+    let start = shipped.find("\n[[lens]]").unwrap() + 1;
+    let end = start + shipped[start..].find("\n[[lens]]").unwrap();
+    let first = &shipped[start..end];
+    let extra = first
+        .replace("name = \"CIL216\"", "name = \"SPARE\"")
+        .replace("lens_id = 0", "lens_id = 7");
+    std::fs::write(&cal, format!("{shipped}\n{extra}\n")).unwrap();
+    let port2 = free_udp_port();
+    let link2 = format!("udpin:127.0.0.1:{port2}");
+    let _serve2 = Serve::start(&["--mavlink", &link2, "--lens-cal", cal.to_str().unwrap()]);
+    let gcs2 = Gcs::connect(port2);
+    let (system2, _) = cameras(&gcs2);
+    let (_, version2, xml2) = definition(&gcs2, system2);
+    assert!(xml2.contains("name=\"SPARE\" value=\"7\""), "{xml2}");
+    assert_ne!(version2, version, "the version follows the content");
+}
+
+fn listed_lock(ctl: &mut Client) -> u8 {
+    match ctl
+        .get_one(Param::CamLockFlags(
+            digiview::protocol::params::CamLockFlags {
+                cam_id: 1,
+                ..Default::default()
+            },
+        ))
+        .unwrap()
+    {
+        Param::CamLockFlags(l) => l.flags,
         other => panic!("{other:?}"),
     }
 }

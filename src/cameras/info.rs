@@ -16,6 +16,8 @@ use std::path::Path;
 /// Stream 1 is the view's own stream, stream 2 the composed frame.
 pub const VIEW_STREAM: u8 = 1;
 pub const COMPOSED_STREAM: u8 = 2;
+/// Where the head's HTTP server serves the camera definition file.
+pub const DEFINITION_PATH: &str = "/camera.xml";
 /// The gimbal of each camera: the camera component is its own gimbal manager and device.
 pub const GIMBAL_DEVICE_ID: u8 = 1;
 
@@ -49,6 +51,10 @@ impl Cameras {
     pub(super) fn information(&self, state: &State, i: usize) -> MavMessage {
         let cam = &state.cameras[i];
         let (w, h) = (self.cfg.width, self.cfg.height);
+        let (uri, version) = match self.streams().http {
+            Some(base) => (format!("{base}{DEFINITION_PATH}"), self.definition().1),
+            None => (String::new(), 0),
+        };
         MavMessage::CAMERA_INFORMATION(CAMERA_INFORMATION_DATA {
             time_boot_ms: boot_ms(),
             firmware_version: firmware_version(),
@@ -61,11 +67,11 @@ impl Cameras {
                 | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM,
             resolution_h: w as u16,
             resolution_v: h as u16,
-            cam_definition_version: 0,
+            cam_definition_version: version,
             vendor_name: text("DigiView"),
             model_name: text(&format!("virtual camera {i}")),
             lens_id: state.lens,
-            cam_definition_uri: "".into(),
+            cam_definition_uri: uri.as_str().into(),
             gimbal_device_id: GIMBAL_DEVICE_ID,
             camera_device_id: 0,
         })

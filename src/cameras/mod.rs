@@ -12,6 +12,9 @@ mod commands;
 mod gimbal;
 mod images;
 mod info;
+mod settings;
+
+pub use info::DEFINITION_PATH;
 pub mod zoom;
 
 use crate::autopilot::{Components, Outbox};
@@ -77,6 +80,8 @@ pub struct Streams {
     /// `rtsp://HOST:PORT/PATH` of the composed frame; a view's is this plus `/camN`.
     pub base: String,
     pub bitrate_kbps: u32,
+    /// `http://HOST:PORT` of the head's HTTP server (the camera definition file's home).
+    pub http: Option<String>,
 }
 
 /// The views as cameras: the link's [`Components`].
@@ -158,8 +163,14 @@ impl Cameras {
     }
 
     /// Where the streams are, once the RTSP server serves.
-    pub fn set_streams(&self, streams: Streams) {
-        *self.streams.lock().unwrap_or_else(|e| e.into_inner()) = streams;
+    pub fn set_streams(&self, base: String, bitrate_kbps: u32) {
+        let mut s = self.streams.lock().unwrap_or_else(|e| e.into_inner());
+        (s.base, s.bitrate_kbps) = (base, bitrate_kbps);
+    }
+
+    /// Where the HTTP server is (`http://HOST:PORT`), once it serves.
+    pub fn set_http(&self, base: String) {
+        self.streams.lock().unwrap_or_else(|e| e.into_inner()).http = Some(base);
     }
 
     fn streams(&self) -> Streams {
@@ -214,6 +225,21 @@ impl Components for Cameras {
                 let command = commands::Command::int(c);
                 for i in self.addressed(out, c.target_system, c.target_component, &state) {
                     self.command(out, from, i, &command, c.target_component == 0);
+                }
+            }
+            MavMessage::PARAM_EXT_REQUEST_LIST(m) => {
+                for i in self.addressed(out, m.target_system, m.target_component, &state) {
+                    self.parameter(out, i, msg);
+                }
+            }
+            MavMessage::PARAM_EXT_REQUEST_READ(m) => {
+                for i in self.addressed(out, m.target_system, m.target_component, &state) {
+                    self.parameter(out, i, msg);
+                }
+            }
+            MavMessage::PARAM_EXT_SET(m) => {
+                for i in self.addressed(out, m.target_system, m.target_component, &state) {
+                    self.parameter(out, i, msg);
                 }
             }
             MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(m) => {

@@ -5,7 +5,7 @@
 
 use super::StateArgs;
 use crate::autopilot::{Components, Link};
-use crate::cameras::{self, Cameras, Streams, ViewShooter};
+use crate::cameras::{self, Cameras, ViewShooter};
 use crate::control::Controller;
 use crate::control::permissions::{Allow, Permissions};
 use crate::control::server::{self, Shutdown};
@@ -52,6 +52,9 @@ pub struct ServeArgs {
     /// The RTSP port (0 picks a free port).
     #[arg(long)]
     rtsp_port: Option<u16>,
+    /// Where the HTTP server listens, ADDR:PORT (port 0 picks a free port), or off.
+    #[arg(long, value_name = "ADDR:PORT")]
+    http: Option<String>,
     /// Also push the stream to a relay: rtsp://HOST:PORT/PATH (RTSP RECORD) or
     /// srt://HOST:PORT (repeatable; replaces the config's `publish`).
     #[arg(long = "publish", value_name = "URL")]
@@ -87,6 +90,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if let Some(p) = args.rtsp_port {
         cfg.rtsp.port = p;
+    }
+    if let Some(h) = &args.http {
+        cfg.http.listen = h.clone();
     }
     if let Some(m) = &args.mavlink {
         cfg.mavlink.endpoint = m.clone();
@@ -156,6 +162,8 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
                 .map_err(|e| anyhow!("control.allow_quit: {e}"))?,
         },
     };
+    let http_address = cfg.http.address().map_err(|e| anyhow!(e))?;
+    let http_cameras_cfg = cfg.cameras.clone();
     let control: SocketAddr = cfg
         .control
         .listen
@@ -213,10 +221,8 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         ));
         if let Some(c) = &cameras {
             let public = cameras::public_host(&cfg.cameras, &cfg.rtsp.address);
-            c.set_streams(Streams {
-                base: format!("rtsp://{public}:{}{}", rtsp.port(), rtsp.path()),
-                bitrate_kbps: cfg.encoder.bitrate_kbps,
-            });
+            let base = format!("rtsp://{public}:{}{}", rtsp.port(), rtsp.path());
+            c.set_streams(base, cfg.encoder.bitrate_kbps);
         }
         let publishers = cfg
             .publish_targets()?
@@ -249,12 +255,41 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         let thread = wait_until_streaming(&head, thread)?;
         Some((head, thread))
     };
+    let http = match http_address {
+        Some(addr) => {
+            let listener = runtime
+                .block_on(tokio::net::TcpListener::bind(addr))
+                .with_context(|| format!("cannot listen on {addr} (http)"))?;
+            let port = listener.local_addr()?.port();
+            let public = cameras::public_host(&http_cameras_cfg, &addr.ip().to_string());
+            if let Some(c) = &cameras {
+                c.set_http(format!("http://{public}:{port}"));
+            }
+            announce.push(format!("http serving http://{public}:{port}/"));
+            Some(listener)
+        }
+        None => None,
+    };
+    // A reader that went away after the lines it wanted (`serve | head -1`) must not end
+    // the service: what cannot be written is dropped.
+    let mut stdout = std::io::stdout().lock();
     for line in announce {
-        println!("{line}");
+        let _ = writeln!(stdout, "{line}");
     }
-    std::io::stdout().flush()?;
+    let _ = stdout.flush();
+    drop(stdout);
     runtime.block_on(async {
         tokio::spawn(server::stop_on_signals(shutdown.clone()));
+        if let Some(listener) = http {
+            let stop = shutdown.clone();
+            let cameras = cameras.clone();
+            tokio::spawn(async move {
+                let stopped = async move { stop.wait().await };
+                if let Err(e) = crate::http::serve(listener, cameras, stopped).await {
+                    tracing::error!("http: {e}");
+                }
+            });
+        }
         server::run(tcp, udp, controller, shutdown).await
     })?;
     if let Some((head, thread)) = head {

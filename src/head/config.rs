@@ -4,6 +4,7 @@
 
 use crate::cameras::CamerasConfig;
 use crate::frame::PixelFormat;
+use crate::http::HttpConfig;
 use crate::source::SpecError;
 use crate::stream::PublishTarget;
 use crate::stream::publish::PublishError;
@@ -33,6 +34,8 @@ pub struct Config {
     pub mavlink: MavlinkConfig,
     /// The views as MAVLink cameras, and their own streams.
     pub cameras: CamerasConfig,
+    /// The head's HTTP server (the cameras' definition file).
+    pub http: HttpConfig,
     /// Relays to publish the stream to: `rtsp://HOST:PORT/PATH` (RTSP RECORD) or
     /// `srt://HOST:PORT` (MPEG-TS over SRT).
     pub publish: Vec<String>,
@@ -55,6 +58,7 @@ impl Default for Config {
             capture: CaptureConfig::default(),
             mavlink: MavlinkConfig::default(),
             cameras: CamerasConfig::default(),
+            http: HttpConfig::default(),
             publish: Vec::new(),
             health_interval_s: 10.0,
         }
@@ -278,6 +282,9 @@ impl Config {
             return out_of_range(format!("demo fps {} is outside 1..=120", d.fps));
         }
         self.rtsp.check()?;
+        if let Err(e) = self.http.address() {
+            return out_of_range(e);
+        }
         let c = &self.cameras;
         let ((lo_w, lo_h), (hi_w, hi_h)) = (crate::state::MIN_OUTPUT, crate::state::MAX_OUTPUT);
         if c.width < lo_w || c.height < lo_h || c.width > hi_w || c.height > hi_h {

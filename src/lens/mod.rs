@@ -260,6 +260,11 @@ impl Lenses {
         self.lenses.iter().find(|l| l.id == id)
     }
 
+    /// Every lens's id and name, in lens.cal's order.
+    pub fn names(&self) -> Vec<(u8, String)> {
+        self.lenses.iter().map(|l| (l.id, l.name.clone())).collect()
+    }
+
     /// The lens models of every lens.
     pub fn models(&self) -> impl Iterator<Item = &Model> {
         self.lenses.iter().map(|l| &l.radial.model)

@@ -71,10 +71,17 @@ impl Serve {
         } else {
             &["--mavlink", "off"]
         };
+        // The HTTP server on a free port, unless the test says where.
+        let http: &[&str] = if extra.contains(&"--http") {
+            &[]
+        } else {
+            &["--http", "127.0.0.1:0"]
+        };
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["serve", "--control", "127.0.0.1:0"])
             .args(mode)
             .args(link)
+            .args(http)
             .args(extra)
             .env("DIGIVIEW_LENS_CAL", cal)
             // DIGIVIEW_TEST_LOG=info shows the server's log while debugging a test.

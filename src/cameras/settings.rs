@@ -1,0 +1,276 @@
+//! A camera's settings as the camera protocol exposes them: PARAM_EXT_* parameters (layout,
+//! overlay, lens, the view's crop mode, lock flags and control mode, the detection's sorting
+//! mode and whether it runs), described for ground stations by a camera definition file
+//! (the protocol's XML) that the head serves over HTTP. Every parameter is read from and
+//! written to the live state, so a change over the DigiView protocol shows here and one
+//! made here shows there. The file's version is a checksum of its content: it changes
+//! whenever the content does (another lens.cal, another DigiView), and ground stations fetch
+//! it again.
+
+use super::{Cameras, FIRST_COMPONENT};
+use crate::autopilot::Outbox;
+use crate::geometry::view::control;
+use crate::state::{Invalid, State};
+use mavlink::dialects::common::{
+    MavMessage, MavParamExtType, PARAM_EXT_ACK_DATA, PARAM_EXT_VALUE_DATA, ParamAck,
+};
+
+/// One parameter: its name (at most 16 characters), what the ground station shows, its
+/// options (value, label).
+struct Setting {
+    name: &'static str,
+    description: &'static str,
+    options: Vec<(u8, String)>,
+}
+
+/// The parameters, in PARAM_EXT index order; LENS's options are lens.cal's lenses.
+fn settings(lenses: &[(u8, String)]) -> Vec<Setting> {
+    let named = |names: &[&str]| -> Vec<(u8, String)> {
+        names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (i as u8, n.to_string()))
+            .collect()
+    };
+    vec![
+        Setting {
+            name: "LAYOUT",
+            description: "Layout",
+            options: named(&[
+                "1 view",
+                "2 views stacked",
+                "2 panoramas",
+                "2 views + panorama",
+                "4 views",
+                "3 views + panorama",
+                "Whole fisheye",
+            ]),
+        },
+        Setting {
+            name: "OVERLAY",
+            description: "Detection tiles",
+            options: named(&["None", "One tile", "Right", "Left", "Top", "Bottom"]),
+        },
+        Setting {
+            name: "LENS",
+            description: "Lens",
+            options: lenses.to_vec(),
+        },
+        Setting {
+            name: "CROP",
+            description: "Projection",
+            options: named(&[
+                "Fisheye crop",
+                "Rectilinear",
+                "Panorama",
+                "Rectified crop",
+                "Whole fisheye",
+            ]),
+        },
+        Setting {
+            name: "LOCK",
+            description: "Held in the world",
+            options: named(&[
+                "None",
+                "Roll",
+                "Pitch",
+                "Roll, pitch",
+                "Yaw",
+                "Roll, yaw",
+                "Pitch, yaw",
+                "All axes",
+            ]),
+        },
+        Setting {
+            name: "CONTROL",
+            description: "Steering",
+            options: named(&["Pilot", "Directional", "Coordinate", "Pass"]),
+        },
+        Setting {
+            name: "SORTING",
+            description: "Tile order",
+            options: named(&["Score", "Age", "Score, tiles held"]),
+        },
+        Setting {
+            name: "DETECTION",
+            description: "Detection",
+            options: named(&["Off", "On"]),
+        },
+    ]
+}
+
+/// A parameter's value in camera `i`'s state.
+fn value(s: &State, i: usize, name: &str) -> u8 {
+    let c = &s.cameras[i];
+    match name {
+        "LAYOUT" => s.output.layout,
+        "OVERLAY" => s.output.overlay,
+        "LENS" => s.lens,
+        "CROP" => c.crop,
+        "LOCK" => c.lock,
+        "CONTROL" => c.control,
+        "SORTING" => s.detection.sorting_mode,
+        _ => s.detection.run_ai as u8,
+    }
+}
+
+/// Sets a parameter of camera `i` (an option's value, checked before).
+fn set(s: &mut State, i: usize, name: &str, v: u8) -> Result<(), Invalid> {
+    let c = &mut s.cameras[i];
+    match name {
+        "LAYOUT" => s.output.layout = v,
+        "OVERLAY" => s.output.overlay = v,
+        "LENS" => s.lens = v,
+        "CROP" => c.crop = v,
+        "LOCK" => c.lock = v,
+        "CONTROL" if v == control::COORDINATE && c.target.is_none() => {
+            return Err(Invalid(
+                "coordinate control needs a target: DO_SET_ROI_LOCATION first".into(),
+            ));
+        }
+        "CONTROL" => c.control = v,
+        "SORTING" => s.detection.sorting_mode = v,
+        _ => s.detection.run_ai = v == 1,
+    }
+    Ok(())
+}
+
+impl Cameras {
+    fn lens_options(&self) -> Vec<(u8, String)> {
+        self.live.lenses().names()
+    }
+
+    /// The camera definition file, and its version (never 0, which means "none").
+    pub fn definition(&self) -> (String, u16) {
+        let body = definition_body(&settings(&self.lens_options()));
+        let crc = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740).checksum(body.as_bytes());
+        let version = crc.max(1);
+        let xml = format!(
+            "<?xml version=\"1.0\" encoding=\"UTF-8\" ?>\n<mavlinkcamera>\n  <definition \
+             version=\"{version}\">\n    <model>virtual camera</model>\n    \
+             <vendor>DigiView</vendor>\n  </definition>\n{body}</mavlinkcamera>\n"
+        );
+        (xml, version)
+    }
+
+    /// PARAM_EXT_REQUEST_LIST, _REQUEST_READ and _SET for camera `i`.
+    pub(super) fn parameter(&self, out: &Outbox, i: usize, msg: &MavMessage) {
+        let all = settings(&self.lens_options());
+        let component = FIRST_COMPONENT + i as u8;
+        let value_of = |index: usize, s: &State| {
+            let p = &all[index];
+            MavMessage::PARAM_EXT_VALUE(PARAM_EXT_VALUE_DATA {
+                param_count: all.len() as u16,
+                param_index: index as u16,
+                param_id: p.name.into(),
+                param_value: encode(value(s, i, p.name)),
+                param_type: MavParamExtType::MAV_PARAM_EXT_TYPE_UINT8,
+            })
+        };
+        let state = self.live.snapshot();
+        match msg {
+            MavMessage::PARAM_EXT_REQUEST_LIST(_) => {
+                for index in 0..all.len() {
+                    out.send(component, &value_of(index, &state));
+                }
+            }
+            MavMessage::PARAM_EXT_REQUEST_READ(r) => {
+                let name = r.param_id.to_str().unwrap_or("");
+                let index = match r.param_index {
+                    -1 => all.iter().position(|p| p.name == name),
+                    n => usize::try_from(n).ok().filter(|&n| n < all.len()),
+                };
+                if let Some(index) = index {
+                    out.send(component, &value_of(index, &state));
+                }
+            }
+            MavMessage::PARAM_EXT_SET(p) => {
+                let name = p.param_id.to_str().unwrap_or("").to_string();
+                let result = self.set_parameter(&all, i, &name, p.param_type, &p.param_value);
+                let now = self.live.snapshot();
+                let shown = all
+                    .iter()
+                    .find(|s| s.name == name)
+                    .map_or(0, |s| value(&now, i, s.name));
+                out.send(
+                    component,
+                    &MavMessage::PARAM_EXT_ACK(PARAM_EXT_ACK_DATA {
+                        param_id: p.param_id,
+                        param_value: encode(shown),
+                        param_type: MavParamExtType::MAV_PARAM_EXT_TYPE_UINT8,
+                        param_result: result,
+                    }),
+                );
+            }
+            _ => {}
+        }
+    }
+
+    /// A PARAM_EXT_SET: a known parameter, a one-byte value, one of its options, and a state
+    /// the one validation accepts.
+    fn set_parameter(
+        &self,
+        all: &[Setting],
+        i: usize,
+        name: &str,
+        kind: MavParamExtType,
+        raw: &[u8; 128],
+    ) -> ParamAck {
+        let Some(setting) = all.iter().find(|s| s.name == name) else {
+            tracing::warn!("mavlink camera {i}: no parameter {name:?}");
+            return ParamAck::PARAM_ACK_FAILED;
+        };
+        let v = raw[0];
+        let one_byte = matches!(
+            kind,
+            MavParamExtType::MAV_PARAM_EXT_TYPE_UINT8 | MavParamExtType::MAV_PARAM_EXT_TYPE_INT8
+        ) || raw[1..4].iter().all(|&b| b == 0);
+        if !one_byte || !setting.options.iter().any(|o| o.0 == v) {
+            tracing::warn!("mavlink camera {i}: {name} has no option {v}");
+            return ParamAck::PARAM_ACK_VALUE_UNSUPPORTED;
+        }
+        match self.live.update(|s| set(s, i, name, v)) {
+            Ok(()) => ParamAck::PARAM_ACK_ACCEPTED,
+            Err(e) => {
+                tracing::warn!("mavlink camera {i}: {name} = {v} refused: {e}");
+                ParamAck::PARAM_ACK_VALUE_UNSUPPORTED
+            }
+        }
+    }
+}
+
+/// A one-byte value as PARAM_EXT carries it (little-endian bytes of the type).
+fn encode(v: u8) -> mavlink::types::CharArray<128> {
+    let mut bytes = [0u8; 128];
+    bytes[0] = v;
+    bytes.into()
+}
+
+/// The `<parameters>` part of the definition file.
+fn definition_body(all: &[Setting]) -> String {
+    let mut x = String::from("  <parameters>\n");
+    for p in all {
+        x += &format!(
+            "    <parameter name=\"{}\" type=\"uint8\" default=\"{}\">\n      \
+             <description>{}</description>\n      <options>\n",
+            p.name,
+            p.options.first().map_or(0, |o| o.0),
+            escape(p.description)
+        );
+        for (v, label) in &p.options {
+            x += &format!(
+                "        <option name=\"{}\" value=\"{v}\" />\n",
+                escape(label)
+            );
+        }
+        x += "      </options>\n    </parameter>\n";
+    }
+    x + "  </parameters>\n"
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
