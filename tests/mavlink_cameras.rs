@@ -599,11 +599,11 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
     for (i, c) in images.iter().enumerate() {
         assert_eq!(c.image_index, i as i32);
         assert_eq!(c.capture_result, MavBool::MAV_BOOL_TRUE);
+        // The file's URL is on the head's HTTP server: the JPEG of the view's size.
         let url = c.file_url.to_str().unwrap();
-        let path = url
-            .strip_prefix("file://")
-            .unwrap_or_else(|| panic!("{url}"));
-        let img = image::open(path).unwrap();
+        let (status, jpeg) = http_get(url);
+        assert_eq!(status, 200, "{url}");
+        let img = image::load_from_memory(&jpeg).unwrap();
         assert_eq!((img.width(), img.height()), (SIZE, SIZE));
     }
     // Asked for again by index.
@@ -616,6 +616,17 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
         other => panic!("{other:?}"),
     }
 
+    // Nothing but DigiView's stills is served from there.
+    let url = images[0].file_url.to_str().unwrap();
+    let captures_url = &url[..url.rfind('/').unwrap()];
+    for other in [
+        "..%2Fdigiview.toml",
+        "digiview-..%2F..%2Fdigiview.toml",
+        "notes.txt",
+    ] {
+        let (status, _) = http_get(&format!("{captures_url}/{other}"));
+        assert_eq!(status, 404, "{other}");
+    }
     // Video capture starts and stops the recording; CAMERA_CAPTURE_STATUS says which.
     let video_status = |then: Vec<MavMessage>| match &then[..] {
         [MavMessage::CAMERA_CAPTURE_STATUS(c), ..] => c.video_status,
@@ -646,12 +657,18 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
         names.sort();
         names
     };
-    assert_eq!(
-        ours().iter().filter(|n| n.ends_with(".mp4")).count(),
-        1,
-        "{:?}",
-        ours()
-    );
+    // The view's own stream, at its size, was recorded.
+    let videos: Vec<String> = ours().into_iter().filter(|n| n.ends_with(".mp4")).collect();
+    assert_eq!(videos.len(), 1, "{videos:?}");
+    assert!(videos[0].ends_with("-cam2.mp4"), "{videos:?}");
+    let probe = Command::new("ffprobe")
+        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+        .args(["stream=width,height", "-of", "csv=p=0"])
+        .arg(captures.join(&videos[0]))
+        .output()
+        .unwrap();
+    let size = String::from_utf8_lossy(&probe.stdout).trim().to_string();
+    assert_eq!(size, format!("{SIZE},{SIZE}"));
 
     // STORAGE_FORMAT removes DigiView's captures and nothing else.
     std::fs::write(captures.join("notes.txt"), "the pilot's").unwrap();
@@ -832,7 +849,7 @@ fn system_of_autopilot(serve: &Serve) -> u8 {
 }
 
 /// An HTTP GET of `url` (`http://HOST:PORT/PATH`) with std alone: the status and the body.
-fn http_get(url: &str) -> (u16, String) {
+fn http_get(url: &str) -> (u16, Vec<u8>) {
     use std::io::{Read, Write};
     let rest = url.strip_prefix("http://").unwrap();
     let (host, path) = rest.split_at(rest.find('/').unwrap());
@@ -842,11 +859,11 @@ fn http_get(url: &str) -> (u16, String) {
         "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
     )
     .unwrap();
-    let mut reply = String::new();
-    s.read_to_string(&mut reply).unwrap();
-    let status = reply[9..12].parse().unwrap();
-    let body = reply.split_once("\r\n\r\n").unwrap().1.to_string();
-    (status, body)
+    let mut reply = vec![];
+    s.read_to_end(&mut reply).unwrap();
+    let status = String::from_utf8_lossy(&reply[9..12]).parse().unwrap();
+    let head = reply.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
+    (status, reply[head + 4..].to_vec())
 }
 
 /// CAMERA_INFORMATION's definition URI and version, and the file there.
@@ -859,7 +876,11 @@ fn definition(gcs: &Gcs, system: u8) -> (String, u16, String) {
     let uri = info.cam_definition_uri.to_str().unwrap().to_string();
     let (status, xml) = http_get(&uri);
     assert_eq!(status, 200, "{uri}");
-    (uri, info.cam_definition_version, xml)
+    (
+        uri,
+        info.cam_definition_version,
+        String::from_utf8(xml).unwrap(),
+    )
 }
 
 fn ext_value(m: &MavMessage) -> Option<(String, u8, u16)> {

@@ -175,8 +175,11 @@ impl Cameras {
             }
             MAV_CMD_VIDEO_START_CAPTURE | MAV_CMD_VIDEO_STOP_CAPTURE => {
                 let on = cmd.command == MAV_CMD_VIDEO_START_CAPTURE;
-                match self.live.capture().record(on) {
-                    Ok(()) => Answer::accepted(vec![self.capture_status(i)]),
+                let Some(shooter) = &self.shooter else {
+                    return Some(Answer::failed("there is no video pipeline to record"));
+                };
+                match shooter.record(i, on) {
+                    Ok(()) => Answer::accepted(vec![self.capture_status(i), self.settings(s, i)]),
                     Err(e) => Answer::failed(e),
                 }
             }

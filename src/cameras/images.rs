@@ -1,7 +1,7 @@
 //! Image capture of a camera's view: interval shooting (IMAGE_START_CAPTURE's count and
 //! interval) asks the head for stills of the view alone, and each still written is announced
-//! with CAMERA_IMAGE_CAPTURED (where the vehicle was, where the view looked, the file, the
-//! image's index) and remembered so a ground station can ask for it again.
+//! with CAMERA_IMAGE_CAPTURED (where the vehicle was, where the view looked, the file's URL on
+//! the head's HTTP server, the image's index) and remembered so a ground station can ask for it again.
 
 use super::info::view_quaternion;
 use super::{Cameras, FIRST_COMPONENT, IMAGES_KEPT, Shot, Taken, boot_ms, utc_us};
@@ -70,9 +70,14 @@ impl Cameras {
         for shot in shots {
             let i = shot.camera;
             let t = shot.taken;
-            let (url, ok) = match &shot.file {
-                Ok(path) => (format!("file://{}", path.display()), true),
-                Err(e) => {
+            let http = self.streams().http;
+            let (url, ok) = match (&shot.file, http) {
+                (Ok(path), Some(http)) => {
+                    let name = path.file_name().unwrap_or_default().to_string_lossy();
+                    (format!("{http}{}{name}", crate::http::CAPTURES_PATH), true)
+                }
+                (Ok(path), None) => (format!("file://{}", path.display()), true),
+                (Err(e), _) => {
                     warn!("camera {i}: image not written: {e}");
                     (String::new(), false)
                 }

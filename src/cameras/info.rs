@@ -79,7 +79,7 @@ impl Cameras {
 
     pub(super) fn settings(&self, state: &State, i: usize) -> MavMessage {
         let cam = &state.cameras[i];
-        let recording = self.live.capture().status().recording;
+        let recording = self.recording(i);
         MavMessage::CAMERA_SETTINGS(CAMERA_SETTINGS_DATA {
             time_boot_ms: boot_ms(),
             mode_id: if recording {
@@ -116,7 +116,6 @@ impl Cameras {
     }
 
     pub(super) fn capture_status(&self, i: usize) -> MavMessage {
-        let capture = self.live.capture().status();
         let available = self
             .shooter
             .as_ref()
@@ -130,10 +129,10 @@ impl Cameras {
         MavMessage::CAMERA_CAPTURE_STATUS(CAMERA_CAPTURE_STATUS_DATA {
             time_boot_ms: boot_ms(),
             image_interval: interval,
-            recording_time_ms: self.recording_ms(),
+            recording_time_ms: self.recording_ms(i),
             available_capacity: available,
             image_status,
-            video_status: capture.recording as u8,
+            video_status: self.recording(i) as u8,
             image_count: cam.images.len() as i32,
             camera_device_id: 0,
         })
@@ -213,20 +212,20 @@ impl Cameras {
         }
     }
 
-    /// How long the recording has run, ms (0 when none runs).
-    fn recording_ms(&self) -> u32 {
+    /// How long camera `i`'s recording has run, ms (0 when none runs).
+    fn recording_ms(&self, i: usize) -> u32 {
         let mut since = self
             .recording_since
             .lock()
             .unwrap_or_else(|e| e.into_inner());
-        match (self.live.capture().status().recording, *since) {
+        match (self.recording(i), since[i]) {
             (true, Some(t)) => t.elapsed().as_millis() as u32,
             (true, None) => {
-                *since = Some(std::time::Instant::now());
+                since[i] = Some(std::time::Instant::now());
                 0
             }
             (false, _) => {
-                *since = None;
+                since[i] = None;
                 0
             }
         }

@@ -67,9 +67,13 @@ impl Default for CamerasConfig {
     }
 }
 
-/// Takes a still of one view alone; `done` gets the file written, or why not.
+/// Stills and video of one view alone.
 pub trait ViewShooter: Send + Sync {
+    /// Takes a still of the next frame; `done` gets the file written, or why not.
     fn shoot(&self, view: usize, done: crate::head::capture::StillDone) -> Result<(), String>;
+    /// Starts (`on`) or ends the recording of the view's own stream.
+    fn record(&self, view: usize, on: bool) -> Result<(), String>;
+    fn recording(&self, view: usize) -> bool;
     /// The directory stills and recordings go to (STORAGE_INFORMATION measures it).
     fn dir(&self) -> &Path;
 }
@@ -93,8 +97,8 @@ pub struct Cameras {
     state: Mutex<Periodic>,
     /// Stills written since the last tick: camera, sequence, the file or why not.
     shots: Arc<Mutex<Vec<Shot>>>,
-    /// When the running recording started, as first seen.
-    recording_since: Mutex<Option<Instant>>,
+    /// When each camera's running recording started, as first seen.
+    recording_since: Mutex<[Option<Instant>; MAX_CAMERAS]>,
 }
 
 struct Shot {
@@ -178,6 +182,11 @@ impl Cameras {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clone()
+    }
+
+    /// Whether camera `i` records its view.
+    fn recording(&self, i: usize) -> bool {
+        self.shooter.as_ref().is_some_and(|s| s.recording(i))
     }
 
     fn periodic(&self) -> std::sync::MutexGuard<'_, Periodic> {

@@ -164,6 +164,7 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     };
     let http_address = cfg.http.address().map_err(|e| anyhow!(e))?;
     let http_cameras_cfg = cfg.cameras.clone();
+    let captures_dir = (!args.no_video).then(|| cfg.capture.dir.clone());
     let control: SocketAddr = cfg
         .control
         .listen
@@ -283,9 +284,10 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         if let Some(listener) = http {
             let stop = shutdown.clone();
             let cameras = cameras.clone();
+            let captures = captures_dir.clone();
             tokio::spawn(async move {
                 let stopped = async move { stop.wait().await };
-                if let Err(e) = crate::http::serve(listener, cameras, stopped).await {
+                if let Err(e) = crate::http::serve(listener, cameras, captures, stopped).await {
                     tracing::error!("http: {e}");
                 }
             });

@@ -1,11 +1,13 @@
 //! CAPTURE: stills of the output frame (and, configurable, the raw fisheye frame) as JPEG or
 //! PNG, and recordings of the encoded stream to fragmented MP4. Files are named by local time
 //! and a running index; free disk space is checked before anything starts, so a full disk is
-//! an error reply rather than a truncated file. A MAVLink camera's still is of its view alone
-//! (`crate::cameras`): asked for here, rendered by the frame loop, written and reported back.
+//! an error reply rather than a truncated file. A MAVLink camera's stills and video are of
+//! its view alone (`crate::cameras`): a still is asked for here, rendered by the frame loop,
+//! written and reported back; a view's recording takes its own stream's access units.
 
 use super::config::{CaptureConfig, StillFormat};
 use crate::frame::PlaneLayout;
+use crate::state::MAX_CAMERAS;
 use crate::state::capture::{CaptureError, CaptureStatus, Capturer};
 use crate::stream::Recorder;
 use crate::stream::encoder::AccessUnit;
@@ -23,6 +25,9 @@ pub struct Capture {
     still_wanted: AtomicBool,
     /// Stills of single views asked for and not rendered yet.
     view_stills: Mutex<Vec<(usize, StillDone)>>,
+    /// Recordings of single views' own streams, and whether each owes a key frame.
+    view_recorders: Mutex<[Option<Recorder>; MAX_CAMERAS]>,
+    view_key_wanted: [AtomicBool; MAX_CAMERAS],
     /// Set when the encoder should send a key frame (a recording starts).
     key_wanted: AtomicBool,
     recorder: Mutex<Option<Recorder>>,
@@ -43,6 +48,8 @@ impl Capture {
             cfg,
             still_wanted: AtomicBool::new(false),
             view_stills: Mutex::default(),
+            view_recorders: Mutex::default(),
+            view_key_wanted: Default::default(),
             key_wanted: AtomicBool::new(false),
             recorder: Mutex::new(None),
             images: AtomicU16::new(0),
@@ -175,13 +182,76 @@ impl Capture {
         }
     }
 
-    /// Ends a running recording cleanly (shutdown).
+    /// Ends the running recordings cleanly (shutdown).
     pub fn finish(&self) {
         let _ = self.record(false);
+        for i in 0..MAX_CAMERAS {
+            let _ = self.record_view(i, false);
+        }
+    }
+
+    /// Whether view `i`'s own stream is being recorded (its encoder must run).
+    pub fn view_recording(&self, i: usize) -> bool {
+        self.view_recorders()[i].is_some()
+    }
+
+    /// Whether view `i`'s encoder should send a key frame now (a recording starts).
+    pub fn take_view_key_request(&self, i: usize) -> bool {
+        self.view_key_wanted[i].swap(false, Ordering::Relaxed)
+    }
+
+    /// Feeds view `i`'s recording, if one runs (each of its stream's access units).
+    pub fn on_view_access_unit(&self, i: usize, au: &AccessUnit) {
+        let mut recorders = self.view_recorders();
+        if let Some(r) = recorders[i].as_mut()
+            && let Err(e) = r.push(&au.buffer, au.key)
+        {
+            error!("{e}: camera {i}'s recording stopped");
+            recorders[i] = None;
+        }
+    }
+
+    fn view_recorders(&self) -> std::sync::MutexGuard<'_, [Option<Recorder>; MAX_CAMERAS]> {
+        self.view_recorders
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Starts (`on`) or ends the recording of view `i`'s own stream.
+    pub fn record_view(&self, i: usize, on: bool) -> Result<(), CaptureError> {
+        let mut recorders = self.view_recorders();
+        if !on {
+            if let Some(r) = recorders[i].take() {
+                match r.finish() {
+                    Ok(path) => info!("camera {i}'s recording ended: {}", path.display()),
+                    Err(e) => warn!("{e}"),
+                }
+            }
+            return Ok(());
+        }
+        if recorders[i].is_some() {
+            return Ok(());
+        }
+        self.ready()?;
+        let r = Recorder::start(&self.name(&format!("-cam{i}.mp4")))
+            .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
+        info!("recording camera {i} to {}", r.path().display());
+        recorders[i] = Some(r);
+        self.videos.fetch_add(1, Ordering::Relaxed);
+        self.view_key_wanted[i].store(true, Ordering::Relaxed);
+        Ok(())
     }
 }
 
 impl crate::cameras::ViewShooter for Capture {
+    fn record(&self, view: usize, on: bool) -> Result<(), String> {
+        self.record_view(view, on).map_err(|e| e.to_string())
+    }
+
+    fn recording(&self, view: usize) -> bool {
+        self.view_recording(view)
+    }
+
     fn shoot(&self, view: usize, done: StillDone) -> Result<(), String> {
         self.ready().map_err(|e| e.to_string())?;
         self.view_stills

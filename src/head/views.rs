@@ -1,6 +1,6 @@
 //! The views alone, beside the composed frame: each view's own stream (`PATH/camN`, what the
-//! MAVLink cameras give ground stations), rendered and encoded only while someone watches it,
-//! and the stills the cameras take of their view. Both render the view by itself at the
+//! MAVLink cameras give ground stations), rendered and encoded only while someone watches or
+//! its camera records it, and the stills the cameras take of their view. Both render the view by itself at the
 //! `[cameras]` size from the same fisheye frame and state as the composed frame, on a
 //! renderer of their own (its output size never changes), after the composed frame is
 //! handed to its encoder.
@@ -53,7 +53,8 @@ impl Head {
         let mut stills = self.capture.take_view_stills();
         let (w, h) = (self.cfg.cameras.width, self.cfg.cameras.height);
         for i in 0..VIEW_MOUNTS {
-            let watched = self.rtsp.view_watched(i);
+            // Watched, or recorded by its camera: its stream is encoded.
+            let watched = self.rtsp.view_watched(i) || self.capture.view_recording(i);
             if !watched {
                 // Nobody watches: no render, no encoder.
                 outs.encoders[i] = None;
@@ -129,10 +130,11 @@ impl Head {
             }
             let head = self.clone();
             match Encoder::new(&self.cfg.encoder, fps, move |au| {
-                head.rtsp.push_view(i, &au.buffer)
+                head.rtsp.push_view(i, &au.buffer);
+                head.capture.on_view_access_unit(i, &au);
             }) {
                 Ok(e) => {
-                    info!("camera {i}: its own stream is watched; encoding it");
+                    info!("camera {i}: its own stream is watched or recorded; encoding it");
                     outs.encoders[i] = Some(e);
                     outs.failed[i] = None;
                 }
@@ -144,7 +146,7 @@ impl Head {
             }
         }
         let encoder = outs.encoders[i].as_mut().expect("started above");
-        if self.rtsp.view_key_wanted(i) {
+        if self.rtsp.view_key_wanted(i) | self.capture.take_view_key_request(i) {
             encoder.force_key_unit();
         }
         if let Err(e) = encoder.push(data, layout, pts, fps) {
