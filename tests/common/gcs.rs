@@ -2,14 +2,20 @@
 //! speaks to cameras: system 255, component 190 (MAV_COMP_ID_MISSIONPLANNER), a HEARTBEAT a
 //! second, commands answered by COMMAND_ACK, everything heard kept in order for the test.
 
+use digiview::control::client::Client;
+use digiview::protocol::Param;
+use digiview::protocol::params::{CamEuler, CamFov};
 use mavlink::dialects::common::*;
 use mavlink::{MavConnection, MavHeader};
+use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, channel};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 pub const SYSTEM: u8 = 255;
+pub const REQUEST: MavCmd = MavCmd::MAV_CMD_REQUEST_MESSAGE;
+const DEG: f64 = std::f64::consts::PI / 180.0;
 pub const COMPONENT: u8 = 190;
 
 pub struct Gcs {
@@ -175,4 +181,77 @@ fn header() -> MavHeader {
 pub fn text(bytes: &[u8]) -> String {
     let end = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
     String::from_utf8_lossy(&bytes[..end]).into_owned()
+}
+
+/// The system and component ids of the cameras heard within 5 s.
+pub fn cameras(gcs: &Gcs) -> (u8, BTreeSet<u8>) {
+    let mut seen = BTreeSet::new();
+    let mut system = 0;
+    gcs.wait_for(Duration::from_secs(5), |h, m| {
+        if let MavMessage::HEARTBEAT(b) = m
+            && b.mavtype == MavType::MAV_TYPE_CAMERA
+        {
+            seen.insert(h.component_id);
+            system = h.system_id as u8;
+        }
+        (seen.len() == 4).then_some(())
+    });
+    (system, seen)
+}
+
+pub fn params(p: &[f32]) -> [f32; 7] {
+    let mut all = [0.0; 7];
+    all[..p.len()].copy_from_slice(p);
+    all
+}
+
+/// CAM_EULER (yaw, pitch, roll) of camera `cam`, degrees.
+pub fn euler(ctl: &mut Client, cam: u8) -> (f64, f64, f64) {
+    match ctl
+        .get_one(Param::CamEuler(CamEuler {
+            cam_id: cam,
+            ..Default::default()
+        }))
+        .unwrap()
+    {
+        Param::CamEuler(e) => (e.yaw / DEG, e.pitch / DEG, e.roll / DEG),
+        other => panic!("{other:?}"),
+    }
+}
+
+pub fn fov(ctl: &mut Client, cam: u8) -> f64 {
+    match ctl
+        .get_one(Param::CamFov(CamFov {
+            cam_id: cam,
+            ..Default::default()
+        }))
+        .unwrap()
+    {
+        Param::CamFov(f) => f.fov / DEG,
+        other => panic!("{other:?}"),
+    }
+}
+
+pub fn accepted(answer: Option<(MavResult, Vec<MavMessage>)>, what: &str) -> Vec<MavMessage> {
+    let (result, then) = answer.unwrap_or_else(|| panic!("{what}: no COMMAND_ACK"));
+    assert_eq!(result, MavResult::MAV_RESULT_ACCEPTED, "{what}");
+    then
+}
+
+/// An HTTP GET of `url` (`http://HOST:PORT/PATH`) with std alone: the status and the body.
+pub fn http_get(url: &str) -> (u16, Vec<u8>) {
+    use std::io::{Read, Write};
+    let rest = url.strip_prefix("http://").unwrap();
+    let (host, path) = rest.split_at(rest.find('/').unwrap());
+    let mut s = std::net::TcpStream::connect(host).unwrap_or_else(|e| panic!("{url}: {e}"));
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut reply = vec![];
+    s.read_to_end(&mut reply).unwrap();
+    let status = String::from_utf8_lossy(&reply[9..12]).parse().unwrap();
+    let head = reply.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
+    (status, reply[head + 4..].to_vec())
 }
