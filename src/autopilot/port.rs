@@ -48,7 +48,7 @@ impl Port {
             return Ok(Port::Listening {
                 reader: Mutex::new(MavlinkReader::new(PeerRead {
                     socket: socket.try_clone()?,
-                    peers: peers.clone(),
+                    last_from: None,
                 })),
                 socket,
                 peers,
@@ -76,10 +76,16 @@ impl Port {
     pub fn recv_raw(&self) -> Result<MAVLinkMessageRaw, MessageReadError> {
         match self {
             Port::Net(c) => c.recv_raw(),
-            Port::Listening { reader, .. } => reader
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .read_any_raw_message::<MavMessage>(),
+            Port::Listening { reader, peers, .. } => {
+                // A sender becomes a peer with its first whole frame: noise from any port
+                // cannot crowd the autopilot or a ground station out.
+                let mut reader = reader.lock().unwrap_or_else(|e| e.into_inner());
+                let raw = reader.read_any_raw_message::<MavMessage>()?;
+                if let Some(from) = reader.get_ref().last_from {
+                    peers.heard(from);
+                }
+                Ok(raw)
+            }
             Port::Serial { reader, .. } => reader
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
@@ -149,16 +155,16 @@ impl Peers {
 }
 
 /// A listening UDP socket read as a byte stream (each datagram whole, as MAVLink over UDP
-/// sends them), remembering who sent.
+/// sends them), remembering who sent the last one.
 pub struct PeerRead {
     socket: UdpSocket,
-    peers: Peers,
+    last_from: Option<SocketAddr>,
 }
 
 impl Read for PeerRead {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         let (n, from) = self.socket.recv_from(buf)?;
-        self.peers.heard(from);
+        self.last_from = Some(from);
         Ok(n)
     }
 }

@@ -165,7 +165,9 @@ impl Cameras {
                 c.lock = locks.0;
                 c.yaw = yaw;
                 c.pitch = pitch;
-                c.roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
+                // Roll within ±90°, as CAM_EULER keeps it.
+                let roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
+                c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
                 steer_by_hand(c);
                 Ok::<_, Invalid>(())
             })
@@ -202,7 +204,8 @@ impl Cameras {
             MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW | MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => p[6],
             _ => p[0],
         };
-        if !(device.is_nan() || for_this_gimbal(device as u8) && device.fract() == 0.0) {
+        let named = device >= 0.0 && device.fract() == 0.0 && for_this_gimbal(device as u8);
+        if !(device.is_nan() || named) {
             return Some(Answer::denied(format!("no gimbal device {device}")));
         }
         let done = |r: Result<(), String>| match r {
