@@ -1,20 +1,20 @@
-//! One open link to the autopilot, whatever carries it: UDP and TCP through the `mavlink`
-//! crate's own transports, a serial port opened here. The crate's serial transport retries
+//! One open link to the autopilot, whatever carries it: udpout through the `mavlink` crate's
+//! own transport, the rest opened here. TCP is opened here to turn Nagle's algorithm off
+//! (small frames go both ways; with it on, each end waits for the other's delayed ACK). The crate's serial transport retries
 //! every read error inside its receive call, a timeout and a vanished device alike, so an
 //! unplugged USB adapter would spin there unseen and the link could never reopen: here a
 //! serial read waits at most [`SERIAL_WAIT`] and a hang-up ends the link like any other
 //! failure. A listening UDP port (`udpin`) is opened here too: the crate's replies go to
 //! whoever sent last, but a companion computer's port is shared by the autopilot and the
 //! ground stations (each camera and gimbal must reach the ground station, the rate requests
-//! the autopilot), so here everything sent goes to every peer heard in the last
-//! [`PEER_SILENCE`], as mavlink-router does.
+//! the autopilot), so here everything sent goes to every peer a whole frame came from in the
+//! last [`PEER_SILENCE`], as mavlink-router does.
 
 use mavlink::dialects::common::MavMessage;
 use mavlink::error::{MessageReadError, MessageWriteError};
 use mavlink::{MAVLinkMessageRaw, MavConnection, MavHeader, MavlinkReader, MavlinkVersion};
-use serialport::TTYPort;
 use std::io::{self, Read, Write};
-use std::net::{SocketAddr, UdpSocket};
+use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -32,9 +32,10 @@ pub enum Port {
         socket: UdpSocket,
         peers: Peers,
     },
+    /// A byte stream: a serial port, or a TCP connection.
     Serial {
-        reader: Mutex<MavlinkReader<TTYPort>>,
-        writer: Mutex<TTYPort>,
+        reader: Mutex<MavlinkReader<Box<dyn Read + Send>>>,
+        writer: Mutex<Box<dyn Write + Send>>,
     },
 }
 
@@ -54,6 +55,13 @@ impl Port {
                 peers,
             });
         }
+        if let Some(to) = address.strip_prefix("tcpout:") {
+            return Port::tcp(TcpStream::connect(to)?);
+        }
+        if let Some(bind) = address.strip_prefix("tcpin:") {
+            let (stream, _) = TcpListener::bind(bind)?.accept()?;
+            return Port::tcp(stream);
+        }
         let Some(serial) = address.strip_prefix("serial:") else {
             return mavlink::connect::<MavMessage>(address).map(|c| Port::Net(Box::new(c)));
         };
@@ -66,8 +74,21 @@ impl Port {
             .open_native()?;
         let writer = port.try_clone_native()?;
         Ok(Port::Serial {
-            reader: Mutex::new(MavlinkReader::new(port)),
-            writer: Mutex::new(writer),
+            reader: Mutex::new(MavlinkReader::new(Box::new(port))),
+            writer: Mutex::new(Box::new(writer)),
+        })
+    }
+
+    /// A TCP connection, with Nagle's algorithm off: both ends send small frames both ways,
+    /// and with it on each end's next frame waits for the other's delayed ACK (the attitude
+    /// arrived up to 40 ms late once DigiView's cameras spoke on the link).
+    fn tcp(stream: TcpStream) -> io::Result<Port> {
+        stream.set_nodelay(true)?;
+        stream.set_read_timeout(Some(SERIAL_WAIT))?;
+        let writer = stream.try_clone()?;
+        Ok(Port::Serial {
+            reader: Mutex::new(MavlinkReader::new(Box::new(stream))),
+            writer: Mutex::new(Box::new(writer)),
         })
     }
 

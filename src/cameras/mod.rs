@@ -39,6 +39,8 @@ const ATTITUDE_EVERY: Duration = Duration::from_millis(200);
 const ATTITUDE_SOONEST: Duration = Duration::from_millis(50);
 /// How often the heartbeats and the gimbal managers' status go out.
 const BEAT_EVERY: Duration = Duration::from_secs(1);
+/// The gimbals' status streams while a ground station was heard this recently.
+const LISTENER_SILENCE: Duration = Duration::from_secs(5);
 /// Captured images remembered per camera for ground stations that ask again by index.
 const IMAGES_KEPT: usize = 10_000;
 
@@ -120,6 +122,8 @@ struct Taken {
 #[derive(Default)]
 struct Periodic {
     beat: Option<Instant>,
+    /// When a ground station's HEARTBEAT came last.
+    ground_station: Option<Instant>,
     /// The last tick: rates and continuous zoom advance by the time since.
     ticked: Option<Instant>,
     cameras: [PerCamera; MAX_CAMERAS],
@@ -224,6 +228,9 @@ impl Components for Cameras {
     fn handle(&self, out: &Outbox, from: &MavHeader, msg: &MavMessage) {
         let state = self.live.snapshot();
         match msg {
+            MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
+                self.periodic().ground_station = Some(Instant::now());
+            }
             MavMessage::COMMAND_LONG(c) => {
                 let command = commands::Command::long(c);
                 for i in self.addressed(out, c.target_system, c.target_component, &state) {
@@ -284,21 +291,28 @@ impl Components for Cameras {
         self.apply_motion(n, dt);
         self.deliver_shots(out);
         self.shoot_due(n, now);
-        let beat = {
+        let (beat, listened) = {
             let mut p = self.periodic();
             let due = p.beat.is_none_or(|b| now - b >= BEAT_EVERY);
             if due {
                 p.beat = Some(now);
             }
-            due
+            let heard = p.ground_station.is_some_and(|t| now - t < LISTENER_SILENCE);
+            (due, heard)
         };
+        // Heartbeats always, so a ground station finds the cameras; the gimbals' status
+        // only while one listens, so an autopilot link carries nothing no one reads.
         for i in 0..n {
             let component = FIRST_COMPONENT + i as u8;
             if beat {
                 out.send(component, &heartbeat());
-                out.send(component, &self.manager_status(&state, i));
             }
-            self.report_attitude(out, &state, i, now);
+            if listened {
+                if beat {
+                    out.send(component, &self.manager_status(&state, i));
+                }
+                self.report_attitude(out, &state, i, now);
+            }
         }
     }
 }
