@@ -101,6 +101,14 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
         let frame = Viewer::open(&uri).frame().0;
         assert_eq!(frame.dimensions(), (SIZE, SIZE), "{uri}");
     }
+    // FFmpeg, a second RTSP client, sees a view's stream too.
+    let probe = common::probe_rtsp(&format!("{rtsp}/cam1"), "codec_name,width,height");
+    assert_eq!(
+        String::from_utf8_lossy(&probe.stdout).trim(),
+        format!("h264,{SIZE},{SIZE}"),
+        "{}",
+        String::from_utf8_lossy(&probe.stderr)
+    );
 
     // Camera 2's stream 1: its view alone, the offline render of that view.
     let then = accepted(
