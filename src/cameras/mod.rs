@@ -21,11 +21,11 @@ use crate::autopilot::{Components, Outbox};
 use crate::layout::{Slot, layout};
 use crate::source::clock_us;
 use crate::state::{Live, MAX_CAMERAS, State};
-use mavlink::MavHeader;
 use mavlink::dialects::common::{
     CAMERA_IMAGE_CAPTURED_DATA, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState,
     MavType,
 };
+use mavlink::{MavHeader, Message};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -243,18 +243,12 @@ impl Components for Cameras {
                     self.command(out, from, i, &command, c.target_component == 0);
                 }
             }
-            MavMessage::PARAM_EXT_REQUEST_LIST(m) => {
-                for i in self.addressed(out, m.target_system, m.target_component, &state) {
-                    self.parameter(out, i, msg);
-                }
-            }
-            MavMessage::PARAM_EXT_REQUEST_READ(m) => {
-                for i in self.addressed(out, m.target_system, m.target_component, &state) {
-                    self.parameter(out, i, msg);
-                }
-            }
-            MavMessage::PARAM_EXT_SET(m) => {
-                for i in self.addressed(out, m.target_system, m.target_component, &state) {
+            MavMessage::PARAM_EXT_REQUEST_LIST(_)
+            | MavMessage::PARAM_EXT_REQUEST_READ(_)
+            | MavMessage::PARAM_EXT_SET(_) => {
+                let system = msg.target_system_id().unwrap_or(0);
+                let component = msg.target_component_id().unwrap_or(0);
+                for i in self.addressed(out, system, component, &state) {
                     self.parameter(out, i, msg);
                 }
             }
