@@ -5,7 +5,8 @@
 //! (the lens models, lens.cal, importers), `layout` (where views sit in the output frame),
 //! `frame` (frames as bytes: pixel formats, plane layouts, YUV) and `image_ops` (sampling and
 //! image metrics). `state` is everything an operator can set and the live handle the frame
-//! loop snapshots once per frame. Then the path itself: `source` brings camera frames in,
+//! loop snapshots once per frame. Then the path itself: `source` brings camera frames in
+//! (`exposure` sets the camera's exposure and gain, and runs the auto exposure),
 //! `render` turns a fisheye frame into the output frame (`gpu`, and the CPU reference),
 //! `stream` encodes and serves it, and `head` runs the frame loop between them; `gst` is the
 //! GStreamer plumbing the sources and the stream share, and `scene` synthesises fisheye input
@@ -19,6 +20,7 @@ pub mod autopilot;
 pub mod cameras;
 pub mod cli;
 pub mod control;
+pub mod exposure;
 pub mod frame;
 pub mod geometry;
 pub mod gst;

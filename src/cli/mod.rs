@@ -93,6 +93,9 @@ pub struct StateArgs {
     /// Vehicle position: lat=..,lon=..,alt=..,rel=.. (degrees; metres AMSL and above home).
     #[arg(long)]
     pub position: Option<String>,
+    /// The camera's exposure (CAM_SENSOR): ae=0|1,target=1..254,exposure=US,gain=THOUSANDTHS.
+    #[arg(long)]
+    pub sensor: Option<String>,
     /// A tracked object for a detection tile: yaw=..,pitch=..,size=..,score=.. (repeatable).
     #[arg(long = "track")]
     pub tracks: Vec<String>,
@@ -136,6 +139,9 @@ impl StateArgs {
         }
         if let Some(p) = &self.position {
             s.apply_position(p).context("--position")?;
+        }
+        if let Some(v) = &self.sensor {
+            s.apply_sensor(v).context("--sensor")?;
         }
         for t in &self.tracks {
             s.add_tracked(t).with_context(|| format!("--track {t}"))?;

@@ -222,7 +222,7 @@ impl Controller {
             Param::CamOffset(p) => camera::set_offset(live, s, p),
             Param::CamFov(p) => camera::set_fov(&mut s.cameras[cam], p),
             Param::CamTarget(p) => camera::set_target(live, s, p),
-            Param::CamSensor(p) => system::set_sensor(s, p),
+            Param::CamSensor(p) => system::set_sensor(live, s, p),
             Param::GeneralSettings(p) => system::set_general(live, s, p),
             Param::SystemStatus(_)
             | Param::DetectedRoi(_)

@@ -8,10 +8,8 @@ use crate::protocol::params::{
     CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
 };
 use crate::protocol::{BoundingBox, ViewBoxes};
-use crate::state::{FPS_RANGE, Live, MAX_OUTPUT, MIN_OUTPUT, State};
-
-pub const MAX_EXPOSURE_US: u32 = 40_000;
-pub const MAX_GAIN: u32 = 50_000;
+use crate::state::{FPS_RANGE, Live, MAX_GAIN, MAX_OUTPUT, MIN_OUTPUT, State};
+use tracing::warn;
 
 pub fn system_status(live: &Live) -> SystemStatus {
     SystemStatus {
@@ -121,13 +119,18 @@ pub fn sensor(state: &State) -> CamSensor {
 }
 
 /// Any non-zero ae is on. Brightness, exposure and gain are clamped into the seed's open
-/// ranges; exposure also to the camera's frame time.
-pub fn set_sensor(s: &mut State, p: &CamSensor) -> Result<(), Refusal> {
-    let frame_us = 1_000_000 / s.sensor.fps.max(1);
+/// ranges; exposure also to the camera's frame time. Refused for a source with no exposure to
+/// set (a file, an image), saying why.
+pub fn set_sensor(live: &Live, s: &mut State, p: &CamSensor) -> Result<(), Refusal> {
+    if let Some(why) = live.sensor_refusal() {
+        warn!("CAM_SENSOR SET refused: {why}");
+        return Err(Refusal::Data(why));
+    }
+    let longest = s.sensor.longest_exposure_us();
     let sensor = &mut s.sensor;
     sensor.ae = p.ae != 0;
     sensor.target_brightness = p.target_brightness.clamp(1, 254);
-    sensor.exposure_us = p.exposure_value.clamp(1, MAX_EXPOSURE_US.min(frame_us));
+    sensor.exposure_us = p.exposure_value.clamp(1, longest);
     sensor.gain = p.gain_value.clamp(1, MAX_GAIN);
     Ok(())
 }
@@ -168,6 +171,8 @@ pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<()
     s.sensor.width = p.camera_width as u32;
     s.sensor.height = p.camera_height as u32;
     s.sensor.fps = p.camera_fps as u32;
+    // A faster camera has a shorter frame: the exposure follows it down.
+    s.sensor.exposure_us = s.sensor.exposure_us.min(s.sensor.longest_exposure_us());
     s.sensor.roi = roi;
     s.mount.yaw = wrap_pi(p.mount_yaw);
     s.mount.pitch = p.mount_pitch;

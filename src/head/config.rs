@@ -27,6 +27,8 @@ pub struct Config {
     /// The initial state (a state file as `digiview render --state` takes).
     pub state: Option<PathBuf>,
     pub demo: DemoConfig,
+    /// Who runs the auto exposure of a V4L2 camera.
+    pub exposure: ExposureConfig,
     pub control: ControlConfig,
     pub rtsp: RtspConfig,
     pub encoder: EncoderConfig,
@@ -52,6 +54,7 @@ impl Default for Config {
             lens: None,
             state: None,
             demo: DemoConfig::default(),
+            exposure: ExposureConfig::default(),
             control: ControlConfig::default(),
             rtsp: RtspConfig::default(),
             encoder: EncoderConfig::default(),
@@ -96,6 +99,23 @@ impl Default for DemoConfig {
             stamp: false,
         }
     }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExposureConfig {
+    /// With CAM_SENSOR's ae on: `camera` (the camera's own auto exposure, where it has one;
+    /// target_brightness is then the camera's to ignore) or `software` (DigiView's, towards
+    /// target_brightness, on any camera).
+    pub auto: AutoExposureMode,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AutoExposureMode {
+    #[default]
+    Camera,
+    Software,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]

@@ -101,6 +101,9 @@ impl Head {
                 info!("source: frames again");
             }
             let is_fresh = fresh.is_some();
+            if let Some((f, _)) = &fresh {
+                self.observe_exposure(f, &state);
+            }
             let arrived = fresh.map(|(f, arrived)| {
                 last_frame = Some(f);
                 arrived.saturating_duration_since(start)

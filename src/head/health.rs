@@ -48,7 +48,7 @@ impl Head {
             let encoded = now.4 - last.4;
             info!(
                 "health: in {:.1} fps, out {:.1} fps, dropped {} (renderer behind) + {} \
-                 (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients{}{}{}",
+                 (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients{}{}{}{}",
                 (now.1.received - last.1.received) as f64 / secs,
                 out as f64 / secs,
                 now.1.dropped - last.1.dropped,
@@ -71,6 +71,7 @@ impl Head {
                         self.publishers.iter().filter(|p| p.connected()).count()
                     ),
                 },
+                self.exposure_summary(),
                 match self.source_error() {
                     Some(e) => format!(", source down: {e}"),
                     None => String::new(),

@@ -6,9 +6,11 @@
 //! clients, the recorder (`capture`) and the relays it publishes to. Output size and rate follow the live state's
 //! VIDEO_OUTPUT at each frame. Watched views get streams of their own (`views`). A failed source is retried with back-off while a "no signal"
 //! frame is streamed; a failed encoder or GPU is rebuilt; `health` logs a summary line.
+//! `exposure` sets the camera's exposure and runs DigiView's auto exposure on new frames.
 
 pub mod capture;
 pub mod config;
+mod exposure;
 mod frame_loop;
 mod health;
 mod no_signal;
@@ -65,6 +67,7 @@ pub struct Head {
     /// Why the source is down, while it is.
     source_error: Mutex<Option<String>>,
     stats: Stats,
+    exposure: exposure::ExposureStage,
 }
 
 /// Counters the frame loop keeps and the health log reads.
@@ -92,6 +95,8 @@ impl Head {
         telemetry: Arc<Telemetry>,
         key_wanted: Arc<AtomicBool>,
     ) -> Arc<Head> {
+        let spec = cfg.source.parse().unwrap_or(SourceSpec::Demo);
+        let exposure = exposure::ExposureStage::new(&spec, cfg.exposure.auto);
         Arc::new(Head {
             cfg,
             live,
@@ -104,6 +109,7 @@ impl Head {
             key_wanted,
             source_error: Mutex::new(None),
             stats: Stats::default(),
+            exposure,
         })
     }
 
@@ -128,8 +134,12 @@ impl Head {
                 })
             })?
         };
+        let exposure = self.start_exposure();
         let result = self.supervised("frames", || self.frame_loop());
         self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = exposure {
+            let _ = t.join();
+        }
         self.capture.finish();
         // The first failure is the one to report: a stage that gave up stopped the others.
         let others = [source, health].map(|t| t.join().unwrap_or(Ok(())));

@@ -5,6 +5,7 @@
 use super::{Head, HeadError};
 use crate::autopilot::Endpoint;
 use crate::autopilot::sim::SimAutopilot;
+use crate::exposure::{SensorModel, Setting};
 use crate::frame::{Frame, PlaneLayout};
 use crate::geometry::Euler;
 use crate::source::demo::{DemoCamera, Flight};
@@ -124,6 +125,7 @@ impl Head {
             )
         });
         let mut next = start;
+        let mut number = 0u64;
         while !self.stop.load(Ordering::Relaxed) {
             let now = Instant::now();
             if now < next {
@@ -144,7 +146,15 @@ impl Head {
             let (attitude, position) = flight.pose_at(t, captured_us as f64 / 1e6);
             self.telemetry.simulated(captured_us, attitude, position);
             let stamp = d.stamp.then_some((captured_us / 1000) as u32);
-            let data = camera.frame(attitude, &position, t, stamp);
+            // The exposure and gain as they are now, read after the capture time is taken:
+            // the auto exposure knows a frame stamped after its change shows it.
+            let sensor = &self.live.snapshot().sensor;
+            let sensor = SensorModel::new(Setting {
+                exposure_us: sensor.exposure_us,
+                gain: sensor.gain,
+            });
+            number += 1;
+            let data = camera.frame(attitude, &position, t, (sensor, number), stamp);
             self.slot.put(Frame {
                 data,
                 layout,

@@ -88,6 +88,24 @@ impl State {
         Ok(())
     }
 
+    /// Applies `--sensor ae=0,target=100,exposure=5000,gain=1000` (CAM_SENSOR's fields:
+    /// exposure in microseconds, gain in thousandths).
+    pub fn apply_sensor(&mut self, flag: &str) -> Result<(), FlagError> {
+        let s = &mut self.sensor;
+        for (key, value) in key_values(flag)? {
+            match key {
+                "ae" => s.ae = number::<u8>(key, value)? != 0,
+                "target" | "target_brightness" => s.target_brightness = number(key, value)?,
+                "exposure" | "exposure_us" => s.exposure_us = number(key, value)?,
+                "gain" => s.gain = number(key, value)?,
+                _ => {
+                    return Err(unknown(key, "a sensor field (ae, target, exposure, gain)"));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Adds a tracked object from `--track yaw=10deg,pitch=-40deg,size=3deg,score=90`.
     pub fn add_tracked(&mut self, flag: &str) -> Result<(), FlagError> {
         let mut t = Tracked {
@@ -166,5 +184,36 @@ mod tests {
         assert_eq!(s.vehicle.position.relative_alt, 20.0);
         s.add_tracked("yaw=5deg,size=2deg").unwrap();
         assert_eq!(s.tracked.len(), 1);
+    }
+
+    #[test]
+    fn sensor_flags_set_cam_sensors_fields_and_the_state_refuses_what_it_cannot_take() {
+        let lenses = crate::lens::Lenses::new(&crate::cli::locate::built_in_lens_cal());
+        let mut s = State::default();
+        s.apply_sensor("ae=0,target=100,exposure=5000,gain=2000")
+            .unwrap();
+        let sensor = &s.sensor;
+        assert_eq!(
+            (
+                sensor.ae,
+                sensor.target_brightness,
+                sensor.exposure_us,
+                sensor.gain
+            ),
+            (false, 100, 5000, 2000)
+        );
+        assert!(s.validate(&lenses).is_ok());
+        assert!(s.apply_sensor("iso=100").is_err());
+        for (flag, says) in [
+            ("exposure=0", "exposure 0"),
+            ("exposure=40000", "frame time at 30 fps"),
+            ("gain=60000", "gain 60000"),
+            ("target=255", "target brightness 255"),
+        ] {
+            let mut bad = s.clone();
+            bad.apply_sensor(flag).unwrap();
+            let e = bad.validate(&lenses).unwrap_err().to_string();
+            assert!(e.contains(says), "{flag}: {e}");
+        }
     }
 }

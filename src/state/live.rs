@@ -51,6 +51,8 @@ pub struct Live {
     /// The autopilot's attitude is stale; reported while nothing worse is.
     attitude_lost: AtomicBool,
     capture: Box<dyn Capturer>,
+    /// Why CAM_SENSOR cannot be set, for a source with no exposure to set.
+    sensor_refusal: Mutex<Option<String>>,
 }
 
 impl Live {
@@ -66,6 +68,7 @@ impl Live {
             failure: AtomicU8::new(Failure::None as u8),
             attitude_lost: AtomicBool::new(false),
             capture,
+            sensor_refusal: Mutex::new(None),
         })
     }
 
@@ -131,6 +134,22 @@ impl Live {
     /// Whether the autopilot's attitude is stale (the views hold the last one).
     pub fn set_attitude_lost(&self, lost: bool) {
         self.attitude_lost.store(lost, Ordering::Relaxed);
+    }
+
+    /// Says CAM_SENSOR SET is refused, and why (the source has no exposure to set), or
+    /// allowed again.
+    pub fn set_sensor_refusal(&self, why: Option<String>) {
+        *self
+            .sensor_refusal
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) = why;
+    }
+
+    pub fn sensor_refusal(&self) -> Option<String> {
+        self.sensor_refusal
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     pub fn capture(&self) -> &dyn Capturer {

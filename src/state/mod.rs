@@ -174,7 +174,16 @@ pub struct Sensor {
     pub gain: u32,
 }
 
+/// CAM_SENSOR's longest exposure (µs) and highest gain (thousandths), the seed's.
+pub const MAX_EXPOSURE_US: u32 = 40_000;
+pub const MAX_GAIN: u32 = 50_000;
+
 impl Sensor {
+    /// The longest exposure at the camera's frame rate, microseconds.
+    pub fn longest_exposure_us(&self) -> u32 {
+        MAX_EXPOSURE_US.min(1_000_000 / self.fps.max(1))
+    }
+
     /// The sensor crop as a lens takes it.
     pub fn roi(&self) -> Option<Roi> {
         self.roi.map(|[x, y, width, height]| Roi {

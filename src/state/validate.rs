@@ -1,7 +1,7 @@
 //! The one check every way into the state goes through (state files, flags, the control
 //! protocol, and what comes later): every field against the range the protocol allows.
 
-use super::{FPS_RANGE, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, RATIO_RANGE, State};
+use super::{FPS_RANGE, MAX_GAIN, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, RATIO_RANGE, State};
 use crate::geometry::view::{LockFlags, clamp_fov, control, crop, fov_range};
 use crate::layout::{LAYOUT_MODES, OVERLAY_MODES};
 use crate::lens::Lenses;
@@ -129,6 +129,22 @@ impl State {
         }
         if !(1..=240).contains(&s.fps) {
             return invalid(format!("sensor fps {} is outside 1..=240", s.fps));
+        }
+        let longest = s.longest_exposure_us();
+        if !(1..=longest).contains(&s.exposure_us) {
+            return invalid(format!(
+                "sensor exposure {} µs is outside 1..={longest} (the frame time at {} fps)",
+                s.exposure_us, s.fps
+            ));
+        }
+        if !(1..=MAX_GAIN).contains(&s.gain) {
+            return invalid(format!("sensor gain {} is outside 1..={MAX_GAIN}", s.gain));
+        }
+        if !(1..=254).contains(&s.target_brightness) {
+            return invalid(format!(
+                "sensor target brightness {} is outside 1..=254",
+                s.target_brightness
+            ));
         }
         let angles = self
             .cameras

@@ -77,11 +77,19 @@ impl Serve {
         } else {
             &["--http", "127.0.0.1:0"]
         };
+        // The demo's exposure held where it shows the world's own colours (auto exposure
+        // off), so pictures compare with offline renders, unless the test sets it.
+        let sensor: &[&str] = if extra.contains(&"--sensor") || mode.contains(&"--no-video") {
+            &[]
+        } else {
+            &["--sensor", "ae=0"]
+        };
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["serve", "--control", "127.0.0.1:0"])
             .args(mode)
             .args(link)
             .args(http)
+            .args(sensor)
             .args(extra)
             .env("DIGIVIEW_LENS_CAL", cal)
             // DIGIVIEW_TEST_LOG=info shows the server's log while debugging a test.
