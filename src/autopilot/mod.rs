@@ -12,6 +12,7 @@
 pub mod clock;
 mod outgoing;
 mod port;
+pub mod probe;
 pub mod sim;
 pub mod vehicle;
 

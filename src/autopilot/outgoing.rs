@@ -154,7 +154,7 @@ fn report(status: &LinkStatus, (since, before): (Instant, u64)) -> (Instant, u64
     (Instant::now(), n)
 }
 
-fn heartbeat() -> MavMessage {
+pub(super) fn heartbeat() -> MavMessage {
     MavMessage::HEARTBEAT(HEARTBEAT_DATA {
         custom_mode: 0,
         mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,

@@ -1,14 +1,15 @@
-//! The command line: `digiview lens …`, `synth`, `render`, `bench`, `serve` and `ctl`. Parses flags into
+//! The command line: `digiview lens …`, `synth`, `render`, `bench`, `serve`, `ctl` and `doctor`. Parses flags into
 //! the library's plain types and reports errors with anyhow; no rendering logic lives here.
 
 mod bench_cmd;
 mod ctl_cmd;
+mod doctor;
 mod lens_cmd;
 pub mod locate;
 mod output;
 mod render_cmd;
 mod render_video;
-mod serve_cmd;
+pub(crate) mod serve_cmd;
 mod sim_cmd;
 
 use crate::state::State;
@@ -47,6 +48,9 @@ pub enum Command {
     Serve(serve_cmd::ServeArgs),
     /// Talk to a running server over the control protocol: get, set, watch, quit.
     Ctl(ctl_cmd::CtlArgs),
+    /// Check that this machine has what `serve` needs (GPU, GStreamer, camera, lens.cal,
+    /// config, ports, autopilot, disk); one line each, exit code 0 only when all pass.
+    Doctor(doctor::DoctorArgs),
     /// Send the demo's flight as a MAVLink autopilot, to try a setup without a drone.
     SimAutopilot(sim_cmd::SimArgs),
 }
@@ -166,6 +170,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Synth(args) => render_cmd::synth(&lens_cal()?, args),
         Command::Bench(args) => bench_cmd::bench(&lens_cal()?, args),
         Command::Serve(args) => serve_cmd::serve(&lens_cal()?, args),
+        Command::Doctor(args) => doctor::doctor(cli.lens_cal.as_deref(), args),
         Command::Ctl(args) => ctl_cmd::run(args),
         Command::SimAutopilot(args) => sim_cmd::sim_autopilot(args),
     }

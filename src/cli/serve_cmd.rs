@@ -29,43 +29,21 @@ use tracing::info;
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
-    /// A TOML configuration file (docs/serve.md lists every key and default); flags override
-    /// it. Without it: $DIGIVIEW_CONFIG, else the first digiview.toml in the working
-    /// directory, ~/.config/digiview, /etc/digiview, else the defaults.
-    #[arg(long)]
-    config: Option<PathBuf>,
+    #[command(flatten)]
+    pub setup: SetupArgs,
     /// Run only the control server on the live state: no camera, renderer or encoder.
     #[arg(long)]
     no_video: bool,
-    /// The source: demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, image:PATH, sequence:PATTERN.
-    #[arg(long)]
-    source: Option<String>,
-    /// Where the control protocol listens, TCP and UDP (port 0 picks a free port).
-    #[arg(long)]
-    control: Option<SocketAddr>,
     /// Who may SET: `any`, `none`, `loopback`, or addresses and CIDR ranges, comma-separated.
     #[arg(long)]
     allow_set: Option<Allow>,
     /// Who may QUIT (same forms as --allow-set).
     #[arg(long)]
     allow_quit: Option<Allow>,
-    /// The RTSP port (0 picks a free port).
-    #[arg(long)]
-    rtsp_port: Option<u16>,
-    /// Where the HTTP server listens, ADDR:PORT (port 0 picks a free port), or off.
-    #[arg(long, value_name = "ADDR:PORT")]
-    http: Option<String>,
     /// Also push the stream to a relay: rtsp://HOST:PORT/PATH (RTSP RECORD) or
     /// srt://HOST:PORT (repeatable; replaces the config's `publish`).
     #[arg(long = "publish", value_name = "URL")]
     publish: Vec<String>,
-    /// The autopilot link: udpin:ADDR:PORT, udpout:HOST:PORT, tcpin:ADDR:PORT,
-    /// tcpout:HOST:PORT, serial:DEVICE:BAUD, or off (docs/mavlink.md).
-    #[arg(long, value_name = "ENDPOINT")]
-    mavlink: Option<String>,
-    /// Where stills and recordings go.
-    #[arg(long)]
-    capture_dir: Option<PathBuf>,
     /// The demo vehicle hovers at the state's attitude and position instead of flying.
     #[arg(long)]
     demo_hover: bool,
@@ -80,28 +58,65 @@ pub struct ServeArgs {
 }
 
 /// The configuration file with the flags applied.
+/// Where `serve` and `doctor` find their configuration, and the flags that override it.
+#[derive(Args, Debug)]
+pub struct SetupArgs {
+    /// A TOML configuration file (docs/serve.md lists every key and default); flags override
+    /// it. Without it: $DIGIVIEW_CONFIG, else the first digiview.toml in the working
+    /// directory, ~/.config/digiview, /etc/digiview, else the defaults.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// The source: demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, image:PATH, sequence:PATTERN.
+    #[arg(long)]
+    source: Option<String>,
+    /// Where the control protocol listens, TCP and UDP (port 0 picks a free port).
+    #[arg(long)]
+    control: Option<SocketAddr>,
+    /// The RTSP port (0 picks a free port).
+    #[arg(long)]
+    rtsp_port: Option<u16>,
+    /// Where the HTTP server listens, ADDR:PORT (port 0 picks a free port), or off.
+    #[arg(long, value_name = "ADDR:PORT")]
+    http: Option<String>,
+    /// The autopilot link: udpin:ADDR:PORT, udpout:HOST:PORT, tcpin:ADDR:PORT,
+    /// tcpout:HOST:PORT, serial:DEVICE:BAUD, or off (docs/mavlink.md).
+    #[arg(long, value_name = "ENDPOINT")]
+    mavlink: Option<String>,
+    /// Where stills and recordings go.
+    #[arg(long)]
+    capture_dir: Option<PathBuf>,
+}
+
+impl SetupArgs {
+    /// The configuration file (or the defaults) with these flags applied, not yet checked.
+    pub fn config(&self) -> Result<(Config, super::locate::Origin)> {
+        let (mut cfg, origin) = super::locate::config(self.config.as_deref())?;
+        if let Some(s) = &self.source {
+            cfg.source = s.clone();
+        }
+        if let Some(c) = self.control {
+            cfg.control.listen = c.to_string();
+        }
+        if let Some(p) = self.rtsp_port {
+            cfg.rtsp.port = p;
+        }
+        if let Some(h) = &self.http {
+            cfg.http.listen = h.clone();
+        }
+        if let Some(m) = &self.mavlink {
+            cfg.mavlink.endpoint = m.clone();
+        }
+        if let Some(d) = &self.capture_dir {
+            cfg.capture.dir = d.clone();
+        }
+        Ok((cfg, origin))
+    }
+}
+
 fn config(args: &ServeArgs) -> Result<Config> {
-    let (mut cfg, _) = super::locate::config(args.config.as_deref())?;
-    if let Some(s) = &args.source {
-        cfg.source = s.clone();
-    }
-    if let Some(c) = args.control {
-        cfg.control.listen = c.to_string();
-    }
-    if let Some(p) = args.rtsp_port {
-        cfg.rtsp.port = p;
-    }
-    if let Some(h) = &args.http {
-        cfg.http.listen = h.clone();
-    }
-    if let Some(m) = &args.mavlink {
-        cfg.mavlink.endpoint = m.clone();
-    }
+    let (mut cfg, _) = args.setup.config()?;
     if !args.publish.is_empty() {
         cfg.publish = args.publish.clone();
-    }
-    if let Some(d) = &args.capture_dir {
-        cfg.capture.dir = d.clone();
     }
     if args.demo_hover {
         cfg.demo.motion = false;

@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// Hardware encoders tried before x264 when `kind` is "auto", best first.
-const HARDWARE: [&str; 3] = ["nvv4l2h264enc", "vaapih264enc", "v4l2h264enc"];
+pub const HARDWARE: [&str; 3] = ["nvv4l2h264enc", "vaapih264enc", "v4l2h264enc"];
 /// Frames the encoder may hold before new ones are dropped (it has fallen behind).
 const BACKLOG: usize = 3;
 
