@@ -14,6 +14,8 @@ packages=(
   gstreamer1.0-plugins-ugly gstreamer1.0-libav gstreamer1.0-tools
   # rtspclientsink: publishing the stream to a relay (serve --publish rtsp://...).
   gstreamer1.0-rtsp
+  # systemd-analyze: the package's unit file is verified in the tests.
+  systemd
   # ffprobe and ffplay: a second RTSP client in the tests, and FFmpeg's v360 for comparison.
   ffmpeg
 )
