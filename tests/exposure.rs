@@ -31,7 +31,7 @@ fn start(sensor: &str) -> (Serve, Viewer, Client) {
         "1280x720",
         "--fps",
         "15",
-        "--sensor",
+        "--cam-sensor",
         sensor,
     ]);
     let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());

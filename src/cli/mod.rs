@@ -99,7 +99,7 @@ pub struct StateArgs {
     pub position: Option<String>,
     /// The camera's exposure (CAM_SENSOR): ae=0|1,target=1..254,exposure=US,gain=THOUSANDTHS.
     #[arg(long)]
-    pub sensor: Option<String>,
+    pub cam_sensor: Option<String>,
     /// A tracked object for a detection tile: yaw=..,pitch=..,size=..,score=.. (repeatable).
     #[arg(long = "track")]
     pub tracks: Vec<String>,
@@ -144,8 +144,8 @@ impl StateArgs {
         if let Some(p) = &self.position {
             s.apply_position(p).context("--position")?;
         }
-        if let Some(v) = &self.sensor {
-            s.apply_sensor(v).context("--sensor")?;
+        if let Some(v) = &self.cam_sensor {
+            s.apply_sensor(v).context("--cam-sensor")?;
         }
         for t in &self.tracks {
             s.add_tracked(t).with_context(|| format!("--track {t}"))?;
@@ -186,4 +186,13 @@ pub(crate) fn spinner(message: &str) -> indicatif::ProgressBar {
     bar.set_message(message.to_string());
     bar.enable_steady_tick(std::time::Duration::from_millis(120));
     bar
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn every_commands_flags_are_well_formed_and_none_is_named_twice() {
+        use clap::CommandFactory;
+        super::Cli::command().debug_assert();
+    }
 }

@@ -82,6 +82,11 @@ impl State {
             message: e.message().trim().to_string(),
         })?;
         state.even_output();
+        if !gives_exposure(text) {
+            // The default exposure fits the file's frame rate, as GENERAL_SETTINGS shortens it.
+            let sensor = &mut state.sensor;
+            sensor.exposure_us = sensor.exposure_us.min(sensor.longest_exposure_us());
+        }
         state
             .place_cameras()
             .and_then(|()| state.validate_fields())
@@ -91,7 +96,18 @@ impl State {
             })?;
         Ok(state)
     }
+}
 
+/// Whether a (parsed) state file sets `[sensor] exposure_us` itself.
+fn gives_exposure(text: &str) -> bool {
+    toml::from_str::<toml::Table>(text).is_ok_and(|t| {
+        t.get("sensor")
+            .and_then(|s| s.as_table())
+            .is_some_and(|s| s.contains_key("exposure_us"))
+    })
+}
+
+impl State {
     /// Puts `[[camera]]` tables at their ids and fills missing cameras with defaults.
     fn place_cameras(&mut self) -> Result<(), Invalid> {
         let given = std::mem::take(&mut self.cameras);
@@ -174,6 +190,22 @@ mod tests {
         assert_eq!(s.cameras[2].fov, 1.0);
         assert_eq!(s.cameras[1], Camera::numbered(1));
         assert!((s.vehicle.attitude.roll - 20f64.to_radians()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn an_exposure_left_out_fits_the_frame_rate_and_one_given_is_checked() {
+        let s = State::parse("[sensor]\nfps = 120\n", "s.toml", &cal()).unwrap();
+        assert_eq!(s.sensor.exposure_us, 8_333);
+        let e = State::parse(
+            "[sensor]\nfps = 120\nexposure_us = 10000\n",
+            "s.toml",
+            &cal(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("outside 1..=8333"), "{e}");
+        let s = State::parse("[sensor]\nfps = 25\n", "s.toml", &cal()).unwrap();
+        assert_eq!(s.sensor.exposure_us, 10_000);
     }
 
     #[test]

@@ -88,7 +88,7 @@ impl State {
         Ok(())
     }
 
-    /// Applies `--sensor ae=0,target=100,exposure=5000,gain=1000` (CAM_SENSOR's fields:
+    /// Applies `--cam-sensor ae=0,target=100,exposure=5000,gain=1000` (CAM_SENSOR's fields:
     /// exposure in microseconds, gain in thousandths).
     pub fn apply_sensor(&mut self, flag: &str) -> Result<(), FlagError> {
         let s = &mut self.sensor;

@@ -79,10 +79,10 @@ impl Serve {
         };
         // The demo's exposure held where it shows the world's own colours (auto exposure
         // off), so pictures compare with offline renders, unless the test sets it.
-        let sensor: &[&str] = if extra.contains(&"--sensor") || mode.contains(&"--no-video") {
+        let sensor: &[&str] = if extra.contains(&"--cam-sensor") || mode.contains(&"--no-video") {
             &[]
         } else {
-            &["--sensor", "ae=0"]
+            &["--cam-sensor", "ae=0"]
         };
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["serve", "--control", "127.0.0.1:0"])
