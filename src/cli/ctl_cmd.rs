@@ -2,6 +2,7 @@
 //! with units) and scripts (`--json`, one object per line).
 
 use crate::control::client::{Client, ClientError, query};
+use crate::protocol::edit::{self, Given};
 use crate::protocol::text::{annotate, describe};
 use crate::protocol::{Param, ParamType, Unit};
 use anyhow::{Context, Result, bail};
@@ -191,17 +192,11 @@ fn param_type(name: &str) -> Result<ParamType> {
 
 /// Whether `set` reads the current values first, so unnamed fields keep them.
 fn reads_first(kind: ParamType, fields: &[String]) -> bool {
-    match kind {
-        ParamType::VideoOutput
-        | ParamType::Detection
-        | ParamType::CamSensor
-        | ParamType::GeneralSettings => true,
-        ParamType::CamEuler => !fields.iter().any(|f| {
-            f.split_once('=')
-                .is_some_and(|(k, v)| k.trim() == "is_delta" && v.trim() != "0")
-        }),
-        _ => false,
-    }
+    let is_delta = fields.iter().any(|f| {
+        f.split_once('=')
+            .is_some_and(|(k, v)| k.trim() == "is_delta" && v.trim() != "0")
+    });
+    edit::reads_first(kind, is_delta)
 }
 
 fn cam_of(kind: ParamType, fields: &[String]) -> Result<u8> {
@@ -217,35 +212,7 @@ fn build(name: &str, pairs: &[String], base: Option<Param>) -> Result<Param> {
         let (key, value) = pair
             .split_once('=')
             .with_context(|| format!("`{pair}` is not field=value"))?;
-        let key = match key.trim() {
-            "cam" => "cam_id",
-            k => k,
-        };
-        let Some(field) = kind.fields().iter().find(|f| f.name == key) else {
-            bail!(
-                "{kind} has no field `{key}`; its fields: {}",
-                kind.fields()
-                    .iter()
-                    .map(|f| f.name)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-        };
-        let v = match field.unit {
-            Unit::Radians => crate::units::parse_angle(value)?,
-            Unit::Boxes | Unit::Text => {
-                bail!("{kind} {key} is reported by GET; it cannot be sent")
-            }
-            _ => value
-                .trim()
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .with_context(|| format!("{key}=`{value}` is not a number"))?,
-        };
-        if p.set_field(key, v).is_err() {
-            bail!("{key}={value} does not fit the field (see `digiview ctl params {kind}`)");
-        }
+        edit::set(&mut p, key, Given::Text(value))?;
     }
     Ok(p)
 }

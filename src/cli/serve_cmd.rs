@@ -180,6 +180,7 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     let http_address = cfg.http.address().map_err(|e| anyhow!(e))?;
     let http_cameras_cfg = cfg.cameras.clone();
     let captures_dir = (!args.no_video).then(|| cfg.capture.dir.clone());
+    let login = cfg.rtsp.user.clone().zip(cfg.rtsp.password.clone());
     let control: SocketAddr = cfg
         .control
         .listen
@@ -298,11 +299,16 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         tokio::spawn(server::stop_on_signals(shutdown.clone()));
         if let Some(listener) = http {
             let stop = shutdown.clone();
-            let cameras = cameras.clone();
-            let captures = captures_dir.clone();
+            let web = crate::http::Web {
+                controller: controller.clone(),
+                cameras: cameras.clone(),
+                head: head.as_ref().map(|(h, _)| h.clone()),
+                captures: captures_dir.clone(),
+                login,
+            };
             tokio::spawn(async move {
                 let stopped = async move { stop.wait().await };
-                if let Err(e) = crate::http::serve(listener, cameras, captures, stopped).await {
+                if let Err(e) = crate::http::serve(listener, web, stopped).await {
                     tracing::error!("http: {e}");
                 }
             });

@@ -161,7 +161,26 @@ impl Controller {
         }
     }
 
-    fn get(&self, query: &Param) -> Result<Vec<Param>, Refusal> {
+    /// A GET from another entry than the binary protocol (the web API): the same answers,
+    /// and a refusal logged alike.
+    pub fn get_from(&self, query: &Param, peer: IpAddr) -> Result<Vec<Param>, Refusal> {
+        self.get(query).inspect_err(|r| {
+            let what = format!("GET {}", query.param_type());
+            self.refusals.note(peer, &what, &r.to_string())
+        })
+    }
+
+    /// A SET from another entry than the binary protocol (the web API): the same checks
+    /// and permissions, and a refusal logged alike.
+    pub fn set_from(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
+        self.set(param, peer).inspect_err(|r| {
+            let what = format!("SET {}", param.param_type());
+            self.refusals.note(peer, &what, &r.to_string())
+        })
+    }
+
+    /// A GET's answer, nothing logged (what a page polls).
+    pub fn get(&self, query: &Param) -> Result<Vec<Param>, Refusal> {
         let cam = checked_cam(query)?;
         let live = &self.live;
         let s = live.snapshot();
@@ -188,7 +207,10 @@ impl Controller {
             Param::CamTarget(q) => one(Param::CamTarget(camera::target(live, &s, q)?)),
             Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s))),
             Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s))),
-            Param::RefusalReason(_) => unreachable!("answered per peer in handle"),
+            // Answered per peer in `handle`; elsewhere each refusal carries its reason.
+            Param::RefusalReason(_) => Err(Refusal::Data(
+                "REFUSAL is read over the control protocol; here each refusal says why".into(),
+            )),
             Param::Autopilot(_) => one(Param::Autopilot(
                 self.autopilot
                     .as_ref()

@@ -41,12 +41,14 @@ fn health(signal: bool, source_failed: bool, had_a_frame: bool) -> Option<bool> 
 }
 
 impl Head {
-    /// The encoder's sink: every access unit to the clients, the recording and the relays.
+    /// The encoder's sink: every access unit to the clients, the page's viewers, the recording
+    /// and the relays.
     fn encoder(self: &Arc<Head>, fps: u32) -> Result<Encoder, HeadError> {
         let head = self.clone();
         let encoder = Encoder::new(&self.cfg.encoder, fps, move |au: AccessUnit| {
             head.stats.units.fetch_add(1, Ordering::Relaxed);
             head.rtsp.push(&au.buffer);
+            head.preview.push(&au);
             head.capture.on_access_unit(&au);
             for p in &head.publishers {
                 if p.push(&au) {

@@ -1,83 +1,158 @@
-//! The health log: one line every `health_interval_s` with frames in and out, frames dropped
-//! and where, render and encode times, RTSP clients, relays taking the stream, and why the
-//! source is down, if it is.
+//! The head's health: every second the frame counters are turned into [`Health`] (frames in
+//! and out, frames dropped and where, render and encode times, RTSP and page viewers, relays,
+//! the exposure, why the source is down), which the web page reads; every
+//! `health_interval_s` the same figures, over that interval, go to the log as one line.
 
 use super::Head;
+use serde::Serialize;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use tracing::info;
 
+/// The video head's figures over the last second (the web page's status).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Health {
+    pub fps_in: f64,
+    pub fps_out: f64,
+    /// Frames the renderer was too slow to take (the source's newer frame replaced them).
+    pub dropped_renderer: u64,
+    /// Frames the encoder was too slow to take, since the start.
+    pub dropped_encoder: u64,
+    pub render_ms: f64,
+    pub encode_ms: f64,
+    pub rtsp_clients: usize,
+    pub page_viewers: usize,
+    /// Relays taking the stream, of those configured.
+    pub relays: (usize, usize),
+    /// `exposure 8.0 ms gain 1.00, luma 101` (empty when the head does not see it).
+    pub exposure: String,
+    /// Why the source is down, while it is.
+    pub source_down: Option<String>,
+    /// Views rendered alone (their own streams and stills) per second, and ms each.
+    pub views_alone: (f64, f64),
+}
+
+/// The counters at one moment.
+#[derive(Clone, Copy)]
+struct Sample {
+    at: Instant,
+    received: u64,
+    dropped: u64,
+    out: u64,
+    render_us: u64,
+    encoded: u64,
+    encode_us: u64,
+    views: u64,
+    view_us: u64,
+}
+
+impl std::fmt::Display for Health {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "health: in {:.1} fps, out {:.1} fps, dropped {} (renderer behind) + {} \
+             (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients",
+            self.fps_in,
+            self.fps_out,
+            self.dropped_renderer,
+            self.dropped_encoder,
+            self.render_ms,
+            self.encode_ms,
+            self.rtsp_clients
+        )?;
+        if self.page_viewers > 0 {
+            write!(f, ", {} page viewers", self.page_viewers)?;
+        }
+        if self.views_alone.0 > 0.0 {
+            let (fps, ms) = self.views_alone;
+            write!(f, ", views alone {fps:.1} fps, {ms:.1} ms each")?;
+        }
+        if self.relays.1 > 0 {
+            write!(
+                f,
+                ", publishing to {} of {} relays",
+                self.relays.0, self.relays.1
+            )?;
+        }
+        if !self.exposure.is_empty() {
+            write!(f, ", {}", self.exposure)?;
+        }
+        if let Some(e) = &self.source_down {
+            write!(f, ", source down: {e}")?;
+        }
+        Ok(())
+    }
+}
+
 impl Head {
-    /// Logs a summary line every `health_interval_s` until the head stops.
+    fn sample(&self) -> Sample {
+        let s = &self.stats;
+        let slot = self.slot.stats();
+        Sample {
+            at: Instant::now(),
+            received: slot.received,
+            dropped: slot.dropped,
+            out: s.out.load(Ordering::Relaxed),
+            render_us: s.render_us.load(Ordering::Relaxed),
+            encoded: s.encoded.load(Ordering::Relaxed),
+            encode_us: s.encode_us.load(Ordering::Relaxed),
+            views: s.views.load(Ordering::Relaxed),
+            view_us: s.view_us.load(Ordering::Relaxed),
+        }
+    }
+
+    /// The figures between two samples.
+    fn health_between(&self, a: &Sample, b: &Sample) -> Health {
+        let secs = (b.at - a.at).as_secs_f64().max(1e-3);
+        let out = b.out - a.out;
+        let views = b.views - a.views;
+        let per = |us: u64, n: u64| us as f64 / 1000.0 / n.max(1) as f64;
+        Health {
+            fps_in: (b.received - a.received) as f64 / secs,
+            fps_out: out as f64 / secs,
+            dropped_renderer: b.dropped - a.dropped,
+            dropped_encoder: self.stats.encoder_dropped.load(Ordering::Relaxed),
+            render_ms: per(b.render_us - a.render_us, out),
+            encode_ms: per(b.encode_us - a.encode_us, b.encoded - a.encoded),
+            rtsp_clients: self.rtsp.clients(),
+            page_viewers: self.preview.viewers(),
+            relays: (
+                self.publishers.iter().filter(|p| p.connected()).count(),
+                self.publishers.len(),
+            ),
+            exposure: self.exposure_summary().trim_start_matches(", ").to_string(),
+            source_down: self.source_error(),
+            views_alone: (views as f64 / secs, per(b.view_us - a.view_us, views)),
+        }
+    }
+
+    /// The figures over the last second.
+    pub fn health(&self) -> Health {
+        self.health
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    /// Updates [`Head::health`] every second and logs a line every `health_interval_s`,
+    /// until the head stops.
     pub(super) fn health_thread(&self) {
         let every = self.cfg.health_interval_s;
-        if every <= 0.0 {
-            return;
-        }
-        let every = Duration::from_secs_f64(every);
-        let mut last = (
-            Instant::now(),
-            self.slot.stats(),
-            0u64,
-            0u64,
-            0u64,
-            0u64,
-            0u64,
-            0u64,
-        );
-        let mut next = Instant::now() + every;
+        let log_every = (every > 0.0).then(|| Duration::from_secs_f64(every));
+        let mut logged = self.sample();
+        let mut last = logged;
         while !self.stop.load(Ordering::Relaxed) {
             std::thread::sleep(Duration::from_millis(100));
-            if Instant::now() < next {
-                continue;
+            let now = self.sample();
+            if now.at - last.at >= Duration::from_secs(1) {
+                *self.health.lock().unwrap_or_else(|e| e.into_inner()) =
+                    self.health_between(&last, &now);
+                last = now;
             }
-            next += every;
-            let s = &self.stats;
-            let now = (
-                Instant::now(),
-                self.slot.stats(),
-                s.out.load(Ordering::Relaxed),
-                s.render_us.load(Ordering::Relaxed),
-                s.encoded.load(Ordering::Relaxed),
-                s.encode_us.load(Ordering::Relaxed),
-                s.views.load(Ordering::Relaxed),
-                s.view_us.load(Ordering::Relaxed),
-            );
-            let secs = (now.0 - last.0).as_secs_f64();
-            let out = now.2 - last.2;
-            let encoded = now.4 - last.4;
-            info!(
-                "health: in {:.1} fps, out {:.1} fps, dropped {} (renderer behind) + {} \
-                 (encoder behind), render {:.1} ms, encode {:.1} ms, {} clients{}{}{}{}",
-                (now.1.received - last.1.received) as f64 / secs,
-                out as f64 / secs,
-                now.1.dropped - last.1.dropped,
-                s.encoder_dropped.load(Ordering::Relaxed),
-                (now.3 - last.3) as f64 / 1000.0 / out.max(1) as f64,
-                (now.5 - last.5) as f64 / 1000.0 / encoded.max(1) as f64,
-                self.rtsp.clients(),
-                match now.6 - last.6 {
-                    0 => String::new(),
-                    n => format!(
-                        ", views alone {:.1} fps, {:.1} ms each",
-                        n as f64 / secs,
-                        (now.7 - last.7) as f64 / 1000.0 / n as f64
-                    ),
-                },
-                match self.publishers.len() {
-                    0 => String::new(),
-                    n => format!(
-                        ", publishing to {} of {n} relays",
-                        self.publishers.iter().filter(|p| p.connected()).count()
-                    ),
-                },
-                self.exposure_summary(),
-                match self.source_error() {
-                    Some(e) => format!(", source down: {e}"),
-                    None => String::new(),
-                }
-            );
-            last = now;
+            if log_every.is_some_and(|e| now.at - logged.at >= e) {
+                info!("{}", self.health_between(&logged, &now));
+                logged = now;
+            }
         }
     }
 }

@@ -12,7 +12,7 @@ pub mod capture;
 pub mod config;
 mod exposure;
 mod frame_loop;
-mod health;
+pub mod health;
 mod no_signal;
 pub mod pacing;
 mod source_thread;
@@ -25,7 +25,7 @@ use crate::lens::LensError;
 use crate::render::gpu::GpuError;
 use crate::source::{FrameSlot, SourceSpec, SpecError};
 use crate::state::Live;
-use crate::stream::{Publisher, Rtsp, StreamError};
+use crate::stream::{Preview, Publisher, Rtsp, StreamError};
 use capture::Capture;
 use config::Config;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -64,9 +64,13 @@ pub struct Head {
     pub stop: Arc<AtomicBool>,
     /// Set by the RTSP server when a client joins: the encoder owes it a key frame.
     pub key_wanted: Arc<AtomicBool>,
+    /// The web page's viewers of the stream.
+    pub preview: Arc<Preview>,
     /// Why the source is down, while it is.
     source_error: Mutex<Option<String>>,
     stats: Stats,
+    /// The figures over the last second.
+    health: Mutex<health::Health>,
     exposure: exposure::ExposureStage,
 }
 
@@ -106,9 +110,11 @@ impl Head {
             publishers,
             slot: Arc::default(),
             stop: Arc::default(),
+            preview: Arc::new(Preview::new(key_wanted.clone())),
             key_wanted,
             source_error: Mutex::new(None),
             stats: Stats::default(),
+            health: Mutex::default(),
             exposure,
         })
     }

@@ -1,21 +1,37 @@
 //! The head's one HTTP server (axum, on the tokio runtime the control server runs on), beside
-//! the frame path like the control protocol: today it serves the MAVLink cameras' definition
-//! file, which ground stations fetch by the URL in CAMERA_INFORMATION, and the cameras' stills
-//! (`/captures/NAME`, the URL in CAMERA_IMAGE_CAPTURED); the web page and its API are to join
-//! it on the same port.
+//! the frame path like the control protocol. It serves the tuning page (`page`, built into
+//! the binary) and the JSON API behind it (`api`: every parameter type read and set through
+//! the same [`Controller`] as the binary protocol, so permissions and checks are the same),
+//! the live state pushed over a WebSocket (`events`), the encoder's H.264 for the page's
+//! preview (`preview`), the MAVLink cameras' definition file (which ground stations fetch by
+//! the URL in CAMERA_INFORMATION) and the captures (`/captures/NAME`).
+//!
+//! With the RTSP user and password set, everything but the definition file asks for them
+//! (basic authentication). A request that changes something, and every WebSocket, is refused
+//! when it comes from another site's page (its Origin is not this server).
+
+mod api;
+mod events;
+mod page;
+mod preview;
 
 use crate::cameras::{Cameras, DEFINITION_PATH};
+use crate::control::Controller;
+use crate::head::Head;
 use axum::Router;
-use axum::extract::State;
-use axum::http::{StatusCode, header};
-use axum::response::IntoResponse;
+use axum::extract::{Request, State};
+use axum::http::{HeaderMap, Method, StatusCode, header};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
 use axum::routing::get;
+use base64::Engine;
 use serde::{Deserialize, Serialize};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 use tokio::net::TcpListener;
 
-/// Where the stills are served.
+/// Where the captures are served.
 pub const CAPTURES_PATH: &str = "/captures/";
 
 /// `[http]` in the config.
@@ -36,7 +52,7 @@ impl Default for HttpConfig {
 
 impl HttpConfig {
     /// Where to listen; None when off.
-    pub fn address(&self) -> Result<Option<std::net::SocketAddr>, String> {
+    pub fn address(&self) -> Result<Option<SocketAddr>, String> {
         if self.listen.eq_ignore_ascii_case("off") {
             return Ok(None);
         }
@@ -49,69 +65,122 @@ impl HttpConfig {
 
 /// What the handlers reach.
 #[derive(Clone)]
-struct Shared {
-    cameras: Option<Arc<Cameras>>,
+pub struct Web {
+    pub controller: Arc<Controller>,
+    pub cameras: Option<Arc<Cameras>>,
+    /// The video head (None with `--no-video`): its figures and its preview.
+    pub head: Option<Arc<Head>>,
     /// The capture directory (None without video).
-    captures: Option<PathBuf>,
+    pub captures: Option<PathBuf>,
+    /// `user:password` for basic authentication (the RTSP server's), or open.
+    pub login: Option<(String, String)>,
 }
 
 /// Serves on `listener` until `stop` resolves.
 pub async fn serve(
     listener: TcpListener,
-    cameras: Option<Arc<Cameras>>,
-    captures: Option<PathBuf>,
+    web: Web,
     stop: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
+    let expected = web.login.as_ref().map(|(user, password)| {
+        let token = base64::engine::general_purpose::STANDARD.encode(format!("{user}:{password}"));
+        Arc::<str>::from(format!("Basic {token}"))
+    });
+    let guarded = Router::new()
+        .merge(page::routes())
+        .merge(api::routes())
+        .route("/api/events", get(events::upgrade))
+        .route("/api/preview", get(preview::upgrade))
+        .route(&format!("{CAPTURES_PATH}{{name}}"), get(api::capture_file))
+        .layer(axum::middleware::from_fn(same_site))
+        .layer(axum::middleware::from_fn_with_state(expected, logged_in));
     let app = Router::new()
         .route(DEFINITION_PATH, get(definition))
-        .route(&format!("{CAPTURES_PATH}{{name}}"), get(still))
-        .with_state(Shared { cameras, captures });
-    axum::serve(listener, app)
-        .with_graceful_shutdown(stop)
-        .await
+        .merge(guarded)
+        .with_state(web);
+    axum::serve(
+        listener,
+        app.into_make_service_with_connect_info::<SocketAddr>(),
+    )
+    .with_graceful_shutdown(stop)
+    .await
+}
+
+/// A plain-text error response.
+fn text(status: StatusCode, message: impl Into<String>) -> Response {
+    let mut body = message.into();
+    if !body.ends_with('\n') {
+        body.push('\n');
+    }
+    (
+        status,
+        [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
+        body,
+    )
+        .into_response()
+}
+
+/// Basic authentication, when a login is set.
+async fn logged_in(
+    State(expected): State<Option<Arc<str>>>,
+    request: Request,
+    next: Next,
+) -> Response {
+    let Some(expected) = expected else {
+        return next.run(request).await;
+    };
+    let given = request.headers().get(header::AUTHORIZATION);
+    if given.is_some_and(|g| g.as_bytes() == expected.as_bytes()) {
+        return next.run(request).await;
+    }
+    let mut refused = text(
+        StatusCode::UNAUTHORIZED,
+        "log in with the RTSP user and password",
+    );
+    refused.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        header::HeaderValue::from_static("Basic realm=\"DigiView\", charset=\"UTF-8\""),
+    );
+    refused
+}
+
+/// Whether a request comes from this server's own page, or from no page (a script, `curl`):
+/// an `Origin` naming another host is another site's page.
+pub(crate) fn from_this_site(headers: &HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN) else {
+        return true;
+    };
+    let host = headers.get(header::HOST).and_then(|h| h.to_str().ok());
+    let origin = origin.to_str().ok().and_then(|o| o.split_once("://"));
+    matches!((origin, host), (Some((_, o)), Some(h)) if o.eq_ignore_ascii_case(h))
+}
+
+/// Refuses what changes something (every method but GET and HEAD, and every WebSocket) from
+/// another site's page.
+async fn same_site(request: Request, next: Next) -> Response {
+    let reads = matches!(*request.method(), Method::GET | Method::HEAD);
+    let upgrade = request.headers().contains_key(header::UPGRADE);
+    if (!reads || upgrade) && !from_this_site(request.headers()) {
+        return text(
+            StatusCode::FORBIDDEN,
+            "another site's page may not change this video head",
+        );
+    }
+    next.run(request).await
 }
 
 /// The camera definition file (application/xml), or 404 with the cameras off.
-async fn definition(State(shared): State<Shared>) -> impl IntoResponse {
-    match &shared.cameras {
+async fn definition(State(web): State<Web>) -> Response {
+    match &web.cameras {
         Some(c) => (
             StatusCode::OK,
             [(header::CONTENT_TYPE, "application/xml")],
             c.definition().0,
-        ),
-        None => (
+        )
+            .into_response(),
+        None => text(
             StatusCode::NOT_FOUND,
-            [(header::CONTENT_TYPE, "text/plain")],
-            "the MAVLink cameras are off ([cameras] enabled = false)\n".to_string(),
-        ),
-    }
-}
-
-/// A still DigiView wrote (`digiview-*.jpg` or `.png` in the capture directory, nothing
-/// else: no other name, no path), or 404.
-async fn still(
-    State(shared): State<Shared>,
-    axum::extract::Path(name): axum::extract::Path<String>,
-) -> impl IntoResponse {
-    let kind = match name.rsplit_once('.').map(|(_, ext)| ext) {
-        Some("jpg") => Some("image/jpeg"),
-        Some("png") => Some("image/png"),
-        _ => None,
-    };
-    let ours = name.starts_with("digiview-") && !name.contains(['/', '\\']);
-    let found = match (&shared.captures, kind) {
-        (Some(dir), Some(kind)) if ours => tokio::fs::read(dir.join(&name))
-            .await
-            .ok()
-            .map(|bytes| (kind, bytes)),
-        _ => None,
-    };
-    match found {
-        Some((kind, bytes)) => (StatusCode::OK, [(header::CONTENT_TYPE, kind)], bytes),
-        None => (
-            StatusCode::NOT_FOUND,
-            [(header::CONTENT_TYPE, "text/plain")],
-            format!("no still {name:?}\n").into_bytes(),
+            "the MAVLink cameras are off ([cameras] enabled = false)",
         ),
     }
 }

@@ -5,6 +5,7 @@
 //! Decoding never panics: any 80 bytes are either a message or a [`DecodeError`] that says
 //! which reply the server owes (CHECKSUM_ERROR, DATA_ERROR or UNKNOWN).
 
+pub mod edit;
 pub mod params;
 pub mod text;
 pub mod wire;

@@ -2,14 +2,16 @@
 //! H.264 access units (x264 tuned for zero latency, or a hardware encoder); `rtsp` serves them
 //! as one shared media to any number of RTSP clients; `record` writes them to fragmented MP4.
 //! One encoder feeds both, so recording costs no second encode; `publish` pushes the same
-//! units to media relays.
+//! units to media relays, and `preview` to the web page's viewers.
 
 pub mod encoder;
+pub mod preview;
 pub mod publish;
 pub mod record;
 pub mod rtsp;
 
 pub use encoder::{AccessUnit, Encoder, EncoderConfig};
+pub use preview::Preview;
 pub use publish::{PublishTarget, Publisher};
 pub use record::Recorder;
 pub use rtsp::{Rtsp, RtspConfig};

@@ -12,6 +12,8 @@ pub struct Serve {
     pub addr: SocketAddr,
     /// The stream's URL (video mode only).
     pub rtsp: Option<String>,
+    /// The page's URL, `http://127.0.0.1:PORT/` (unless the test turned HTTP off).
+    pub http: Option<String>,
 }
 
 impl Serve {
@@ -126,7 +128,21 @@ impl Serve {
                 .unwrap_or_else(|| panic!("serve printed {line:?}"))
                 .to_string()
         });
-        Serve { child, addr, rtsp }
+        let off = extra.windows(2).any(|w| w == ["--http", "off"]);
+        let http = (!off).then(|| {
+            line.clear();
+            out.read_line(&mut line).unwrap();
+            line.trim()
+                .strip_prefix("http serving ")
+                .unwrap_or_else(|| panic!("serve printed {line:?}"))
+                .to_string()
+        });
+        Serve {
+            child,
+            addr,
+            rtsp,
+            http,
+        }
     }
 
     /// kill -9.

@@ -1,0 +1,286 @@
+//! The JSON API: every parameter type of the control protocol read (`GET /api/params`,
+//! `GET /api/params/NAME?cam_id=1`) and set (`PUT /api/params/NAME` with the fields to
+//! change) through the same controller as the binary protocol, the head's figures
+//! (`/api/status`), the lenses, and the captures listed and downloaded. docs/web.md shows
+//! each with an example.
+
+use super::{Web, text};
+use crate::control::Refusal;
+use crate::protocol::edit::{self, Given};
+use crate::protocol::{Param, ParamType};
+use axum::Json;
+use axum::Router;
+use axum::extract::{ConnectInfo, Path, Query, State};
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use serde_json::{Map, Value, json};
+use std::collections::HashMap;
+use std::net::SocketAddr;
+
+pub(super) fn routes() -> Router<Web> {
+    Router::new()
+        .route("/api/params", get(all_params))
+        .route("/api/params/{name}", get(get_param).put(put_param))
+        .route("/api/status", get(status))
+        .route("/api/lenses", get(lenses))
+        .route("/api/captures", get(captures))
+}
+
+fn kind_of(name: &str) -> Result<ParamType, ApiError> {
+    ParamType::parse(name).ok_or_else(|| {
+        let names: Vec<_> = ParamType::ALL.iter().map(|p| p.name()).collect();
+        let message = format!(
+            "`{name}` is not a parameter type; one of: {}",
+            names.join(", ")
+        );
+        ApiError(StatusCode::NOT_FOUND, message)
+    })
+}
+
+/// A parameter from named fields over `p`.
+fn build<'a>(
+    mut p: Param,
+    fields: impl IntoIterator<Item = (&'a str, Given<'a>)>,
+) -> Result<Param, ApiError> {
+    for (key, value) in fields {
+        edit::set(&mut p, key, value).map_err(|e| ApiError(StatusCode::BAD_REQUEST, e.0))?;
+    }
+    Ok(p)
+}
+
+/// Every parameter's value as a GET answers it: per-camera types as a list of four (CAM_TARGET
+/// null for a camera without a target), the tracked objects as a list.
+pub(crate) fn snapshot(web: &Web) -> Value {
+    let c = &web.controller;
+    let mut out = Map::new();
+    let one = |p: Param| c.get(&p).ok().and_then(|v| v.into_iter().next());
+    for &kind in ParamType::ALL {
+        let value = match kind {
+            // Asked of a pixel, per request; the link's counters are in the status.
+            ParamType::RefusalReason | ParamType::CamOffset | ParamType::Autopilot => continue,
+            ParamType::DetectedRoi => {
+                let mut q = kind.zeroed();
+                let _ = q.set_field("index", 255.0);
+                json!(c.get(&q).unwrap_or_default())
+            }
+            k if k.per_camera() => Value::Array(
+                (0..crate::state::MAX_CAMERAS)
+                    .map(|cam| {
+                        let mut q = k.zeroed();
+                        let _ = q.set_field("cam_id", cam as f64);
+                        json!(one(q))
+                    })
+                    .collect(),
+            ),
+            k => json!(one(k.zeroed())),
+        };
+        out.insert(kind.name().to_string(), value);
+    }
+    Value::Object(out)
+}
+
+async fn all_params(State(web): State<Web>) -> Response {
+    Json(snapshot(&web)).into_response()
+}
+
+/// One GET; the query string gives the request's fields (`cam_id`, `index`, `x`, `y`).
+async fn get_param(
+    State(web): State<Web>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    Path(name): Path<String>,
+    Query(fields): Query<HashMap<String, String>>,
+) -> Response {
+    let answer = || -> Result<Value, ApiError> {
+        let kind = kind_of(&name)?;
+        let given = fields.iter().map(|(k, v)| (k.as_str(), Given::Text(v)));
+        let query = build(kind.zeroed(), given)?;
+        let mut params = web.controller.get_from(&query, peer.ip())?;
+        Ok(match (kind, params.len()) {
+            (ParamType::DetectedRoi, _) => json!(params),
+            (_, 1) => json!(params.remove(0)),
+            _ => json!(params),
+        })
+    };
+    match answer() {
+        Ok(v) => Json(v).into_response(),
+        Err(e) => e.into_response(),
+    }
+}
+
+/// A request the API refused: its status and why.
+pub(crate) struct ApiError(pub StatusCode, pub String);
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.0, Json(json!({ "error": self.1 }))).into_response()
+    }
+}
+
+impl From<Refusal> for ApiError {
+    fn from(r: Refusal) -> ApiError {
+        let status = match r {
+            Refusal::Forbidden(_) => StatusCode::FORBIDDEN,
+            Refusal::Data(_) => StatusCode::UNPROCESSABLE_ENTITY,
+        };
+        ApiError(status, r.to_string())
+    }
+}
+
+/// One SET from a JSON object of fields (numbers, or angles as `"30deg"`). Types whose
+/// fields are all settings start from the current values, so fields left out keep them (as
+/// `digiview ctl set` does); the answer is the type's value after the SET.
+pub(crate) fn set_json(
+    web: &Web,
+    peer: std::net::IpAddr,
+    name: &str,
+    body: &Value,
+) -> Result<Value, ApiError> {
+    let kind = kind_of(name)?;
+    let bad = |m: String| ApiError(StatusCode::BAD_REQUEST, m);
+    let fields = body
+        .as_object()
+        .ok_or_else(|| bad("the body is a JSON object of fields".into()))?;
+    let mut given = Vec::new();
+    for (key, value) in fields {
+        let value = match value {
+            Value::Number(n) => Given::Number(n.as_f64().unwrap_or(f64::NAN)),
+            Value::String(s) => Given::Text(s),
+            Value::Bool(b) => Given::Number(*b as u8 as f64),
+            other => return Err(bad(format!("{key}: {other} is not a number or an angle"))),
+        };
+        given.push((key.as_str(), value));
+    }
+    let is_delta = fields
+        .get("is_delta")
+        .is_some_and(|v| v.as_f64().is_some_and(|d| d != 0.0) || v == &Value::Bool(true));
+    let mut base = kind.zeroed();
+    if edit::reads_first(kind, is_delta) {
+        // The camera first, then that camera's current values.
+        if let Some(cam) = fields.get("cam_id").and_then(Value::as_f64) {
+            edit::set(&mut base, "cam_id", Given::Number(cam)).map_err(|e| bad(e.0))?;
+        }
+        if let Some(now) = web.controller.get_from(&base, peer)?.into_iter().next() {
+            base = now;
+        }
+    }
+    let param = build(base, given)?;
+    web.controller.set_from(&param, peer)?;
+    let mut query = kind.zeroed();
+    if let Some(cam) = param.cam_id() {
+        let _ = query.set_field("cam_id", cam as f64);
+    }
+    Ok(
+        match web.controller.get(&query).ok().and_then(|mut v| v.pop()) {
+            Some(now) if !matches!(kind, ParamType::CamOffset | ParamType::CamTarget) => json!(now),
+            _ => json!({ "result": "set" }),
+        },
+    )
+}
+
+async fn put_param(
+    State(web): State<Web>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    Path(name): Path<String>,
+    body: Option<Json<Value>>,
+) -> Response {
+    let Some(Json(body)) = body else {
+        return text(
+            StatusCode::BAD_REQUEST,
+            "the body is a JSON object of fields (Content-Type: application/json)",
+        );
+    };
+    match set_json(&web, peer.ip(), &name, &body) {
+        Ok(v) => Json(v).into_response(),
+        Err(e) => e.into_response(),
+    }
+}
+
+/// The run's status, the head's figures over the last second, and the autopilot link.
+pub(crate) fn status_value(web: &Web) -> Value {
+    let s = &web.controller.live;
+    json!({
+        "status": s.status() as u8,
+        "failure": s.failure(),
+        "video": web.head.as_ref().map(|h| h.health()),
+        "autopilot": web.controller.autopilot.as_ref().map(|a| a.param()),
+        "version": env!("CARGO_PKG_VERSION"),
+    })
+}
+
+async fn status(State(web): State<Web>) -> Response {
+    Json(status_value(&web)).into_response()
+}
+
+async fn lenses(State(web): State<Web>) -> Response {
+    let names = web.controller.live.lenses().names();
+    let list: Vec<_> = names
+        .into_iter()
+        .map(|(id, name)| json!({ "lens_id": id, "name": name }))
+        .collect();
+    Json(list).into_response()
+}
+
+/// What a capture file is, by its name: DigiView's own files only (`digiview-*`).
+fn capture_kind(name: &str) -> Option<&'static str> {
+    if !name.starts_with("digiview-") || name.contains(['/', '\\']) {
+        return None;
+    }
+    match name.rsplit_once('.').map(|(_, ext)| ext) {
+        Some("jpg") => Some("image/jpeg"),
+        Some("png") => Some("image/png"),
+        Some("mp4") => Some("video/mp4"),
+        _ => None,
+    }
+}
+
+/// The captures, newest first: name, kind, bytes and when written (Unix seconds).
+async fn captures(State(web): State<Web>) -> Response {
+    let Some(dir) = web.captures.clone() else {
+        return Json(json!([])).into_response();
+    };
+    let mut list = Vec::new();
+    if let Ok(mut entries) = tokio::fs::read_dir(&dir).await {
+        while let Ok(Some(e)) = entries.next_entry().await {
+            let name = e.file_name().to_string_lossy().to_string();
+            let (Some(kind), Ok(meta)) = (capture_kind(&name), e.metadata().await) else {
+                continue;
+            };
+            let modified = meta
+                .modified()
+                .ok()
+                .and_then(|m| m.duration_since(std::time::UNIX_EPOCH).ok())
+                .map_or(0, |d| d.as_secs());
+            list.push(json!({
+                "name": name, "type": kind, "bytes": meta.len(), "modified": modified,
+                "url": format!("{}{name}", super::CAPTURES_PATH),
+            }));
+        }
+    }
+    list.sort_by(|a, b| b["name"].as_str().cmp(&a["name"].as_str()));
+    Json(list).into_response()
+}
+
+/// A still or recording DigiView wrote (nothing else: no other name, no path), streamed from
+/// disk, or 404.
+pub(super) async fn capture_file(State(web): State<Web>, Path(name): Path<String>) -> Response {
+    let file = match (&web.captures, capture_kind(&name)) {
+        (Some(dir), Some(kind)) => tokio::fs::File::open(dir.join(&name))
+            .await
+            .ok()
+            .map(|f| (kind, f)),
+        _ => None,
+    };
+    match file {
+        Some((kind, file)) => {
+            let length = file.metadata().await.map(|m| m.len()).ok();
+            let body = axum::body::Body::from_stream(tokio_util::io::ReaderStream::new(file));
+            let mut response = (StatusCode::OK, [(header::CONTENT_TYPE, kind)], body).into_response();
+            if let Some(n) = length {
+                response.headers_mut().insert(header::CONTENT_LENGTH, n.into());
+            }
+            response
+        }
+        None => text(StatusCode::NOT_FOUND, format!("no capture {name:?}")),
+    }
+}

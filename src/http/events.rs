@@ -1,0 +1,100 @@
+//! `/api/events`: a WebSocket that pushes the live state as it changes, whoever changed it
+//! (the binary protocol, MAVLink, another page), and takes SETs.
+//!
+//! Server to client, JSON text: `{"params": {...}}` (every parameter, as `GET /api/params`)
+//! at once and whenever a value changes (looked at every 100 ms), and `{"status": {...}}`
+//! (as `GET /api/status`) every second. Client to server: `{"id": 7, "set": "CAM_FOV",
+//! "fields": {"cam_id": 1, "fov": "60deg"}}`, answered `{"id": 7, "ok": {...}}` or `{"id":
+//! 7, "error": "...", "code": 422}` with the same checks and permissions as `PUT`.
+
+use super::Web;
+use super::api::{set_json, snapshot, status_value};
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{ConnectInfo, State};
+use axum::response::Response;
+use serde_json::{Value, json};
+use std::net::{IpAddr, SocketAddr};
+use std::time::Duration;
+
+/// How often the state is compared with what was last pushed.
+const LOOK_EVERY: Duration = Duration::from_millis(100);
+/// Messages a client may send per second before the socket is closed (a flood).
+const MAX_PER_SECOND: u32 = 200;
+
+pub(super) async fn upgrade(
+    ws: WebSocketUpgrade,
+    State(web): State<Web>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+) -> Response {
+    ws.max_message_size(64 * 1024)
+        .on_upgrade(move |socket| events(socket, web, peer.ip()))
+}
+
+async fn events(mut socket: WebSocket, web: Web, peer: IpAddr) {
+    let mut last: Option<Value> = None;
+    let mut look = tokio::time::interval(LOOK_EVERY);
+    look.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut tick = 0u32;
+    let mut received = 0u32;
+    loop {
+        tokio::select! {
+            _ = look.tick() => {
+                tick += 1;
+                if tick % 10 == 1 {
+                    received = 0;
+                    let status = json!({ "status": status_value(&web) });
+                    if socket.send(Message::Text(status.to_string().into())).await.is_err() {
+                        return;
+                    }
+                }
+                let web = web.clone();
+                let Ok(now) = tokio::task::spawn_blocking(move || snapshot(&web)).await else {
+                    return;
+                };
+                if last.as_ref() != Some(&now) {
+                    let pushed = json!({ "params": now });
+                    if socket.send(Message::Text(pushed.to_string().into())).await.is_err() {
+                        return;
+                    }
+                    last = Some(now);
+                }
+            }
+            message = socket.recv() => {
+                let text = match message {
+                    Some(Ok(Message::Text(t))) => t,
+                    Some(Ok(Message::Close(_))) | None | Some(Err(_)) => return,
+                    Some(Ok(_)) => continue,
+                };
+                received += 1;
+                if received > MAX_PER_SECOND {
+                    tracing::info!("http: closing {peer}'s event socket: over {MAX_PER_SECOND} messages a second");
+                    return;
+                }
+                let reply = answer(&web, peer, &text);
+                if socket.send(Message::Text(reply.to_string().into())).await.is_err() {
+                    return;
+                }
+                // The change shows at once, not at the next look.
+                look.reset_immediately();
+            }
+        }
+    }
+}
+
+/// The reply to one client message.
+fn answer(web: &Web, peer: IpAddr, text: &str) -> Value {
+    let message: Value = match serde_json::from_str(text) {
+        Ok(v) => v,
+        Err(e) => return json!({ "error": format!("not JSON: {e}"), "code": 400 }),
+    };
+    let id = message.get("id").cloned().unwrap_or(Value::Null);
+    let Some(name) = message.get("set").and_then(Value::as_str) else {
+        let error = "a message is {\"id\": N, \"set\": \"PARAM\", \"fields\": {...}}";
+        return json!({ "id": id, "error": error, "code": 400 });
+    };
+    let fields = message.get("fields").cloned().unwrap_or_else(|| json!({}));
+    match set_json(web, peer, name, &fields) {
+        Ok(v) => json!({ "id": id, "ok": v }),
+        Err(e) => json!({ "id": id, "error": e.1, "code": e.0.as_u16() }),
+    }
+}

@@ -1,0 +1,150 @@
+// The settings beside the picture: one small form per parameter type, filled from the pushed
+// state and sending a SET of the one field changed. Angles are shown and typed in degrees.
+
+const LAYOUTS = ['0 one square', '1 two squares stacked', '2 two panoramas stacked',
+  '3 two squares over a panorama', '4 four squares', '5 three squares over a panorama',
+  '6 fisheye (debug)'];
+const OVERLAYS = ['0 none', '1 one tile, top right', '2 column, right', '3 column, left',
+  '4 row, top', '5 row, bottom'];
+const SORTING = ['0 by score', '1 by age', '2 by score, tiles kept'];
+const deg = (r) => (r * 180) / Math.PI;
+
+// [field, label, kind, options]; kind: int, num, deg, bool, choice, ratio.
+const FORMS = {
+  output: ['VIDEO_OUTPUT', [
+    ['width', 'width', 'int'], ['height', 'height', 'int'], ['fps', 'fps', 'int'],
+    ['layout_mode', 'layout', 'choice', LAYOUTS],
+    ['detection_overlay_mode', 'overlay', 'choice', OVERLAYS],
+  ]],
+  lens: ['LENS', [['lens_id', 'lens', 'choice', []]]],
+  sensor: ['CAM_SENSOR', [
+    ['ae', 'auto exposure', 'bool'], ['target_brightness', 'target brightness', 'int'],
+    ['exposure_value', 'exposure µs', 'int'], ['gain_value', 'gain (1000 = 1×)', 'int'],
+  ]],
+  general: ['GENERAL_SETTINGS', [
+    ['camera_width', 'camera width', 'int'], ['camera_height', 'camera height', 'int'],
+    ['roi_width', 'crop width', 'int'], ['roi_height', 'crop height', 'int'],
+    ['camera_fps', 'camera fps', 'int'], ['mount_yaw', 'mount yaw °', 'deg'],
+    ['mount_pitch', 'mount pitch °', 'deg'], ['mount_roll', 'mount roll °', 'deg'],
+    ['run_ai', 'detection on', 'bool'],
+  ]],
+  detection: ['DETECTION', [
+    ['mode', 'mode', 'int'], ['sorting_mode', 'sorting', 'choice', SORTING],
+    ['crop_confidence_threshold', 'crop threshold', 'ratio'],
+    ['var_confidence_threshold', 'scan threshold', 'ratio'],
+    ['crop_box_limit', 'crop box limit', 'int'], ['var_box_limit', 'scan box limit', 'int'],
+    ['crop_box_overlap', 'crop overlap', 'ratio'], ['var_box_overlap', 'scan overlap', 'ratio'],
+    ['creation_score_scale', 'creation score', 'int'],
+    ['bonus_detection_scale', 'bonus, scan', 'int'], ['bonus_redetection_scale', 'bonus, track', 'int'],
+    ['missed_detection_penalty', 'penalty, scan', 'int'],
+    ['missed_redetection_penalty', 'penalty, track', 'int'],
+  ]],
+};
+
+// The camera form: [param, field, label, kind, options].
+const CAMERA = [
+  ['CAM_EULER', 'yaw', 'yaw °', 'deg'], ['CAM_EULER', 'pitch', 'pitch °', 'deg'],
+  ['CAM_EULER', 'roll', 'roll °', 'deg'], ['CAM_FOV', 'fov', 'fov °', 'deg'],
+  ['CAM_CROP_MODE', 'mode', 'crop mode', 'int'],
+  ['CAM_LOCK_FLAGS', 'flags', 'lock (roll 1, pitch 2, yaw 4)', 'int'],
+  ['CAM_CONTROL_MODE', 'mode', 'control mode', 'int'],
+];
+
+function input(kind, options) {
+  if (kind === 'choice') {
+    const select = document.createElement('select');
+    options.forEach((text, value) => select.add(new Option(text, value)));
+    return select;
+  }
+  const el = document.createElement('input');
+  if (kind === 'bool') el.type = 'checkbox';
+  else {
+    el.type = 'number';
+    el.step = kind === 'int' ? '1' : 'any';
+  }
+  return el;
+}
+
+function show(el, kind, value) {
+  if (document.activeElement === el || value === undefined || value === null) return;
+  if (kind === 'bool') el.checked = value !== 0;
+  else if (kind === 'deg') el.value = deg(value).toFixed(2);
+  else if (kind === 'ratio') el.value = Number(value).toFixed(3);
+  else el.value = value;
+}
+
+function read(el, kind) {
+  if (kind === 'bool') return el.checked ? 1 : 0;
+  if (kind === 'deg') return `${el.value}deg`;
+  return Number(el.value);
+}
+
+function row(form, name, label) {
+  const id = `${form.id}-${name}`;
+  const l = document.createElement('label');
+  l.htmlFor = id;
+  l.textContent = label;
+  return [l, id];
+}
+
+export class Controls {
+  constructor(api, say) {
+    this.api = api;
+    this.say = say;
+    this.cam = 0;
+    this.fields = [];
+    for (const [formId, [param, fields]] of Object.entries(FORMS)) {
+      const form = document.getElementById(formId);
+      for (const [name, label, kind, options] of fields) {
+        const [l, id] = row(form, name, label);
+        const el = input(kind, options || []);
+        el.id = id;
+        el.name = name;
+        form.append(l, el);
+        el.addEventListener('change', () => this.set(param, { [name]: read(el, kind) }));
+        this.fields.push({ param, name, kind, el, perCamera: false });
+      }
+    }
+    const pick = document.getElementById('cam-pick');
+    for (let i = 0; i < 4; i++) pick.add(new Option(`cam ${i}`, i));
+    pick.addEventListener('change', () => {
+      this.cam = Number(pick.value);
+      if (this.params) this.update(this.params);
+    });
+    const camera = document.getElementById('camera');
+    for (const [param, name, label, kind] of CAMERA) {
+      const [l, id] = row(camera, `${param}-${name}`, label);
+      const el = input(kind, []);
+      el.id = id;
+      camera.append(l, el);
+      el.addEventListener('change', () => {
+        const fields = { cam_id: this.cam, [name]: read(el, kind) };
+        if (param === 'CAM_EULER') fields.is_delta = 0;
+        this.set(param, fields);
+      });
+      this.fields.push({ param, name, kind, el, perCamera: true });
+    }
+    this.lensSelect = document.getElementById('lens-lens_id');
+  }
+
+  set(param, fields) {
+    this.api
+      .set(param, fields)
+      .then(() => this.say(`${param} set`))
+      .catch((e) => this.say(`${param}: ${e.message}`, true));
+  }
+
+  lenses(list) {
+    this.lensSelect.replaceChildren(...list.map((l) => new Option(`${l.lens_id} ${l.name}`, l.lens_id)));
+    if (this.params) this.update(this.params);
+  }
+
+  update(params) {
+    this.params = params;
+    for (const f of this.fields) {
+      let value = params[f.param];
+      if (f.perCamera) value = value && value[this.cam];
+      show(f.el, f.kind, value ? value[f.name] : undefined);
+    }
+  }
+}

@@ -1,0 +1,152 @@
+// The views over the live picture: each view's rectangle outlined with its camera number, and
+// the pointer gestures that steer it: drag inside a view to turn it (CAM_OFFSET: the picture
+// follows the pointer), wheel or pinch to zoom (CAM_FOV), double-click to centre a point.
+
+const LAYOUT_DEBUG = 6; // the whole fisheye frame: no camera to steer
+const MIN_FOV = 0.02;
+const MAX_FOV = Math.PI;
+
+export class Views {
+  constructor(overlay, api, onMessage) {
+    this.overlay = overlay;
+    this.context = overlay.getContext('2d');
+    this.api = api;
+    this.say = onMessage;
+    this.output = null;
+    this.fovs = [];
+    this.pointers = new Map();
+    this.busy = false;
+    this.queued = null;
+    overlay.addEventListener('pointerdown', (e) => this.down(e));
+    overlay.addEventListener('pointermove', (e) => this.move(e));
+    overlay.addEventListener('pointerup', (e) => this.up(e));
+    overlay.addEventListener('pointercancel', (e) => this.up(e));
+    overlay.addEventListener('wheel', (e) => this.wheel(e), { passive: false });
+    overlay.addEventListener('dblclick', (e) => this.centre(e));
+  }
+
+  // New parameters: the output's views and each camera's fov.
+  update(params) {
+    this.output = params.VIDEO_OUTPUT;
+    this.fovs = (params.CAM_FOV || []).map((f) => (f ? f.fov : null));
+    this.draw();
+  }
+
+  draw() {
+    const o = this.output;
+    if (!o) return;
+    if (this.overlay.width !== o.width || this.overlay.height !== o.height) {
+      this.overlay.width = o.width;
+      this.overlay.height = o.height;
+    }
+    const g = this.context;
+    g.clearRect(0, 0, o.width, o.height);
+    const scale = Math.max(1, o.width / 960);
+    g.lineWidth = 2 * scale;
+    g.font = `${Math.round(16 * scale)}px system-ui, sans-serif`;
+    this.views().forEach((v, cam) => {
+      g.strokeStyle = 'rgba(79, 179, 255, 0.9)';
+      g.strokeRect(v.x + 1, v.y + 1, v.w - 2, v.h - 2);
+      const label = o.layout_mode === LAYOUT_DEBUG ? 'fisheye' : `cam ${cam}`;
+      const width = g.measureText(label).width + 12 * scale;
+      g.fillStyle = 'rgba(0, 0, 0, 0.6)';
+      g.fillRect(v.x + 4 * scale, v.y + 4 * scale, width, 22 * scale);
+      g.fillStyle = '#fff';
+      g.fillText(label, v.x + 10 * scale, v.y + 21 * scale);
+    });
+  }
+
+  views() {
+    return this.output ? this.output.views : [];
+  }
+
+  // The view under a pointer event, with the point in output pixels.
+  hit(event) {
+    const r = this.overlay.getBoundingClientRect();
+    const x = ((event.clientX - r.left) / r.width) * this.overlay.width;
+    const y = ((event.clientY - r.top) / r.height) * this.overlay.height;
+    if (!this.output || this.output.layout_mode === LAYOUT_DEBUG) return null;
+    const cam = this.views().findIndex((v) => x >= v.x && x < v.x + v.w && y >= v.y && y < v.y + v.h);
+    return cam < 0 ? null : { cam, x, y, view: this.views()[cam] };
+  }
+
+  // Sends one SET at a time; while one is out, only the newest waiting is kept.
+  send(param, fields) {
+    if (this.busy) {
+      this.queued = [param, fields];
+      return;
+    }
+    this.busy = true;
+    this.api
+      .set(param, fields)
+      .catch((e) => this.say(`${param}: ${e.message}`, true))
+      .finally(() => {
+        this.busy = false;
+        const next = this.queued;
+        this.queued = null;
+        if (next) this.send(...next);
+      });
+  }
+
+  down(event) {
+    const hit = this.hit(event);
+    if (!hit) return;
+    this.overlay.setPointerCapture(event.pointerId);
+    this.pointers.set(event.pointerId, { ...hit, lastX: hit.x, lastY: hit.y });
+    this.overlay.classList.add('dragging');
+    if (this.pointers.size === 2) this.pinchStart = this.spread();
+  }
+
+  move(event) {
+    const p = this.pointers.get(event.pointerId);
+    if (!p) return;
+    const r = this.overlay.getBoundingClientRect();
+    const x = ((event.clientX - r.left) / r.width) * this.overlay.width;
+    const y = ((event.clientY - r.top) / r.height) * this.overlay.height;
+    if (this.pointers.size === 2) {
+      Object.assign(p, { lastX: x, lastY: y });
+      const now = this.spread();
+      if (this.pinchStart > 0 && now > 0) this.zoom(p.cam, this.pinchStart / now);
+      this.pinchStart = now;
+      return;
+    }
+    const dx = x - p.lastX;
+    const dy = y - p.lastY;
+    if (Math.abs(dx) + Math.abs(dy) < 2) return;
+    Object.assign(p, { lastX: x, lastY: y });
+    // Aim at the point the pointer left: the picture follows the pointer.
+    this.send('CAM_OFFSET', { cam_id: p.cam, x: -dx / p.view.w, y: -dy / p.view.h });
+  }
+
+  up(event) {
+    this.pointers.delete(event.pointerId);
+    if (this.pointers.size === 0) this.overlay.classList.remove('dragging');
+  }
+
+  spread() {
+    const [a, b] = [...this.pointers.values()];
+    return a && b ? Math.hypot(a.lastX - b.lastX, a.lastY - b.lastY) : 0;
+  }
+
+  zoom(cam, factor) {
+    const fov = this.fovs[cam];
+    if (!fov) return;
+    const next = Math.min(MAX_FOV, Math.max(MIN_FOV, fov * factor));
+    this.fovs[cam] = next;
+    this.send('CAM_FOV', { cam_id: cam, fov: next });
+  }
+
+  wheel(event) {
+    const hit = this.hit(event);
+    if (!hit) return;
+    event.preventDefault();
+    this.zoom(hit.cam, Math.exp(event.deltaY * 0.001));
+  }
+
+  centre(event) {
+    const hit = this.hit(event);
+    if (!hit) return;
+    const v = hit.view;
+    this.send('CAM_OFFSET', { cam_id: hit.cam, x: (hit.x - v.x) / v.w - 0.5, y: (hit.y - v.y) / v.h - 0.5 });
+  }
+}
