@@ -18,6 +18,8 @@ packages=(
   systemd
   # ffprobe and ffplay: a second RTSP client in the tests, and FFmpeg's v360 for comparison.
   ffmpeg
+  # Chromium driven over WebDriver: the tuning page's end-to-end tests.
+  chromium chromium-driver
 )
 
 missing=()

@@ -275,9 +275,12 @@ pub(super) async fn capture_file(State(web): State<Web>, Path(name): Path<String
         Some((kind, file)) => {
             let length = file.metadata().await.map(|m| m.len()).ok();
             let body = axum::body::Body::from_stream(tokio_util::io::ReaderStream::new(file));
-            let mut response = (StatusCode::OK, [(header::CONTENT_TYPE, kind)], body).into_response();
+            let mut response =
+                (StatusCode::OK, [(header::CONTENT_TYPE, kind)], body).into_response();
             if let Some(n) = length {
-                response.headers_mut().insert(header::CONTENT_LENGTH, n.into());
+                response
+                    .headers_mut()
+                    .insert(header::CONTENT_LENGTH, n.into());
             }
             response
         }

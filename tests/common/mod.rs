@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod autopilot;
+pub mod browser;
 pub mod direct;
 pub mod frames;
 pub mod gcs;

@@ -70,15 +70,23 @@ export class Views {
     return cam < 0 ? null : { cam, x, y, view: this.views()[cam] };
   }
 
-  // Sends one SET at a time; while one is out, only the newest waiting is kept.
+  // Sends one SET at a time; while one is out, the next waits, and offsets dragged meanwhile
+  // add up into it (small turns add), so no movement is lost.
   send(param, fields) {
     if (this.busy) {
-      this.queued = [param, fields];
+      const q = this.queued;
+      if (q && q[0] === 'CAM_OFFSET' && param === 'CAM_OFFSET' && q[1].cam_id === fields.cam_id && !fields.centre) {
+        q[1].x += fields.x;
+        q[1].y += fields.y;
+      } else {
+        this.queued = [param, fields];
+      }
       return;
     }
     this.busy = true;
+    const { centre, ...sent } = fields;
     this.api
-      .set(param, fields)
+      .set(param, sent)
       .catch((e) => this.say(`${param}: ${e.message}`, true))
       .finally(() => {
         this.busy = false;
@@ -147,6 +155,8 @@ export class Views {
     const hit = this.hit(event);
     if (!hit) return;
     const v = hit.view;
-    this.send('CAM_OFFSET', { cam_id: hit.cam, x: (hit.x - v.x) / v.w - 0.5, y: (hit.y - v.y) / v.h - 0.5 });
+    const x = (hit.x - v.x) / v.w - 0.5;
+    const y = (hit.y - v.y) / v.h - 0.5;
+    this.send('CAM_OFFSET', { cam_id: hit.cam, x, y, centre: true });
   }
 }
