@@ -120,23 +120,18 @@ impl Serve {
             .unwrap_or_else(|| panic!("serve printed {line:?}"))
             .parse()
             .unwrap();
-        let rtsp = (!mode.contains(&"--no-video")).then(|| {
+        // The next announced line, which starts with `prefix`: what follows it.
+        let mut announced = |prefix: &str| {
             line.clear();
             out.read_line(&mut line).unwrap();
             line.trim()
-                .strip_prefix("rtsp serving ")
+                .strip_prefix(prefix)
                 .unwrap_or_else(|| panic!("serve printed {line:?}"))
                 .to_string()
-        });
+        };
+        let rtsp = (!mode.contains(&"--no-video")).then(|| announced("rtsp serving "));
         let off = extra.windows(2).any(|w| w == ["--http", "off"]);
-        let http = (!off).then(|| {
-            line.clear();
-            out.read_line(&mut line).unwrap();
-            line.trim()
-                .strip_prefix("http serving ")
-                .unwrap_or_else(|| panic!("serve printed {line:?}"))
-                .to_string()
-        });
+        let http = (!off).then(|| announced("http serving "));
         Serve {
             child,
             addr,
