@@ -2,61 +2,115 @@
 //! (the binary protocol, MAVLink, another page), and takes SETs.
 //!
 //! Server to client, JSON text: `{"params": {...}}` (every parameter, as `GET /api/params`)
-//! at once and whenever a value changes (looked at every 100 ms), and `{"status": {...}}`
+//! at once and whenever a value changes (looked at every 100 ms, once for all sockets), and `{"status": {...}}`
 //! (as `GET /api/status`) every second. Client to server: `{"id": 7, "set": "CAM_FOV",
 //! "fields": {"cam_id": 1, "fov": "60deg"}}`, answered `{"id": 7, "ok": {...}}` or `{"id":
 //! 7, "error": "...", "code": 422}` with the same checks and permissions as `PUT`.
 
 use super::Web;
 use super::api::{set_json, snapshot, status_value};
+use axum::Extension;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{ConnectInfo, State};
 use axum::response::Response;
 use serde_json::{Value, json};
 use std::net::{IpAddr, SocketAddr};
+use std::sync::Arc;
 use std::time::Duration;
+use tokio::sync::{Notify, watch};
 
 /// How often the state is compared with what was last pushed.
 const LOOK_EVERY: Duration = Duration::from_millis(100);
 /// Messages a client may send per second before the socket is closed (a flood).
 const MAX_PER_SECOND: u32 = 200;
 
-pub(super) async fn upgrade(
-    ws: WebSocketUpgrade,
-    State(web): State<Web>,
-    ConnectInfo(peer): ConnectInfo<SocketAddr>,
-) -> Response {
-    ws.max_message_size(64 * 1024)
-        .on_upgrade(move |socket| events(socket, web, peer.ip()))
+/// The parameters every event socket pushes, built once per look for all of them (and only
+/// while one is open): the `{"params": ...}` message, ready to send.
+pub(super) struct Feed {
+    params: watch::Sender<Arc<str>>,
+    /// A SET was answered: look now rather than at the next tick.
+    look_now: Notify,
 }
 
-async fn events(mut socket: WebSocket, web: Web, peer: IpAddr) {
-    let mut last: Option<Value> = None;
-    let mut look = tokio::time::interval(LOOK_EVERY);
-    look.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let mut tick = 0u32;
-    let mut received = 0u32;
-    loop {
-        tokio::select! {
-            _ = look.tick() => {
-                tick += 1;
-                if tick % 10 == 1 {
-                    received = 0;
-                    let status = json!({ "status": status_value(&web) });
-                    if socket.send(Message::Text(status.to_string().into())).await.is_err() {
-                        return;
-                    }
+impl Feed {
+    /// Looks at the state every [`LOOK_EVERY`] while a socket is open, and publishes a new
+    /// message when any value changed.
+    pub(super) fn start(web: Web) -> Arc<Feed> {
+        let feed = Arc::new(Feed {
+            params: watch::channel(Arc::from("")).0,
+            look_now: Notify::new(),
+        });
+        let looking = feed.clone();
+        tokio::spawn(async move {
+            let mut last: Option<Value> = None;
+            let mut look = tokio::time::interval(LOOK_EVERY);
+            look.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+            loop {
+                tokio::select! {
+                    _ = look.tick() => {}
+                    _ = looking.look_now.notified() => {}
+                }
+                if looking.params.receiver_count() == 0 {
+                    // Nobody watches: the next socket starts from a fresh look.
+                    last = None;
+                    continue;
                 }
                 let web = web.clone();
                 let Ok(now) = tokio::task::spawn_blocking(move || snapshot(&web)).await else {
-                    return;
+                    continue;
                 };
                 if last.as_ref() != Some(&now) {
-                    let pushed = json!({ "params": now });
-                    if socket.send(Message::Text(pushed.to_string().into())).await.is_err() {
-                        return;
-                    }
+                    let message = json!({ "params": now }).to_string();
+                    looking.params.send_replace(Arc::from(message));
                     last = Some(now);
+                }
+            }
+        });
+        feed
+    }
+}
+
+pub(super) async fn upgrade(
+    ws: WebSocketUpgrade,
+    State(web): State<Web>,
+    Extension(feed): Extension<Arc<Feed>>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+) -> Response {
+    ws.max_message_size(64 * 1024)
+        .on_upgrade(move |socket| events(socket, web, feed, peer.ip()))
+}
+
+async fn events(mut socket: WebSocket, web: Web, feed: Arc<Feed>, peer: IpAddr) {
+    // Every socket starts with the whole state, from its own look.
+    let mut params = feed.params.subscribe();
+    let first = {
+        let web = web.clone();
+        tokio::task::spawn_blocking(move || snapshot(&web)).await
+    };
+    let Ok(first) = first else { return };
+    let first = json!({ "params": first }).to_string();
+    if socket.send(Message::Text(first.into())).await.is_err() {
+        return;
+    }
+    params.mark_unchanged();
+    let mut status = tokio::time::interval(Duration::from_secs(1));
+    let mut received = 0u32;
+    loop {
+        tokio::select! {
+            _ = status.tick() => {
+                received = 0;
+                let status = json!({ "status": status_value(&web) });
+                if socket.send(Message::Text(status.to_string().into())).await.is_err() {
+                    return;
+                }
+            }
+            changed = params.changed() => {
+                if changed.is_err() {
+                    return;
+                }
+                let message = params.borrow_and_update().clone();
+                if socket.send(Message::Text(message.as_ref().into())).await.is_err() {
+                    return;
                 }
             }
             message = socket.recv() => {
@@ -74,8 +128,8 @@ async fn events(mut socket: WebSocket, web: Web, peer: IpAddr) {
                 if socket.send(Message::Text(reply.to_string().into())).await.is_err() {
                     return;
                 }
-                // The change shows at once, not at the next look.
-                look.reset_immediately();
+                // The change shows at once, on every page, not at the next look.
+                feed.look_now.notify_one();
             }
         }
     }

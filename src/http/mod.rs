@@ -92,6 +92,7 @@ pub async fn serve(
         .route("/api/events", get(events::upgrade))
         .route("/api/preview", get(preview::upgrade))
         .route(&format!("{CAPTURES_PATH}{{name}}"), get(api::capture_file))
+        .layer(axum::Extension(events::Feed::start(web.clone())))
         .layer(axum::middleware::from_fn(same_site))
         .layer(axum::middleware::from_fn_with_state(expected, logged_in));
     let app = Router::new()
