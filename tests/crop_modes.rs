@@ -4,8 +4,9 @@
 
 mod common;
 use common::*;
+use digiview::geometry::Projection;
 use digiview::image_ops::{pixel, psnr};
-use digiview::render::{Filter, FramePlan, cpu};
+use digiview::render::{Filter, FramePlan, ViewMap, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;
@@ -84,4 +85,63 @@ fn an_unknown_crop_mode_renders_its_view_black() {
         (r0.y..r0.bottom()).any(|y| pixel(&got, r0.x + 5, y) != glam::DVec3::ZERO),
         "the other views are drawn"
     );
+}
+
+/// Where the page rings a tracked object: the point a world ray shows at in each view, for
+/// every layout and crop mode, draws that ray (and is the point it came from, to a thousandth
+/// of a pixel, but in a panorama, which draws some rays twice), and a ray a view does not show
+/// is found in none.
+#[test]
+fn view_point_inverts_world_ray_in_every_crop_mode() {
+    let lens = small_lens("CIL018");
+    let mut state = four_view_state(7);
+    state.vehicle.attitude.roll = 10.0 * DEG;
+    for layout in 0..7u8 {
+        let mut s = state.clone();
+        s.output.layout = layout;
+        for (i, cam) in s.cameras.iter_mut().enumerate() {
+            cam.crop = [0, 1, 2, 4][(i + layout as usize) % 4];
+            cam.fov = if cam.crop == 2 { 200.0 } else { 80.0 } * DEG;
+            (cam.yaw, cam.pitch) = (i as f64 * 90.0 * DEG, -50.0 * DEG);
+        }
+        let plan = FramePlan::new(&s, &lens).unwrap();
+        let mut checked = 0;
+        for (i, view) in plan.views.iter().enumerate() {
+            let (w, h) = (view.rect.w as f64, view.rect.h as f64);
+            for (fx, fy) in [(0.5, 0.5), (0.1, 0.2), (0.85, 0.7), (0.3, 0.95)] {
+                let p = glam::DVec2::new(w * fx, h * fy);
+                let Some(ray) = plan.world_ray(view, p) else {
+                    continue;
+                };
+                let back = plan.view_point(view, ray).unwrap_or_else(|| {
+                    panic!(
+                        "layout {layout} view {i} ({:?}): {p} not found back",
+                        view.map
+                    )
+                });
+                // The panorama draws the rays past the nadir twice and the nadir along a
+                // whole row, so the point found is one drawing that ray, not always p.
+                let again = plan
+                    .world_ray(view, back)
+                    .expect("the point found shows a ray");
+                let panorama = matches!(view.map, ViewMap::Rays { projection, .. }
+                    if matches!(projection, Projection::Panorama { .. }));
+                assert!(
+                    again.angle_between(ray) < 1e-6 && (panorama || back.distance(p) < 1e-3),
+                    "layout {layout} view {i} ({:?}): {p} came back at {back}",
+                    view.map
+                );
+                checked += 1;
+            }
+            // Straight up: above the lens's view from a camera looking down.
+            assert_eq!(
+                plan.view_point(view, glam::DVec3::new(0.0, 0.0, -1.0)),
+                None
+            );
+        }
+        assert!(
+            checked >= plan.views.len() * 2,
+            "layout {layout}: {checked} points"
+        );
+    }
 }

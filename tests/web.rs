@@ -87,7 +87,14 @@ async fn on_screen(b: &Browser, x: f64, y: f64) -> (f64, f64) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_plays_the_stream_and_its_drags_turn_the_cameras() {
-    let serve = Serve::start_video(&["--size", "640x480", "--demo-hover"]);
+    // One tracked object, seen in view 1 (camera 1 looks along yaw 90°, 30° down).
+    let serve = Serve::start_video(&[
+        "--size",
+        "640x480",
+        "--demo-hover",
+        "--track",
+        "yaw=100deg,pitch=-50deg,size=6deg",
+    ]);
     let page = serve.http.clone().unwrap();
     let b = Browser::start(1280, 900).await;
     b.client.goto(&page).await.unwrap();
@@ -124,6 +131,85 @@ async fn the_page_plays_the_stream_and_its_drags_turn_the_cameras() {
         assert!(db > 24.0, "view {i}: page vs RTSP only {db:.1} dB");
     }
 
+    // The tracked object is ringed where its ray is drawn (the pixel's ray, asked over the
+    // binary protocol, is the object's), and a click on the ring aims the selected camera, 0,
+    // at it.
+    let mut client = control(&serve);
+    let ring = b
+        .until_with(
+            "the object ringed",
+            Duration::from_secs(3),
+            "const o = window.digiview.views.objects[0]; if (!o || !o.views.length) return null;
+             const m = o.views[0];
+             const g = document.getElementById('overlay').getContext('2d');
+             return [m.cam, m.x, m.y, m.radius, g.getImageData(Math.round(m.x + m.radius), Math.round(m.y), 1, 1).data[3]]",
+            vec![],
+        )
+        .await;
+    let (cam, x, y, radius) = (
+        ring[0].as_u64().unwrap() as usize,
+        ring[1].as_f64().unwrap(),
+        ring[2].as_f64().unwrap(),
+        ring[3].as_f64().unwrap(),
+    );
+    println!("object ringed in view {cam} at ({x:.1}, {y:.1}), radius {radius:.1} px");
+    assert_eq!(cam, 1, "the object is in camera 1's view");
+    assert!(ring[4].as_u64().unwrap() > 0, "the ring is drawn");
+    // 6° across in a 90° view 240 px wide: about 8 px of radius (more off the centre).
+    assert!((6.0..16.0).contains(&radius), "radius {radius:.1} px");
+    let v = rect(&views[cam]);
+    let offset = digiview::protocol::params::CamOffset {
+        cam_id: cam as u8,
+        x: (x - v.0 as f64) / v.2 as f64 - 0.5,
+        y: (y - v.1 as f64) / v.3 as f64 - 0.5,
+        ..Default::default()
+    };
+    let Param::CamOffset(seen) = client.get_one(Param::CamOffset(offset)).unwrap() else {
+        panic!("CAM_OFFSET");
+    };
+    let off = ((seen.yaw - 100.0 * DEG).abs() + (seen.pitch + 50.0 * DEG).abs()) / DEG;
+    println!(
+        "the ring's centre sees yaw {:.2}° pitch {:.2}°",
+        seen.yaw / DEG,
+        seen.pitch / DEG
+    );
+    assert!(off < 0.2, "the ring's centre is {off:.2}° off the object");
+    let at = on_screen(&b, x, y).await;
+    let click = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveTo {
+            duration: None,
+            x: at.0,
+            y: at.1,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    b.client.perform_actions(click).await.unwrap();
+    let limit = Instant::now() + Duration::from_secs(3);
+    let mut aim = (0.0, 0.0);
+    while Instant::now() < limit {
+        if let Param::CamEuler(e) = client.get_one(query(ParamType::CamEuler, 0)).unwrap() {
+            aim = (e.yaw / DEG, e.pitch / DEG);
+        }
+        if (aim.0 - 100.0).abs() < 0.1 && (aim.1 + 50.0).abs() < 0.1 {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    println!(
+        "the click aimed camera 0 at yaw {:.2}° pitch {:.2}°",
+        aim.0, aim.1
+    );
+    assert!(
+        (aim.0 - 100.0).abs() < 0.1 && (aim.1 + 50.0).abs() < 0.1,
+        "camera 0 at {aim:?}"
+    );
+    std::thread::sleep(Duration::from_millis(700));
+    let rtsp = viewer.fresh_frame();
+
     // DIGIVIEW_SCREENSHOTS=DIR keeps the page at desktop and phone sizes (docs/web.md's).
     if let Some(dir) = std::env::var_os("DIGIVIEW_SCREENSHOTS") {
         let dir = std::path::PathBuf::from(dir);
@@ -138,7 +224,6 @@ async fn the_page_plays_the_stream_and_its_drags_turn_the_cameras() {
     }
 
     // A drag in view 1 turns camera 1: read back over the binary protocol, and seen in RTSP.
-    let mut client = control(&serve);
     let yaw0 = yaw_of(&mut client, 1);
     let v1 = rect(&views[1]);
     let (cx, cy) = (

@@ -7,7 +7,10 @@ use crate::geometry::rotation::direction;
 use crate::geometry::view::lens_from_world;
 use crate::layout::layout;
 use crate::protocol::params::{DetectedRoi, Detection};
-use crate::state::{RATIO_RANGE, State, Tracked};
+use crate::render::FramePlan;
+use crate::state::{Live, RATIO_RANGE, State, Tracked};
+use glam::DVec2;
+use serde::Serialize;
 
 /// A score field of 255 means "keep the current value".
 pub const KEEP: u8 = 255;
@@ -127,4 +130,62 @@ fn roi(state: &State, t: &Tracked, index: u8, total: usize) -> DetectedRoi {
         altitude: alt,
         distance,
     }
+}
+
+/// Where a tracked object shows in the output frame: which view (its camera number), and the
+/// object's centre and radius there in output pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Seen {
+    pub cam: u8,
+    pub x: f64,
+    pub y: f64,
+    pub radius: f64,
+}
+
+/// The smallest radius a mark is drawn with, in output pixels.
+const MIN_RADIUS: f64 = 4.0;
+
+/// For each tracked object (in DETECTED_ROI 255's order), every view of the layout showing its
+/// centre. Empty lists when the lens or the layout cannot be planned.
+pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
+    let sensor = (state.sensor.width, state.sensor.height);
+    let plan = live
+        .lenses()
+        .for_frame(state.lens, sensor, state.sensor.roi())
+        .ok()
+        .and_then(|lens| FramePlan::new(state, &lens).ok());
+    let Some(plan) = plan else {
+        return vec![vec![]; state.tracked.len()];
+    };
+    let shown = plan.layout.views.len();
+    state
+        .tracked
+        .iter()
+        .map(|t| {
+            let ray = direction(t.yaw, t.pitch);
+            let (u, v) = ray.any_orthonormal_pair();
+            let (sin, cos) = (t.size / 2.0).sin_cos();
+            plan.views[..shown]
+                .iter()
+                .enumerate()
+                .filter_map(|(cam, view)| {
+                    let centre = plan.view_point(view, ray)?;
+                    // The mean distance to the points of the object's rim that the view shows.
+                    let rim: Vec<f64> = [u, -u, v, -v]
+                        .iter()
+                        .filter_map(|&side| plan.view_point(view, ray * cos + side * sin))
+                        .map(|p| p.distance(centre))
+                        .collect();
+                    let radius = rim.iter().sum::<f64>() / rim.len().max(1) as f64;
+                    let at = centre + DVec2::new(view.rect.x as f64, view.rect.y as f64);
+                    Some(Seen {
+                        cam: cam as u8,
+                        x: at.x,
+                        y: at.y,
+                        radius: radius.max(MIN_RADIUS),
+                    })
+                })
+                .collect()
+        })
+        .collect()
 }

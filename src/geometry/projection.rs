@@ -3,8 +3,9 @@
 //! measured from the view's top-left corner, so pixel i's centre is at i + 0.5 and the
 //! normalized offset (x, y) of CAM_OFFSET is the point (w/2 + x·w, h/2 + y·h).
 
-use super::rotation::{Euler, direction, yaw_pitch};
+use super::rotation::{Euler, direction, wrap_pi, yaw_pitch};
 use glam::{DMat3, DVec2, DVec3};
+use std::f64::consts::PI;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Projection {
@@ -75,15 +76,27 @@ impl Projection {
                 fov,
                 pitch,
             } => {
-                // Undo the pitch offset, then read azimuth and elevation.
+                // Undo the pitch offset, then read azimuth and elevation. A panorama tall
+                // enough to reach past a pole draws the rays there a second time, at the
+                // azimuth opposite and the elevation mirrored in the pole: the point inside
+                // the view is the one wanted, the direct one when both or neither are.
                 let level = DMat3::from_rotation_y(pitch) * ray;
                 let (a, el) = yaw_pitch(level);
                 let k = fov / width;
-                let x = 0.5 * width + a / k;
-                if !(0.0..=width).contains(&x) {
-                    return None;
+                let at = |a: f64, el: f64| {
+                    DVec2::new(0.5 * width + a / k, 0.5 * height - (el - pitch) / k)
+                };
+                let spans_x = |p: &DVec2| (0.0..=width).contains(&p.x);
+                let inside = |p: &DVec2| spans_x(p) && (0.0..=height).contains(&p.y);
+                let direct = at(a, el);
+                let opposite = wrap_pi(a + PI);
+                let past_pole = [at(opposite, -PI - el), at(opposite, PI - el)];
+                if !inside(&direct)
+                    && let Some(p) = past_pole.into_iter().find(inside)
+                {
+                    return Some(p);
                 }
-                Some(DVec2::new(x, 0.5 * height - (el - pitch) / k))
+                spans_x(&direct).then_some(direct)
             }
         }
     }

@@ -50,7 +50,8 @@ fn build<'a>(
 }
 
 /// Every parameter's value as a GET answers it: per-camera types as a list of four (CAM_TARGET
-/// null for a camera without a target), the tracked objects as a list.
+/// null for a camera without a target), the tracked objects as a list, each with where the
+/// views show it (`views`).
 pub(crate) fn snapshot(web: &Web) -> Value {
     let c = &web.controller;
     let mut out = Map::new();
@@ -59,11 +60,7 @@ pub(crate) fn snapshot(web: &Web) -> Value {
         let value = match kind {
             // Asked of a pixel, per request; the link's counters are in the status.
             ParamType::RefusalReason | ParamType::CamOffset | ParamType::Autopilot => continue,
-            ParamType::DetectedRoi => {
-                let mut q = kind.zeroed();
-                let _ = q.set_field("index", 255.0);
-                json!(c.get(&q).unwrap_or_default())
-            }
+            ParamType::DetectedRoi => objects(web),
             k if k.per_camera() => Value::Array(
                 (0..crate::state::MAX_CAMERAS)
                     .map(|cam| {
@@ -78,6 +75,26 @@ pub(crate) fn snapshot(web: &Web) -> Value {
         out.insert(kind.name().to_string(), value);
     }
     Value::Object(out)
+}
+
+/// DETECTED_ROI 255's replies, each known object's with `views`: the views showing it, with its
+/// centre and radius in output pixels (what the page draws over the picture).
+fn objects(web: &Web) -> Value {
+    let c = &web.controller;
+    let mut q = ParamType::DetectedRoi.zeroed();
+    let _ = q.set_field("index", 255.0);
+    let mut list: Vec<Value> = c
+        .get(&q)
+        .unwrap_or_default()
+        .iter()
+        .map(|p| json!(p))
+        .collect();
+    let state = c.live.snapshot();
+    let seen = crate::control::detection::seen(&c.live, &state);
+    for (object, views) in list.iter_mut().zip(seen) {
+        object["views"] = json!(views);
+    }
+    Value::Array(list)
 }
 
 async fn all_params(State(web): State<Web>) -> Response {

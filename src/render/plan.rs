@@ -198,6 +198,25 @@ impl FramePlan {
         }
     }
 
+    /// Where a world ray shows in a view (view pixels from its top-left corner), None where
+    /// the view does not show it: the inverse of [`FramePlan::world_ray`].
+    pub fn view_point(&self, view: &PlannedView, ray: DVec3) -> Option<DVec2> {
+        let p = match view.map {
+            ViewMap::Rays {
+                projection,
+                world_from_view,
+            } => projection.point(world_from_view.transpose() * ray)?,
+            ViewMap::Fisheye { origin, scale } => {
+                let q = self.lens.project(self.lens_from_world * ray)?;
+                (q + DVec2::splat(0.5) - origin) / scale
+            }
+            ViewMap::Black => return None,
+        };
+        let size = DVec2::new(view.rect.w as f64, view.rect.h as f64);
+        let inside = p.cmpge(DVec2::ZERO).all() && p.cmplt(size).all();
+        (inside && self.fisheye_pixel(view, p).is_some()).then_some(p)
+    }
+
     /// Fisheye pixels per output pixel, worst case over a grid of the view, rounded up.
     fn samples_for(&self, view: &PlannedView) -> u32 {
         let r = view.rect;

@@ -19,6 +19,7 @@ const preview = new Preview($('video'), $('preview-note'));
 const views = new Views($('overlay'), api, say);
 const controls = new Controls(api, say);
 window.digiview = { api, preview, views, controls };
+views.onObject = (o) => aimAt(o);
 
 api.on('params', (params) => {
   views.update(params);

@@ -48,6 +48,9 @@ const CAMERA = [
   ['CAM_CROP_MODE', 'mode', 'crop mode', 'int'],
   ['CAM_LOCK_FLAGS', 'flags', 'lock (roll 1, pitch 2, yaw 4)', 'int'],
   ['CAM_CONTROL_MODE', 'mode', 'control mode', 'int'],
+  ['CAM_TARGET', 't_latitude', 'target latitude °', 'num'],
+  ['CAM_TARGET', 't_longitude', 'target longitude °', 'num'],
+  ['CAM_TARGET', 't_altitude', 'target altitude m', 'num'],
 ];
 
 function input(kind, options) {
@@ -109,6 +112,8 @@ export class Controls {
     for (let i = 0; i < 4; i++) pick.add(new Option(`cam ${i}`, i));
     pick.addEventListener('change', () => {
       this.cam = Number(pick.value);
+      // Typed-in target coordinates belong to the camera they were typed for.
+      this.fields.filter((f) => f.param === 'CAM_TARGET').forEach((f) => { f.el.value = ''; });
       if (this.params) this.update(this.params);
     });
     const camera = document.getElementById('camera');
@@ -118,6 +123,10 @@ export class Controls {
       el.id = id;
       camera.append(l, el);
       el.addEventListener('change', () => {
+        if (param === 'CAM_TARGET') {
+          this.setTarget();
+          return;
+        }
         const fields = { cam_id: this.cam, [name]: read(el, kind) };
         if (param === 'CAM_EULER') fields.is_delta = 0;
         this.set(param, fields);
@@ -125,6 +134,20 @@ export class Controls {
       this.fields.push({ param, name, kind, el, perCamera: true });
     }
     this.lensSelect = document.getElementById('lens-lens_id');
+  }
+
+  // A target is a point: all three coordinates go together (x = y = 0 means "these
+  // coordinates" to CAM_TARGET), and the camera then follows it (coordinate control).
+  setTarget() {
+    const fields = { cam_id: this.cam, x: 0, y: 0 };
+    for (const f of this.fields.filter((g) => g.param === 'CAM_TARGET')) {
+      if (f.el.value === '') {
+        this.say('CAM_TARGET: give the latitude, longitude and altitude', true);
+        return;
+      }
+      fields[f.name] = Number(f.el.value);
+    }
+    this.set('CAM_TARGET', fields);
   }
 
   set(param, fields) {

@@ -1,6 +1,8 @@
 // The views over the live picture: each view's rectangle outlined with its camera number, and
 // the pointer gestures that steer it: drag inside a view to turn it (CAM_OFFSET: the picture
-// follows the pointer), wheel or pinch to zoom (CAM_FOV), double-click to centre a point.
+// follows the pointer), wheel or pinch to zoom (CAM_FOV), double-click to centre a point. The
+// tracked objects are ringed where the views show them (the server projects them); a click on
+// one hands it to `onObject`.
 
 const LAYOUT_DEBUG = 6; // the whole fisheye frame: no camera to steer
 const MIN_FOV = 0.02;
@@ -14,6 +16,8 @@ export class Views {
     this.say = onMessage;
     this.output = null;
     this.fovs = [];
+    this.objects = [];
+    this.onObject = null;
     this.pointers = new Map();
     this.busy = false;
     this.queued = null;
@@ -29,6 +33,7 @@ export class Views {
   update(params) {
     this.output = params.VIDEO_OUTPUT;
     this.fovs = (params.CAM_FOV || []).map((f) => (f ? f.fov : null));
+    this.objects = (params.DETECTED_ROI || []).filter((o) => o.total_detections > 0);
     this.draw();
   }
 
@@ -54,6 +59,22 @@ export class Views {
       g.fillStyle = '#fff';
       g.fillText(label, v.x + 10 * scale, v.y + 21 * scale);
     });
+    g.strokeStyle = 'rgba(255, 170, 40, 0.95)';
+    g.fillStyle = 'rgba(255, 170, 40, 0.95)';
+    for (const o of this.objects) {
+      for (const m of o.views || []) {
+        g.beginPath();
+        g.arc(m.x, m.y, m.radius, 0, 2 * Math.PI);
+        g.stroke();
+        g.fillText(`#${o.index}`, m.x + m.radius + 3 * scale, m.y - m.radius);
+      }
+    }
+  }
+
+  // The tracked object ringed at output point (x, y), if any (a little slack around the ring).
+  objectAt(x, y) {
+    const slack = 6 * Math.max(1, this.overlay.width / 960);
+    return this.objects.find((o) => (o.views || []).some((m) => Math.hypot(m.x - x, m.y - y) <= m.radius + slack));
   }
 
   views() {
@@ -100,9 +121,12 @@ export class Views {
     const hit = this.hit(event);
     if (!hit) return;
     this.overlay.setPointerCapture(event.pointerId);
-    this.pointers.set(event.pointerId, { ...hit, lastX: hit.x, lastY: hit.y });
+    this.pointers.set(event.pointerId, { ...hit, lastX: hit.x, lastY: hit.y, moved: false });
     this.overlay.classList.add('dragging');
-    if (this.pointers.size === 2) this.pinchStart = this.spread();
+    if (this.pointers.size === 2) {
+      this.pinchStart = this.spread();
+      this.pointers.forEach((q) => { q.moved = true; }); // a pinch is no click
+    }
   }
 
   move(event) {
@@ -121,13 +145,18 @@ export class Views {
     const dx = x - p.lastX;
     const dy = y - p.lastY;
     if (Math.abs(dx) + Math.abs(dy) < 2) return;
-    Object.assign(p, { lastX: x, lastY: y });
+    Object.assign(p, { lastX: x, lastY: y, moved: true });
     // Aim at the point the pointer left: the picture follows the pointer.
     this.send('CAM_OFFSET', { cam_id: p.cam, x: -dx / p.view.w, y: -dy / p.view.h });
   }
 
   up(event) {
+    const p = this.pointers.get(event.pointerId);
     this.pointers.delete(event.pointerId);
+    if (p && !p.moved && this.pointers.size === 0 && event.type === 'pointerup') {
+      const o = this.objectAt(p.x, p.y);
+      if (o && this.onObject) this.onObject(o);
+    }
     if (this.pointers.size === 0) this.overlay.classList.remove('dragging');
   }
 
