@@ -2,9 +2,12 @@
 //! timestamp drawn as a barcode at the image centre, one full-frame view looking straight
 //! down at it, pulls the RTSP stream with GStreamer (rtspsrc, latency 0, TCP), and for each
 //! decoded frame reads the barcode and subtracts it from the time of decoding. Both clocks
-//! are CLOCK_MONOTONIC on this host. Run by scripts/latency.sh:
+//! are CLOCK_MONOTONIC on this host. With `--page` the client is the tuning page in headless
+//! Chromium instead (its preview over the WebSocket, decoded with WebCodecs, or with `--mse`
+//! played through Media Source Extensions), read from the page's canvas as each frame is
+//! drawn. Run by scripts/latency.sh:
 //!
-//!     cargo run --release --example glass_to_glass -- [--size 1280x720] [--frames 300]
+//!     cargo run --release --example glass_to_glass -- [--size 1280x720] [--frames 300] [--page|--mse]
 
 use digiview::lens::LensCal;
 use digiview::render::FramePlan;
@@ -19,6 +22,12 @@ use gstreamer_video as gst_video;
 use gstreamer_video::prelude::*;
 use std::io::BufRead;
 use std::process::{Command, Stdio};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+// The tests' headless Chromium, for --page (not every helper is used here).
+#[allow(dead_code)]
+#[path = "../tests/common/browser.rs"]
+mod browser;
 
 const DEMO: (u32, u32) = (1280, 720);
 
@@ -33,6 +42,8 @@ fn arg(name: &str, default: &str) -> String {
 fn main() {
     let size = arg("--size", "1280x720");
     let frames: usize = arg("--frames", "300").parse().expect("--frames N");
+    let mse = std::env::args().any(|a| a == "--mse");
+    let page_mode = mse || std::env::args().any(|a| a == "--page");
     let (w, h) = digiview::units::parse_size(&size).expect("--size WxH");
 
     // One rectilinear view, 60° across, straight down the lens axis at the barcode.
@@ -84,15 +95,72 @@ fn main() {
         .join("digiview");
     let mut serve = Command::new(digiview)
         .args(["serve", "--control", "127.0.0.1:0", "--rtsp-port", "0"])
+        .args(["--http", "127.0.0.1:0"])
         .args(["--demo-hover", "--demo-stamp", "--demo-size", "1280x720"])
         .args(["--state", state_file.to_str().unwrap()])
         .stdout(Stdio::piped())
         .spawn()
         .expect("digiview serve starts");
-    let mut lines = std::io::BufReader::new(serve.stdout.take().unwrap()).lines();
-    let _control = lines.next().unwrap().unwrap();
-    let url = lines.next().unwrap().unwrap().replace("rtsp serving ", "");
+    // serve announces its control, RTSP and HTTP addresses, one line each, HTTP last.
+    let (mut url, mut page) = (String::new(), String::new());
+    for line in std::io::BufReader::new(serve.stdout.take().unwrap()).lines() {
+        let line = line.expect("serve announces its addresses");
+        if let Some(u) = line.strip_prefix("rtsp serving ") {
+            url = u.to_string();
+        }
+        if let Some(u) = line.strip_prefix("http serving ") {
+            page = u.to_string();
+            break;
+        }
+    }
+    let (client, (mut latencies, unread)) = if page_mode {
+        let (client, page) = match mse {
+            true => ("page, MSE", format!("{page}?preview=mse")),
+            false => ("page, WebCodecs", page),
+        };
+        (client, page_latencies(&page, &cells, w, frames))
+    } else {
+        ("RTSP", rtsp_latencies(&url, &cells, w, frames))
+    };
+    let _ = serve.kill();
+    let _ = serve.wait();
+    latencies.sort_by(f64::total_cmp);
+    let q = |f: f64| latencies[((latencies.len() - 1) as f64 * f) as usize];
+    println!(
+        "glass-to-glass ({client}) at {w}x{h}, {} frames: median {:.0} ms, p10 {:.0}, p90 {:.0}, \
+         min {:.0}, max {:.0} ({unread} unreadable)",
+        latencies.len(),
+        q(0.5),
+        q(0.1),
+        q(0.9),
+        latencies[0],
+        latencies[latencies.len() - 1]
+    );
+}
 
+/// The stamp's value from a frame's luma: each cell's mean against mid-grey.
+fn read_stamp(cells: &[Vec<usize>], w: u32, luma: impl Fn(u32, u32) -> f64) -> u32 {
+    let mut value = 0u32;
+    for c in cells {
+        let mean = c
+            .iter()
+            .map(|&i| luma(i as u32 % w, i as u32 / w))
+            .sum::<f64>()
+            / c.len() as f64;
+        value = value << 1 | (mean > 126.0) as u32;
+    }
+    value
+}
+
+/// Latency in ms from a stamp (CLOCK_MONOTONIC ms, low 32 bits) read at `now_ms`; None for a
+/// misread.
+fn latency(now_ms: u64, stamp: u32) -> Option<f64> {
+    let l = (now_ms as u32).wrapping_sub(stamp);
+    (l < 5000).then_some(l as f64)
+}
+
+/// RTSP (rtspsrc, latency 0, TCP) decoded with GStreamer: each frame's latency when decoded.
+fn rtsp_latencies(url: &str, cells: &[Vec<usize>], w: u32, frames: usize) -> (Vec<f64>, usize) {
     gst::init().unwrap();
     let pipeline = gst::parse::launch(&format!(
         "rtspsrc location={url} latency=0 protocols=tcp ! rtph264depay ! h264parse \
@@ -107,8 +175,7 @@ fn main() {
         .downcast::<gst_app::AppSink>()
         .unwrap();
     pipeline.set_state(gst::State::Playing).unwrap();
-    let mut latencies = vec![];
-    let mut unread = 0;
+    let (mut latencies, mut unread) = (vec![], 0);
     // The first seconds are start-up (GPU, encoder, first key frame): skipped.
     let start = std::time::Instant::now();
     while latencies.len() < frames {
@@ -124,36 +191,94 @@ fn main() {
             gst_video::VideoFrameRef::from_buffer_ref_readable(sample.buffer().unwrap(), &info)
                 .unwrap();
         let stride = frame.plane_stride()[0] as usize;
-        let luma = frame.plane_data(0).unwrap();
-        let mut value = 0u32;
-        for c in &cells {
-            let mean = c
-                .iter()
-                .map(|&i| luma[(i / w as usize) * stride + i % w as usize] as f64)
-                .sum::<f64>()
-                / c.len() as f64;
-            value = value << 1 | (mean > 126.0) as u32;
-        }
-        let latency = (now_ms as u32).wrapping_sub(value);
-        if latency < 5000 {
-            latencies.push(latency as f64);
-        } else {
-            unread += 1;
+        let data = frame.plane_data(0).unwrap();
+        let stamp = read_stamp(cells, w, |x, y| {
+            data[y as usize * stride + x as usize] as f64
+        });
+        match latency(now_ms, stamp) {
+            Some(l) => latencies.push(l),
+            None => unread += 1,
         }
     }
     let _ = pipeline.set_state(gst::State::Null);
-    let _ = serve.kill();
-    let _ = serve.wait();
-    latencies.sort_by(f64::total_cmp);
-    let q = |f: f64| latencies[((latencies.len() - 1) as f64 * f) as usize];
-    println!(
-        "glass-to-glass at {w}x{h}, {} frames: median {:.0} ms, p10 {:.0}, p90 {:.0}, min {:.0}, \
-         max {:.0} ({unread} unreadable)",
-        latencies.len(),
-        q(0.5),
-        q(0.1),
-        q(0.9),
-        latencies[0],
-        latencies[latencies.len() - 1]
-    );
+    (latencies, unread)
+}
+
+/// The tuning page in headless Chromium: on each frame the preview draws, the page notes the
+/// time (Date.now(), the system clock) and the cells' luma from its canvas; the times are
+/// brought onto CLOCK_MONOTONIC with the offset between the two clocks read here.
+fn page_latencies(page: &str, cells: &[Vec<usize>], w: u32, frames: usize) -> (Vec<f64>, usize) {
+    // A few pixels of each cell are enough for the page to read.
+    let probe: Vec<Vec<[u32; 2]>> = cells
+        .iter()
+        .map(|c| {
+            let step = (c.len() / 6).max(1);
+            c.iter()
+                .step_by(step)
+                .map(|&i| [i as u32 % w, i as u32 / w])
+                .collect()
+        })
+        .collect();
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    runtime.block_on(async {
+        let b = browser::Browser::start(1400, 1000).await;
+        b.client.goto(page).await.unwrap();
+        b.until(
+            "the preview plays",
+            Duration::from_secs(30),
+            "return window.digiview && window.digiview.preview.frames >= 1",
+        )
+        .await;
+        tokio::time::sleep(Duration::from_secs(3)).await; // start-up, as for RTSP
+        b.js(
+            "const cells = arguments[0];
+             const canvas = document.getElementById('video');
+             const g = canvas.getContext('2d');
+             const all = cells.flat();
+             const x0 = Math.min(...all.map((p) => p[0])), y0 = Math.min(...all.map((p) => p[1]));
+             const w = Math.max(...all.map((p) => p[0])) - x0 + 1;
+             const h = Math.max(...all.map((p) => p[1])) - y0 + 1;
+             window.stamps = [];
+             window.digiview.preview.addEventListener('frame', () => {
+               const now = Date.now();
+               const { data, width } = g.getImageData(x0, y0, w, h);
+               const lumas = cells.map((c) => c.reduce((sum, [x, y]) => {
+                 const i = 4 * ((y - y0) * width + x - x0);
+                 return sum + 0.299 * data[i] + 0.587 * data[i + 1] + 0.114 * data[i + 2];
+               }, 0) / c.length);
+               window.stamps.push([now, lumas]);
+             });",
+            vec![serde_json::json!(probe)],
+        )
+        .await;
+        b.until_with(
+            "the frames measured",
+            Duration::from_secs(frames as u64),
+            "return window.stamps.length >= arguments[0]",
+            vec![serde_json::json!(frames)],
+        )
+        .await;
+        let stamps = b.js("return window.stamps", vec![]).await;
+        b.close().await;
+        // Milliseconds to subtract from the system clock to get CLOCK_MONOTONIC's.
+        let epoch_ms = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+            * 1e3;
+        let offset = epoch_ms - clock_us() as f64 / 1e3;
+        let (mut latencies, mut unread) = (vec![], 0);
+        for s in stamps.as_array().unwrap().iter().take(frames) {
+            let now = s[0].as_f64().unwrap();
+            let mut stamp = 0u32;
+            for luma in s[1].as_array().unwrap() {
+                stamp = stamp << 1 | (luma.as_f64().unwrap() > 126.0) as u32;
+            }
+            match latency((now - offset).round() as u64, stamp) {
+                Some(l) => latencies.push(l),
+                None => unread += 1,
+            }
+        }
+        (latencies, unread)
+    })
 }

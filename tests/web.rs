@@ -85,6 +85,39 @@ async fn on_screen(b: &Browser, x: f64, y: f64) -> (f64, f64) {
     (p[0].as_f64().unwrap(), p[1].as_f64().unwrap())
 }
 
+/// The preview plays: frames advance, the picture is not black, and it is the RTSP picture
+/// (the same views in the same places, 640x480). The views, the RTSP viewer and its frame.
+async fn plays_as_rtsp_shows(b: &Browser, serve: &Serve) -> (Vec<Value>, Viewer, RgbImage) {
+    b.until(
+        "the preview decodes 10 frames",
+        Duration::from_secs(30),
+        "return window.digiview && window.digiview.preview.frames >= 10",
+    )
+    .await;
+    let before = b.js("return window.digiview.preview.frames", vec![]).await;
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    let after = b.js("return window.digiview.preview.frames", vec![]).await;
+    let advanced = after.as_u64().unwrap() - before.as_u64().unwrap();
+    assert!(advanced >= 5, "{advanced} frames in a second");
+    let params = b.js("return window.digiview.api.params", vec![]).await;
+    let views = params["VIDEO_OUTPUT"]["views"].as_array().unwrap().clone();
+    let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());
+    let rtsp = viewer.fresh_frame();
+    let shown = page_frame(b).await;
+    assert_eq!(shown.dimensions(), (640, 480));
+    let mean: f64 = shown.pixels().map(|p| p[1] as f64).sum::<f64>() / (640.0 * 480.0);
+    assert!(
+        mean > 30.0,
+        "the page's picture is dark: mean green {mean:.1}"
+    );
+    for (i, v) in views.iter().enumerate() {
+        let db = psnr(&rtsp, &shown, rect(v));
+        println!("view {i}: page vs RTSP {db:.1} dB");
+        assert!(db > 24.0, "view {i}: page vs RTSP only {db:.1} dB");
+    }
+    (views, viewer, rtsp)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_plays_the_stream_and_its_drags_turn_the_cameras() {
     // One tracked object, seen in view 1 (camera 1 looks along yaw 90°, 30° down).
@@ -99,37 +132,8 @@ async fn the_page_plays_the_stream_and_its_drags_turn_the_cameras() {
     let b = Browser::start(1280, 900).await;
     b.client.goto(&page).await.unwrap();
 
-    // The preview plays: frames advance, at the output's size, and the picture is not black.
-    b.until(
-        "the preview decodes 10 frames",
-        Duration::from_secs(30),
-        "return window.digiview && window.digiview.preview.frames >= 10",
-    )
-    .await;
-    let before = b.js("return window.digiview.preview.frames", vec![]).await;
-    tokio::time::sleep(Duration::from_secs(1)).await;
-    let after = b.js("return window.digiview.preview.frames", vec![]).await;
-    let advanced = after.as_u64().unwrap() - before.as_u64().unwrap();
-    assert!(advanced >= 5, "{advanced} frames in a second");
-    let params = b.js("return window.digiview.api.params", vec![]).await;
-    let views = params["VIDEO_OUTPUT"]["views"].as_array().unwrap().clone();
+    let (views, viewer, _) = plays_as_rtsp_shows(&b, &serve).await;
     assert_eq!(views.len(), 4, "layout 4 shows four views");
-
-    // The page's picture is the RTSP picture: the same views in the same places.
-    let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());
-    let rtsp = viewer.fresh_frame();
-    let shown = page_frame(&b).await;
-    assert_eq!(shown.dimensions(), (640, 480));
-    let mean: f64 = shown.pixels().map(|p| p[1] as f64).sum::<f64>() / (640.0 * 480.0);
-    assert!(
-        mean > 30.0,
-        "the page's picture is dark: mean green {mean:.1}"
-    );
-    for (i, v) in views.iter().enumerate() {
-        let db = psnr(&rtsp, &shown, rect(v));
-        println!("view {i}: page vs RTSP {db:.1} dB");
-        assert!(db > 24.0, "view {i}: page vs RTSP only {db:.1} dB");
-    }
 
     // The tracked object is ringed where its ray is drawn (the pixel's ray, asked over the
     // binary protocol, is the object's), and a click on the ring aims the selected camera, 0,
@@ -325,6 +329,42 @@ async fn the_page_plays_the_stream_and_its_drags_turn_the_cameras() {
         .iter()
         .filter(|(level, _)| level == "SEVERE")
         .collect();
+    assert!(errors.is_empty(), "console errors: {errors:?}");
+    b.close().await;
+}
+
+/// Opened over plain http by a name that is not this machine's (as from a laptop on the
+/// drone's network), the page is no secure context and has no WebCodecs: the preview plays
+/// through Media Source Extensions instead, and shows what RTSP clients see.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_plain_http_from_elsewhere_the_preview_plays_through_mse() {
+    let serve = Serve::start_video(&["--size", "640x480", "--demo-hover"]);
+    let page = serve
+        .http
+        .clone()
+        .unwrap()
+        .replace("127.0.0.1", "drone.test");
+    let b = Browser::start_with(
+        1280,
+        900,
+        &["--host-resolver-rules=MAP drone.test 127.0.0.1"],
+    )
+    .await;
+    b.client.goto(&page).await.unwrap();
+    plays_as_rtsp_shows(&b, &serve).await;
+    let how = b
+        .js(
+            "return [window.isSecureContext, 'VideoDecoder' in window, window.digiview.preview.mode]",
+            vec![],
+        )
+        .await;
+    assert_eq!(
+        how,
+        json!([false, false, "mse"]),
+        "secure context, WebCodecs, preview"
+    );
+    let console = b.console().await;
+    let errors: Vec<_> = console.iter().filter(|(l, _)| l == "SEVERE").collect();
     assert!(errors.is_empty(), "console errors: {errors:?}");
     b.close().await;
 }

@@ -36,6 +36,11 @@ const FILES: &[(&str, &str, &str)] = &[
         include_str!("page/preview.js"),
     ),
     (
+        "mp4.js",
+        "text/javascript; charset=utf-8",
+        include_str!("page/mp4.js"),
+    ),
+    (
         "views.js",
         "text/javascript; charset=utf-8",
         include_str!("page/views.js"),

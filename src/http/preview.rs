@@ -2,7 +2,8 @@
 //! with WebCodecs. Each binary message is one access unit: a byte of flags (bit 0: key frame),
 //! the presentation time in µs (u64, little-endian), then the Annex B bytes (SPS and PPS lead
 //! each key frame). The first unit is a key frame; a viewer that falls behind skips to the
-//! next one (stream::preview), so it never slows the stream or other viewers.
+//! next one (stream::preview), so it never slows the stream or other viewers. A page whose
+//! decoder falls behind sends the text message `key` to have the next one come sooner.
 
 use super::{Web, text};
 use axum::extract::State;
@@ -35,9 +36,11 @@ async fn send_units(mut socket: WebSocket, mut viewer: crate::stream::preview::V
                     return;
                 }
             }
-            // The page says nothing on this socket; a close (or a dead peer) ends it.
+            // The page says only "key" on this socket (it fell behind and skips to the next
+            // key frame); a close (or a dead peer) ends it.
             message = socket.recv() => match message {
                 Some(Ok(Message::Close(_))) | None | Some(Err(_)) => return,
+                Some(Ok(Message::Text(t))) if t.as_str() == "key" => viewer.ask_key(),
                 Some(Ok(_)) => {}
             },
         }

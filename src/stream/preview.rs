@@ -7,10 +7,14 @@
 use super::encoder::AccessUnit;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 use tokio::sync::broadcast;
 
 /// Units a viewer may be behind before it loses some: a second at 30 fps.
 const BEHIND: usize = 30;
+
+/// How often one viewer may ask for a key frame.
+pub const ASK_INTERVAL: Duration = Duration::from_secs(1);
 
 /// One access unit for the page: Annex B H.264 (SPS and PPS before each key frame).
 #[derive(Debug)]
@@ -62,6 +66,7 @@ impl Preview {
             preview: self.clone(),
             units: self.units.subscribe(),
             keyed: false,
+            asked: None,
         }
     }
 
@@ -76,9 +81,20 @@ pub struct Viewer {
     units: broadcast::Receiver<Arc<PreviewUnit>>,
     /// Whether a key frame has been given since the start or since units were lost.
     keyed: bool,
+    /// When the viewer last asked for a key frame itself.
+    asked: Option<Instant>,
 }
 
 impl Viewer {
+    /// The viewer's own decoder fell behind and skips to a key frame: the encoder makes one
+    /// soon, at most once per [`ASK_INTERVAL`] per viewer (each costs every client bits).
+    pub fn ask_key(&mut self) {
+        if self.asked.is_none_or(|t| t.elapsed() >= ASK_INTERVAL) {
+            self.asked = Some(Instant::now());
+            self.preview.key_wanted.store(true, Ordering::Relaxed);
+        }
+    }
+
     /// The next unit the viewer can decode; None when the stream has ended.
     pub async fn next(&mut self) -> Option<Arc<PreviewUnit>> {
         loop {
