@@ -1,4 +1,4 @@
-//! Human-facing text: angles written as radians or with a `deg` suffix, `WxH` sizes, and the
+//! Human-facing text: angles written as radians or with a `deg` suffix, lengths, `WxH` sizes, and the
 //! line a value stands on in a file. Used by lens.cal, state files and the command line alike.
 
 use serde::{Deserialize, Deserializer};
@@ -14,6 +14,8 @@ pub enum UnitError {
     NotASize(String),
     #[error("`{0}`: width and height must be positive")]
     EmptySize(String),
+    #[error("`{0}` is not a length (metres, or with a `mm`, `cm` or `m` suffix)")]
+    NotALength(String),
 }
 
 /// Parses `0.5`, `0.5rad` or `30deg` (spaces allowed before the unit) into radians.
@@ -36,6 +38,19 @@ pub fn parse_angle(text: &str) -> Result<f64, UnitError> {
         return Err(UnitError::Infinite(text.to_string()));
     }
     Ok(value * scale)
+}
+
+/// Parses `88mm`, `8.8cm`, `0.088m` or `0.088` into metres: finite and positive.
+pub fn parse_length(text: &str) -> Result<f64, UnitError> {
+    let t = text.trim();
+    let (number, scale) = [("mm", 1e-3), ("cm", 1e-2), ("m", 1.0)]
+        .iter()
+        .find_map(|(unit, scale)| t.strip_suffix(unit).map(|n| (n, *scale)))
+        .unwrap_or((t, 1.0));
+    match number.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v * scale),
+        _ => Err(UnitError::NotALength(text.to_string())),
+    }
 }
 
 /// Parses `1920x1080`.

@@ -1,6 +1,7 @@
-//! `digiview lens list|show|check|import`.
+//! `digiview lens list|show|check|import|board`.
 
 use super::locate;
+use crate::lens::calibrate::Board;
 use crate::lens::check::check;
 use crate::lens::import::{Format, ImportOptions, import};
 use crate::lens::{LensCal, LensEntry};
@@ -39,10 +40,73 @@ pub enum LensCommand {
         #[arg(long, requires = "write")]
         replace: bool,
     },
+    /// Draw a calibration board to print: an AprilGrid of tag36h11 tags, as Kalibr's.
+    Board {
+        /// The board: cols=N,rows=N,tag=LENGTH[,spacing=RATIO] (tag measured across its black
+        /// border; spacing, the gap between tags over the tag's side, 0.3 by default).
+        #[arg(long, value_parser = parse_board)]
+        board: Board,
+        /// The PNG to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// The printer's resolution, dots per inch (50 to 1200).
+        #[arg(long, default_value_t = 300.0)]
+        dpi: f64,
+    },
+}
+
+fn parse_board(text: &str) -> Result<Board, String> {
+    Board::parse(text).map_err(|e| e.to_string())
+}
+
+/// Writes the board's picture and says how to print it and what to tell other tools.
+fn draw_board(board: &Board, out: &Path, dpi: f64) -> Result<()> {
+    if !(50.0..=1200.0).contains(&dpi) {
+        bail!("--dpi {dpi}: between 50 and 1200");
+    }
+    let dots_per_metre = dpi / 0.0254;
+    let (low, high) = board.extent();
+    let size = (high - low) * 1000.0;
+    let pixels = (high - low) * dots_per_metre;
+    if pixels.max_element() > 30000.0 {
+        bail!(
+            "a {:.0} x {:.0} mm board at {dpi} dpi is {:.0} x {:.0} px: lower --dpi",
+            size.x,
+            size.y,
+            pixels.x,
+            pixels.y
+        );
+    }
+    board
+        .picture(dots_per_metre)
+        .save_with_format(out, image::ImageFormat::Png)
+        .map_err(|e| anyhow!("cannot write {}: {e}", out.display()))?;
+    println!(
+        "{}: {} x {} tags, {:.0} x {:.0} px; print at {dpi} dpi with no scaling to get {:.1} x {:.1} mm",
+        out.display(),
+        board.cols,
+        board.rows,
+        pixels.x,
+        pixels.y,
+        size.x,
+        size.y
+    );
+    println!(
+        "tags {:.1} mm across their black border, gaps {:.1} mm: measure a printed tag, and give \
+         the measured size to `lens calibrate --board`",
+        board.tag * 1000.0,
+        board.gap() * 1000.0
+    );
+    println!(
+        "Kalibr: target_type: 'aprilgrid', tagCols: {}, tagRows: {}, tagSize: {}, tagSpacing: {}",
+        board.cols, board.rows, board.tag, board.spacing
+    );
+    Ok(())
 }
 
 pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
     match cmd {
+        LensCommand::Board { board, out, dpi } => draw_board(&board, &out, dpi)?,
         LensCommand::List => {
             let (cal, _) = locate::lens_cal(flag)?;
             println!(

@@ -8,10 +8,12 @@
 //! A lens is a radial model r(θ) (`models`: one file per model, each with a WGSL twin of the
 //! same name in shaders/lens.wgsl, and the registry that names them) followed by a 2×2 affine
 //! to pixels: diag(fx, fy) for the classic models, OCam's (c, d, e) matrix for Scaramuzza's.
-//! `calfile` reads and writes lens.cal, `import` other tools' calibrations, `check` tests an
-//! entry, and [`Lenses`] looks a state's lens up.
+//! `calfile` reads and writes lens.cal, `import` other tools' calibrations, `calibrate` makes
+//! them from pictures of a board, `check` tests an entry, and [`Lenses`] looks a state's lens
+//! up.
 
 pub mod calfile;
+pub mod calibrate;
 pub mod check;
 pub mod import;
 pub mod models;

@@ -3,6 +3,7 @@
 //! `synth` turns that into the fisheye frame a lens would capture and into the exact output
 //! frame DigiView should produce.
 
+pub mod board;
 pub mod grid;
 pub mod panorama;
 pub mod synth;

@@ -39,7 +39,12 @@ pub fn eye_at(p: &GeoPosition) -> DVec3 {
 }
 
 /// Renders `f(x, y)` for every pixel of a w × h image, n × n samples a pixel, rows in parallel.
-fn supersample<F: Fn(DVec2) -> Option<DVec3> + Sync>(w: u32, h: u32, n: u32, f: F) -> RgbImage {
+pub(crate) fn supersample<F: Fn(DVec2) -> Option<DVec3> + Sync>(
+    w: u32,
+    h: u32,
+    n: u32,
+    f: F,
+) -> RgbImage {
     let offsets: Vec<DVec2> = sample_offsets(n).collect();
     let mut buf = vec![0u8; (w * h * 3) as usize];
     buf.par_chunks_mut((w * 3) as usize)
