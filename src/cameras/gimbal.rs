@@ -164,7 +164,9 @@ impl Cameras {
                 let (yaw, pitch) = locks.decompose(yaw, pitch, vehicle);
                 c.lock = locks.0;
                 c.yaw = yaw;
-                c.pitch = pitch;
+                // Within ±90° as CAM_EULER keeps it, also once the vehicle's own pitch is
+                // taken off an unlocked camera's (90° down from a vehicle pitched 4° down).
+                c.pitch = pitch.clamp(-FRAC_PI_2, FRAC_PI_2);
                 // Roll within ±90°, as CAM_EULER keeps it.
                 let roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
                 c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
