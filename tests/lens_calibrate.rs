@@ -338,3 +338,105 @@ fn the_shipped_lenses_are_calibrated_back_from_rendered_boards() {
         assert!(gap < 1.0, "{}: {gap:.3} px", entry.name);
     }
 }
+
+/// `digiview lens calibrate` on a directory of frames: the entry it prints is the truth lens
+/// (LN007) to within a pixel, frames without the board are named and skipped, and two frames
+/// are refused as too few.
+#[test]
+fn lens_calibrate_turns_a_directory_of_frames_into_an_entry() {
+    use digiview::scene::board::{BoardPose, board_fisheye};
+    let truth = shipped()
+        .find("LN007")
+        .unwrap()
+        .lens()
+        .for_frame(1280, 720, None);
+    let board = Board::parse("cols=6,rows=6,tag=60mm,spacing=0.3").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut poses = spread_poses(&board);
+    // Three frames with the board behind the camera: nothing to find.
+    for _ in 0..3 {
+        poses.push(BoardPose::facing(
+            &board,
+            -glam::DVec3::Z,
+            1.0,
+            glam::DVec2::ZERO,
+            0.0,
+        ));
+    }
+    for (i, pose) in poses.iter().enumerate() {
+        let picture = board_fisheye(&board, pose, &truth, 2);
+        picture
+            .save(dir.path().join(format!("frame{i:03}.png")))
+            .unwrap();
+    }
+    let run = |dir: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+            .args([
+                "lens",
+                "calibrate",
+                "--board",
+                "cols=6,rows=6,tag=60mm",
+                "--name",
+                "MINE",
+            ])
+            .args(["--id", "7", "--images", dir.to_str().unwrap()])
+            .output()
+            .unwrap()
+    };
+    let o = run(dir.path());
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    println!("{err}");
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("no board in 3 frames: frame024.png, frame025.png, frame026.png"),
+        "{err}"
+    );
+    let cal = digiview::lens::LensCal::parse(std::path::Path::new("(out)"), &out).unwrap();
+    let e = &cal.entries[0];
+    assert_eq!(
+        (e.name.as_str(), e.lens_id, e.provenance.kind.as_str()),
+        ("MINE", 7, "calibrated")
+    );
+    assert!(
+        e.provenance.rms_px.is_some_and(|r| r < 0.3),
+        "{:?}",
+        e.provenance
+    );
+    let gap = worst_gap(&e.lens(), &truth, 85f64.to_radians());
+    println!("the entry is within {gap:.3} px of LN007 over 85° off the axis");
+    assert!(gap < 1.0, "{gap:.3} px");
+
+    // Boards only near the middle: an entry, with warnings naming what is not covered.
+    let middle = tempfile::tempdir().unwrap();
+    for i in 0..8 {
+        let name = format!("frame{i:03}.png");
+        std::fs::copy(dir.path().join(&name), middle.path().join(&name)).unwrap();
+    }
+    let o = run(middle.path());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: no corners in the outer third of the circle at azimuths 0-45°"),
+        "{err}"
+    );
+    assert!(err.contains("the lens is extrapolated"), "{err}");
+
+    // Two frames are too few.
+    let few = tempfile::tempdir().unwrap();
+    for i in 0..2 {
+        std::fs::copy(
+            dir.path().join(format!("frame{i:03}.png")),
+            few.path().join(format!("{i}.png")),
+        )
+        .unwrap();
+    }
+    let o = run(few.path());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("2 frames with the board: at least 3"),
+        "{err}"
+    );
+}

@@ -1,4 +1,4 @@
-//! `digiview lens list|show|check|import|board`.
+//! `digiview lens list|show|check|import|board` (`calibrate` is in calibrate_cmd.rs).
 
 use super::locate;
 use crate::lens::calibrate::Board;
@@ -40,6 +40,10 @@ pub enum LensCommand {
         #[arg(long, requires = "write")]
         replace: bool,
     },
+    /// Calibrate a lens from pictures of a board (printed with `lens board`): prints the
+    /// lens.cal entry (--write adds it), with the fit's error and which parts of the image
+    /// circle the board covered.
+    Calibrate(super::calibrate_cmd::CalibrateArgs),
     /// Draw a calibration board to print: an AprilGrid of tag36h11 tags, as Kalibr's.
     Board {
         /// The board: cols=N,rows=N,tag=LENGTH[,spacing=RATIO] (tag measured across its black
@@ -55,7 +59,7 @@ pub enum LensCommand {
     },
 }
 
-fn parse_board(text: &str) -> Result<Board, String> {
+pub(super) fn parse_board(text: &str) -> Result<Board, String> {
     Board::parse(text).map_err(|e| e.to_string())
 }
 
@@ -199,43 +203,54 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
                 camera: camera.as_deref(),
             };
             let entry = import(&file, format, &opts)?;
-            let text = entry.to_toml();
-            if !write {
-                print!("{text}");
-                return Ok(());
-            }
-            // Into the lens.cal in use; in place of the built-in one, a new file in the
-            // user's config directory that starts as its copy.
-            let origin = locate::lens_cal_origin(flag)?;
-            let (path, old) = match origin.path() {
-                Some(p) => (p.to_path_buf(), std::fs::read_to_string(p)?),
-                None => {
-                    let dir = locate::user_config_dir()
-                        .ok_or_else(|| anyhow!("no lens.cal to add to, and no home directory"))?
-                        .join("digiview");
-                    std::fs::create_dir_all(&dir)?;
-                    let text = locate::built_in_lens_cal_text().to_string();
-                    (dir.join("lens.cal"), text)
-                }
-            };
-            let replaced = append(&path, &old, &entry, &text, replace)?;
-            let (what, place) = match replaced {
-                Some(r) => (format!("replaced {r} with"), "in"),
-                None => ("added".to_string(), "to"),
-            };
-            eprintln!(
-                "{what} {} (lens_id {}) {place} {}",
-                entry.name,
-                entry.lens_id,
-                path.display()
-            );
+            output_entry(flag, &entry, write, replace)?;
         }
+        LensCommand::Calibrate(args) => super::calibrate_cmd::run(flag, args)?,
     }
     Ok(())
 }
 
+/// Prints a new entry, or with `write` adds it to the lens.cal in use; in place of the
+/// built-in one, to a new file in the user's config directory that starts as its copy.
+pub(super) fn output_entry(
+    flag: Option<&Path>,
+    entry: &LensEntry,
+    write: bool,
+    replace: bool,
+) -> Result<()> {
+    let text = entry.to_toml();
+    if !write {
+        print!("{text}");
+        return Ok(());
+    }
+    let origin = locate::lens_cal_origin(flag)?;
+    let (path, old) = match origin.path() {
+        Some(p) => (p.to_path_buf(), std::fs::read_to_string(p)?),
+        None => {
+            let dir = locate::user_config_dir()
+                .ok_or_else(|| anyhow!("no lens.cal to add to, and no home directory"))?
+                .join("digiview");
+            std::fs::create_dir_all(&dir)?;
+            let text = locate::built_in_lens_cal_text().to_string();
+            (dir.join("lens.cal"), text)
+        }
+    };
+    let replaced = append(&path, &old, entry, &text, replace)?;
+    let (what, place) = match replaced {
+        Some(r) => (format!("replaced {r} with"), "in"),
+        None => ("added".to_string(), "to"),
+    };
+    eprintln!(
+        "{what} {} (lens_id {}) {place} {}",
+        entry.name,
+        entry.lens_id,
+        path.display()
+    );
+    Ok(())
+}
+
 /// `--fov`: an angle in (0, 360°].
-fn parse_fov(text: &str) -> Result<f64, String> {
+pub(super) fn parse_fov(text: &str) -> Result<f64, String> {
     let v = parse_angle(text).map_err(|e| e.to_string())?;
     if v > 0.0 && v <= std::f64::consts::TAU {
         return Ok(v);

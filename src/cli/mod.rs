@@ -2,6 +2,7 @@
 //! the library's plain types and reports errors with anyhow; no rendering logic lives here.
 
 mod bench_cmd;
+mod calibrate_cmd;
 mod ctl_cmd;
 mod doctor;
 mod lens_cmd;

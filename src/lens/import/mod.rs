@@ -153,7 +153,7 @@ pub fn import(
 
 /// The largest angle from the axis that the frame shows (its farthest border point), within
 /// the model's one-to-one range and at most 100° (a 200° field of view).
-fn widest_angle(radial: &Radial, affine: &PixelAffine, w: u32, h: u32) -> f64 {
+pub(crate) fn widest_angle(radial: &Radial, affine: &PixelAffine, w: u32, h: u32) -> f64 {
     let (w, h) = (w as f64 - 1.0, h as f64 - 1.0);
     let border = (0..=64).flat_map(|i| {
         let t = i as f64 / 64.0;
