@@ -94,11 +94,13 @@ async fn plays_as_rtsp_shows(b: &Browser, serve: &Serve) -> (Vec<Value>, Viewer,
         "return window.digiview && window.digiview.preview.frames >= 10",
     )
     .await;
+    // Frames advance: at least 3 a second over 2 s (the demo makes 15 to 20 here; a loaded
+    // machine, or the MSE player catching up, draws fewer for a moment).
     let before = b.js("return window.digiview.preview.frames", vec![]).await;
-    tokio::time::sleep(Duration::from_secs(1)).await;
+    tokio::time::sleep(Duration::from_secs(2)).await;
     let after = b.js("return window.digiview.preview.frames", vec![]).await;
     let advanced = after.as_u64().unwrap() - before.as_u64().unwrap();
-    assert!(advanced >= 5, "{advanced} frames in a second");
+    assert!(advanced >= 6, "{advanced} frames in 2 s");
     let params = b.js("return window.digiview.api.params", vec![]).await;
     let views = params["VIDEO_OUTPUT"]["views"].as_array().unwrap().clone();
     let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());

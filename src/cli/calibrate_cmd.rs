@@ -2,7 +2,7 @@
 //! progress bar) → a fitted lens → its lens.cal entry, the fit's error, and which parts of the
 //! image circle the board covered.
 
-use super::lens_cmd::{output_entry, parse_board, parse_fov};
+use super::lens_cmd::{EntryArgs, output_entry, parse_board};
 use crate::lens::calibrate::fit::{Frame, fit};
 use crate::lens::calibrate::{Board, Finder, RINGS, SECTORS, coverage, entry};
 use anyhow::{Context, Result, bail};
@@ -18,19 +18,8 @@ pub struct CalibrateArgs {
     /// measured on the print.
     #[arg(long, value_parser = parse_board)]
     board: Board,
-    #[arg(long)]
-    name: String,
-    #[arg(long)]
-    id: u8,
-    /// The valid field of view (e.g. 190deg); by default the widest the frame shows.
-    #[arg(long, value_parser = parse_fov)]
-    fov: Option<f64>,
-    /// Append the entry to lens.cal.
-    #[arg(long)]
-    write: bool,
-    /// With --write: replace the entry of the same name or id.
-    #[arg(long, requires = "write")]
-    replace: bool,
+    #[command(flatten)]
+    entry: EntryArgs,
 }
 
 /// The frames in a directory, in name order.
@@ -120,7 +109,8 @@ pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
         args.board.spacing,
         args.images.display()
     );
-    let e = entry(&got, &args.name, args.id, size, args.fov, &today(), source)?;
+    let a = &args.entry;
+    let e = entry(&got, &a.name, a.id, size, a.fov, &today(), source)?;
     let lens = e.lens();
     let (covered, widest) = coverage(&lens, &corners);
     eprintln!(
@@ -151,7 +141,7 @@ pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
             );
         }
     }
-    output_entry(flag, &e, args.write, args.replace)
+    output_entry(flag, &e, &args.entry)
 }
 
 /// Today's date (UTC), YYYY-MM-DD.

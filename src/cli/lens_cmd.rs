@@ -7,7 +7,7 @@ use crate::lens::import::{Format, ImportOptions, import};
 use crate::lens::{LensCal, LensEntry};
 use crate::units::{deg, parse_angle};
 use anyhow::{Result, anyhow, bail};
-use clap::Subcommand;
+use clap::{Args, Subcommand};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand, Debug)]
@@ -23,22 +23,11 @@ pub enum LensCommand {
         file: PathBuf,
         #[arg(long, value_enum)]
         format: Option<Format>,
-        #[arg(long)]
-        name: String,
-        #[arg(long)]
-        id: u8,
-        /// The valid field of view (e.g. 190deg); by default the widest the frame shows.
-        #[arg(long, value_parser = parse_fov)]
-        fov: Option<f64>,
         /// Which camera of a Kalibr camchain (default: the first).
         #[arg(long)]
         camera: Option<String>,
-        /// Append the entry to lens.cal.
-        #[arg(long)]
-        write: bool,
-        /// With --write: replace the entry of the same name or id.
-        #[arg(long, requires = "write")]
-        replace: bool,
+        #[command(flatten)]
+        entry: EntryArgs,
     },
     /// Calibrate a lens from pictures of a board (printed with `lens board`): prints the
     /// lens.cal entry (--write adds it), with the fit's error and which parts of the image
@@ -57,6 +46,24 @@ pub enum LensCommand {
         #[arg(long, default_value_t = 300.0)]
         dpi: f64,
     },
+}
+
+/// What names a new lens.cal entry and where it goes: `import`'s and `calibrate`'s.
+#[derive(Args, Debug)]
+pub struct EntryArgs {
+    #[arg(long)]
+    pub name: String,
+    #[arg(long)]
+    pub id: u8,
+    /// The valid field of view (e.g. 190deg); by default the widest the frame shows.
+    #[arg(long, value_parser = parse_fov)]
+    pub fov: Option<f64>,
+    /// Append the entry to lens.cal.
+    #[arg(long)]
+    pub write: bool,
+    /// With --write: replace the entry of the same name or id.
+    #[arg(long, requires = "write")]
+    pub replace: bool,
 }
 
 pub(super) fn parse_board(text: &str) -> Result<Board, String> {
@@ -189,21 +196,17 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
         LensCommand::Import {
             file,
             format,
-            name,
-            id,
-            fov,
             camera,
-            write,
-            replace,
+            entry: args,
         } => {
             let opts = ImportOptions {
-                name: &name,
-                lens_id: id,
-                fov,
+                name: &args.name,
+                lens_id: args.id,
+                fov: args.fov,
                 camera: camera.as_deref(),
             };
             let entry = import(&file, format, &opts)?;
-            output_entry(flag, &entry, write, replace)?;
+            output_entry(flag, &entry, &args)?;
         }
         LensCommand::Calibrate(args) => super::calibrate_cmd::run(flag, args)?,
     }
@@ -212,14 +215,9 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
 
 /// Prints a new entry, or with `write` adds it to the lens.cal in use; in place of the
 /// built-in one, to a new file in the user's config directory that starts as its copy.
-pub(super) fn output_entry(
-    flag: Option<&Path>,
-    entry: &LensEntry,
-    write: bool,
-    replace: bool,
-) -> Result<()> {
+pub(super) fn output_entry(flag: Option<&Path>, entry: &LensEntry, args: &EntryArgs) -> Result<()> {
     let text = entry.to_toml();
-    if !write {
+    if !args.write {
         print!("{text}");
         return Ok(());
     }
@@ -235,7 +233,7 @@ pub(super) fn output_entry(
             (dir.join("lens.cal"), text)
         }
     };
-    let replaced = append(&path, &old, entry, &text, replace)?;
+    let replaced = append(&path, &old, entry, &text, args.replace)?;
     let (what, place) = match replaced {
         Some(r) => (format!("replaced {r} with"), "in"),
         None => ("added".to_string(), "to"),
@@ -250,7 +248,7 @@ pub(super) fn output_entry(
 }
 
 /// `--fov`: an angle in (0, 360°].
-pub(super) fn parse_fov(text: &str) -> Result<f64, String> {
+fn parse_fov(text: &str) -> Result<f64, String> {
     let v = parse_angle(text).map_err(|e| e.to_string())?;
     if v > 0.0 && v <= std::f64::consts::TAU {
         return Ok(v);
