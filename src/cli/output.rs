@@ -138,9 +138,11 @@ pub fn interrupted() -> Arc<AtomicBool> {
                     return;
                 };
                 for _ in 0..2 {
+                    // Only a signal counts: a stream that ends (None) is no second Ctrl-C.
                     tokio::select! {
-                        _ = int.recv() => {}
-                        _ = term.recv() => {}
+                        Some(()) = int.recv() => {}
+                        Some(()) = term.recv() => {}
+                        else => return,
                     }
                     if set.swap(true, Ordering::SeqCst) {
                         std::process::exit(130);
