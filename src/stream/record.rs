@@ -94,3 +94,12 @@ impl Recorder {
             .map_err(|e| self.failed(e))
     }
 }
+
+/// A recording dropped without `finish` (an interrupted render, a failing stage) is stopped
+/// before its pipeline goes: disposing a playing pipeline aborts GStreamer's streaming
+/// thread, and the process with it.
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        let _ = self.pipeline.set_state(gst::State::Null);
+    }
+}

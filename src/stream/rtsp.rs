@@ -292,8 +292,13 @@ fn lock(medias: &Medias) -> std::sync::MutexGuard<'_, Vec<Media>> {
 
 impl Drop for Rtsp {
     fn drop(&mut self) {
-        self.main_loop.quit();
         if let Some(t) = self.thread.take() {
+            // A quit that comes before the loop runs is lost (a server dropped as soon as
+            // it started, when start-up fails after it): ask until the loop has ended.
+            while !t.is_finished() {
+                self.main_loop.quit();
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
             let _ = t.join();
         }
     }
