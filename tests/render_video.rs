@@ -44,31 +44,7 @@ fn a_fisheye_clip_renders_to_mp4_and_to_an_image_sequence() {
             .unwrap();
     }
     let clip = dir.path().join("fisheye.mp4");
-    let made = Command::new("gst-launch-1.0")
-        .arg("-q")
-        .arg("multifilesrc")
-        .arg(format!("location={}/%03d.png", seq.display()))
-        .args([
-            "caps=image/png,framerate=10/1",
-            "!",
-            "pngdec",
-            "!",
-            "videoconvert",
-        ])
-        .args([
-            "!",
-            "x264enc",
-            "pass=quant",
-            "quantizer=12",
-            "!",
-            "h264parse",
-            "!",
-            "mp4mux",
-        ])
-        .args(["!", "filesink", &format!("location={}", clip.display())])
-        .status()
-        .unwrap();
-    assert!(made.success());
+    common::encode_sequence(&seq, &clip, 12);
     assert_eq!(probe_frames(&clip), (FRAMES as u64, "1280x720".into()));
 
     // Fisheye MP4 → dewarped MP4, four views at 640x480.

@@ -1,104 +1,173 @@
-//! `digiview lens calibrate`: pictures of a board → the board's corners in each (with a
-//! progress bar) → a fitted lens → its lens.cal entry, the fit's error, and which parts of the
-//! image circle the board covered.
+//! `digiview lens calibrate`: a video or pictures of a board → the board's corners in each
+//! (with a progress bar) → a well-spread subset → a fitted lens → its lens.cal entry, the
+//! fit's error, and which parts of the image circle the board covered. Also `synth --board`,
+//! the frames a lens would capture of the board at known poses.
 
+use super::calibrate_frames::Pictures;
 use super::lens_cmd::{EntryArgs, output_entry, parse_board};
-use crate::lens::calibrate::fit::{Frame, fit};
-use crate::lens::calibrate::{Board, Finder, RINGS, SECTORS, coverage, entry};
-use anyhow::{Context, Result, bail};
+use crate::lens::Model;
+use crate::lens::calibrate::fit::{FitModel, Frame, fit};
+use crate::lens::calibrate::{Board, Finder, RINGS, SECTORS, coverage, entry, select};
+use anyhow::{Result, bail};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
 pub struct CalibrateArgs {
+    /// A video of the board (any file GStreamer decodes, e.g. .mp4 or .mov).
+    #[arg(long, required_unless_present = "images", conflicts_with = "images")]
+    video: Option<PathBuf>,
     /// A directory of frames (PNG or JPEG, all the same size), taken in name order.
     #[arg(long)]
-    images: PathBuf,
+    images: Option<PathBuf>,
+    /// Look at every Nth frame of the video (default: about 200 frames in all).
+    #[arg(long, requires = "video")]
+    every: Option<u64>,
     /// The board as printed: cols=N,rows=N,tag=LENGTH[,spacing=RATIO], with the tag size
     /// measured on the print.
     #[arg(long, value_parser = parse_board)]
     board: Board,
+    /// The lens model to fit: kannala_brandt (OpenCV's fisheye, Kalibr's equidistant) or
+    /// double_sphere (Kalibr's ds).
+    #[arg(long, default_value = "kannala_brandt", value_parser = str::parse::<FitModel>)]
+    model: FitModel,
+    /// The most frames the fit uses: more frames with the board are thinned to a subset
+    /// spread over the image.
+    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u32).range(3..=500))]
+    max_frames: u32,
     #[command(flatten)]
     entry: EntryArgs,
 }
 
-/// The frames in a directory, in name order.
-fn frame_files(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .with_context(|| format!("cannot read the directory {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
-        })
-        .collect();
-    files.sort();
-    if files.is_empty() {
-        bail!("{}: no PNG or JPEG frames", dir.display());
+/// Frames found with the board: their corners, and the names of those without it.
+struct Found {
+    frames: Vec<Frame>,
+    without: Vec<String>,
+    looked: usize,
+    size: (u32, u32),
+}
+
+/// Looks for the board in every picture, a batch of frames on all cores at a time, with a
+/// progress bar; stops between batches on Ctrl-C.
+fn find_all(mut pictures: Pictures, finder: &Finder) -> Result<Found> {
+    use rayon::prelude::*;
+    let bar = match pictures.len() {
+        Some(n) => indicatif::ProgressBar::new(n),
+        None => indicatif::ProgressBar::no_length(),
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "finding the board {bar:30} {pos}/{len} frames, {per_sec} eta {eta}",
+        )
+        .expect("valid template"),
+    );
+    let stop = super::output::interrupted();
+    let batch = 2 * rayon::current_num_threads();
+    let mut found = Found {
+        frames: vec![],
+        without: vec![],
+        looked: 0,
+        size: (0, 0),
+    };
+    loop {
+        let mut pics = vec![];
+        while pics.len() < batch
+            && let Some(p) = pictures.next()?
+        {
+            let this = (p.luma.width(), p.luma.height());
+            if found.looked == 0 && pics.is_empty() {
+                found.size = this;
+            } else if this != found.size {
+                bail!(
+                    "{} is {}x{}, the frames before it {}x{}: one camera mode at a time",
+                    p.name,
+                    this.0,
+                    this.1,
+                    found.size.0,
+                    found.size.1
+                );
+            }
+            pics.push(p);
+        }
+        if pics.is_empty() {
+            break;
+        }
+        let sightings: Vec<_> = pics.par_iter().map(|p| finder.find(&p.luma)).collect();
+        for (p, seen) in pics.into_iter().zip(sightings) {
+            if seen.len() < 2 {
+                found.without.push(p.name);
+            } else {
+                found.frames.push(Frame::from_sightings(&seen));
+            }
+            found.looked += 1;
+            bar.inc(1);
+        }
+        if stop.load(std::sync::atomic::Ordering::SeqCst) {
+            bar.abandon();
+            bail!("interrupted after {} frames: nothing written", found.looked);
+        }
     }
-    Ok(files)
+    bar.finish_and_clear();
+    Ok(found)
 }
 
 pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
-    let files = frame_files(&args.images)?;
+    let (pictures, from) = match (&args.video, &args.images) {
+        (Some(video), _) => (Pictures::video(video, args.every)?, video),
+        (None, Some(dir)) => (Pictures::images(dir)?, dir),
+        (None, None) => bail!("give the frames: --video FILE or --images DIR"),
+    };
     let finder = Finder::new(args.board);
-    let bar = indicatif::ProgressBar::new(files.len() as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("finding the board {bar:30} {pos}/{len} frames")
-            .expect("valid template"),
-    );
-    let mut size = None;
-    let (mut frames, mut without, mut corners) = (vec![], vec![], vec![]);
-    for file in &files {
-        let picture =
-            image::open(file).with_context(|| format!("cannot read {}", file.display()))?;
-        let this = (picture.width(), picture.height());
-        match size {
-            None => size = Some(this),
-            Some(s) if s != this => bail!(
-                "{} is {}x{}, the frames before it {}x{}: one camera mode at a time",
-                file.display(),
-                this.0,
-                this.1,
-                s.0,
-                s.1
-            ),
-            _ => {}
-        }
-        let found = finder.find(&picture);
-        if found.len() < 2 {
-            without.push(
-                file.file_name()
-                    .map_or(String::new(), |n| n.to_string_lossy().into()),
-            );
-        } else {
-            let frame = Frame::from_sightings(&found);
-            corners.extend(frame.image.iter().copied());
-            frames.push(frame);
-        }
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    let size = size.expect("at least one frame");
+    let Found {
+        frames,
+        without,
+        looked,
+        size,
+    } = find_all(pictures, &finder)?;
+    let corners: Vec<_> = frames
+        .iter()
+        .flat_map(|f| f.image.iter().copied())
+        .collect();
     eprintln!(
-        "board found in {} of {} frames ({} corners)",
+        "board found in {} of {looked} frames ({} corners)",
         frames.len(),
-        files.len(),
         corners.len()
     );
     if !without.is_empty() {
+        let shown = without.len().min(20);
         eprintln!(
-            "no board in {} frames: {}",
+            "no board in {} frames: {}{}",
             without.len(),
-            without.join(", ")
+            without[..shown].join(", "),
+            if shown < without.len() { ", …" } else { "" }
         );
     }
-    let got = fit(&frames, size, |stage| eprintln!("{stage}…"))?;
+    let chosen = select::spread(&frames, size, args.max_frames as usize);
+    if chosen.len() < frames.len() {
+        eprintln!(
+            "fitting {} of them, chosen to spread over the image (--max-frames)",
+            chosen.len()
+        );
+    }
+    let frames: Vec<Frame> = chosen.into_iter().map(|i| frames[i].clone()).collect();
+    let corners: Vec<_> = frames
+        .iter()
+        .flat_map(|f| f.image.iter().copied())
+        .collect();
+    let got = fit(args.model, &frames, size, |stage| eprintln!("{stage}…"))?;
     eprintln!(
-        "fx {:.2} fy {:.2} cx {:.2} cy {:.2} k {:?}: reprojection error {:.3} px RMS, {:.3} px worst \
-         ({} corners, {} left out as outliers)",
-        got.fx, got.fy, got.cx, got.cy, got.k, got.rms, got.worst, got.kept, got.dropped
+        "{} fx {:.2} fy {:.2} cx {:.2} cy {:.2} {}: reprojection error {:.3} px RMS, {:.3} px \
+         worst ({} corners, {} left out as outliers)",
+        got.model.name(),
+        got.fx,
+        got.fy,
+        got.cx,
+        got.cy,
+        coefficients(&got.model),
+        got.rms,
+        got.worst,
+        got.kept,
+        got.dropped
     );
     let source = format!(
         "{} frames of the board {}x{} tags of {:.1} mm, spacing {}, from {}",
@@ -107,7 +176,7 @@ pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
         args.board.rows,
         args.board.tag * 1000.0,
         args.board.spacing,
-        args.images.display()
+        from.display()
     );
     let a = &args.entry;
     let e = entry(&got, &a.name, a.id, size, a.fov, &today(), source)?;
@@ -144,6 +213,18 @@ pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
     output_entry(flag, &e, &args.entry)
 }
 
+/// A fitted model's own coefficients, as lens.cal names them.
+fn coefficients(model: &Model) -> String {
+    match model {
+        Model::KannalaBrandt(m) => format!(
+            "k1 {:.6} k2 {:.6} k3 {:.6} k4 {:.6}",
+            m.k[0], m.k[1], m.k[2], m.k[3]
+        ),
+        Model::DoubleSphere(m) => format!("xi {:.5} alpha {:.5}", m.xi, m.alpha),
+        other => format!("{other:?}"),
+    }
+}
+
 /// Today's date (UTC), YYYY-MM-DD.
 fn today() -> String {
     let days = std::time::SystemTime::now()
@@ -160,4 +241,60 @@ fn today() -> String {
     let m = if mp < 10 { mp + 3 } else { mp - 9 };
     let y = yoe + era * 400 + i64::from(m <= 2);
     format!("{y:04}-{m:02}-{d:02}")
+}
+
+/// `synth --board`: the board before `lens` at each pose (parsed from `poses`, or `sweep`
+/// spread over the circle), one frame each, written to `out` (numbered when there are more).
+pub fn synth_boards(
+    board: &Board,
+    poses: &[String],
+    sweep: Option<usize>,
+    lens: &crate::lens::Lens,
+    out: &Path,
+) -> Result<()> {
+    use crate::scene::board::{BoardPose, board_fisheye};
+    let poses: Vec<BoardPose> = match sweep {
+        Some(n) if !(1..=1000).contains(&n) => bail!("--board-sweep {n}: 1..=1000 poses"),
+        Some(n) => BoardPose::sweep(board, n, lens.half_fov),
+        None => poses
+            .iter()
+            .map(|p| BoardPose::parse(board, p).map_err(anyhow::Error::msg))
+            .collect::<Result<_>>()?,
+    };
+    let pattern = out.to_string_lossy().into_owned();
+    let name = |i: usize| -> Result<PathBuf> {
+        Ok(match pattern.contains('%') {
+            true => PathBuf::from(super::render_video::numbered(&pattern, i as u64)?),
+            false if poses.len() == 1 => out.to_path_buf(),
+            false => bail!(
+                "{} poses make {} frames: number --out's files, e.g. frames/%03d.png",
+                poses.len(),
+                poses.len()
+            ),
+        })
+    };
+    // Every name is checked before the first frame is drawn.
+    for i in 0..poses.len() {
+        super::output::image_format(&name(i)?)?;
+    }
+    let bar = indicatif::ProgressBar::new(poses.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("drawing the board {bar:30} {pos}/{len} frames")
+            .expect("valid template"),
+    );
+    for (i, pose) in poses.iter().enumerate() {
+        let picture = board_fisheye(board, pose, lens, 2);
+        super::output::save_image(&picture, &name(i)?, &[])?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    eprintln!(
+        "wrote {} frame{} of the board ({}x{}) to {}",
+        poses.len(),
+        if poses.len() == 1 { "" } else { "s" },
+        lens.width,
+        lens.height,
+        out.display()
+    );
+    Ok(())
 }

@@ -120,23 +120,36 @@ pub fn save_image(img: &image::RgbImage, path: &Path, inputs: &[&Path]) -> Resul
 /// Set once Ctrl-C (SIGINT) or SIGTERM arrives, so a long command stops between frames,
 /// cleans up and says so. A second signal ends the process at once (exit 130).
 pub fn interrupted() -> Arc<AtomicBool> {
+    use tokio::signal::unix::{SignalKind, signal};
     let flag = Arc::new(AtomicBool::new(false));
     let set = flag.clone();
+    // The handlers are in place before this returns: a signal that comes at once is counted,
+    // not the default ending without a word.
+    let rt = match tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            tracing::warn!("cannot watch for Ctrl-C: {e}");
+            return flag;
+        }
+    };
+    let signals = {
+        let _inside = rt.enter();
+        signal(SignalKind::interrupt()).and_then(|i| Ok((i, signal(SignalKind::terminate())?)))
+    };
+    let (mut int, mut term) = match signals {
+        Ok(s) => s,
+        Err(e) => {
+            tracing::warn!("cannot watch for Ctrl-C: {e}");
+            return flag;
+        }
+    };
     let watcher = std::thread::Builder::new()
         .name("signals".into())
         .spawn(move || {
-            let rt = tokio::runtime::Builder::new_current_thread()
-                .enable_all()
-                .build()
-                .expect("a signal runtime");
             rt.block_on(async {
-                use tokio::signal::unix::{SignalKind, signal};
-                let (Ok(mut int), Ok(mut term)) = (
-                    signal(SignalKind::interrupt()),
-                    signal(SignalKind::terminate()),
-                ) else {
-                    return;
-                };
                 for _ in 0..2 {
                     // Only a signal counts: a stream that ends (None) is no second Ctrl-C.
                     tokio::select! {

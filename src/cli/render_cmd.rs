@@ -3,6 +3,7 @@
 
 use super::{Backend, StateArgs, output, spinner};
 use crate::frame::PixelFormat;
+use crate::lens::calibrate::Board;
 use crate::lens::{LensCal, Lenses};
 use crate::render::gpu::renderer::render_image;
 use crate::render::gpu::{Gpu, Renderer};
@@ -57,6 +58,19 @@ pub struct SynthArgs {
     /// The fisheye frame size (default: the state's sensor size, 3840x2160).
     #[arg(long, value_parser = crate::units::parse_size)]
     sensor: Option<(u32, u32)>,
+    /// Draw a calibration board (cols=N,rows=N,tag=LENGTH[,spacing=RATIO]) before the lens
+    /// instead of a world, at each --board-pose or at --board-sweep's poses, one frame each.
+    #[arg(long, value_parser = super::lens_cmd::parse_board, conflicts_with_all = ["truth", "equirect"])]
+    board: Option<Board>,
+    /// Where the board is: off=ANGLE,azimuth=ANGLE,distance=LENGTH[,tilt=ANGLE][,turn=ANGLE]
+    /// [,spin=ANGLE] (off the lens axis, azimuth 0 the frame's right and 90deg down; repeat
+    /// for more frames).
+    #[arg(long, requires = "board")]
+    board_pose: Vec<String>,
+    /// N board poses spread over the image circle, one frame each (--out then numbers its
+    /// files: frames/%03d.png).
+    #[arg(long, requires = "board", conflicts_with = "board_pose")]
+    board_sweep: Option<usize>,
     #[command(flatten)]
     state: StateArgs,
 }
@@ -153,7 +167,12 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
         "grid" => vec![],
         w => vec![Path::new(w)],
     };
-    let target = output::image_output(&args.out, &world_file)?;
+    if args.board.is_some() && args.board_pose.is_empty() && args.board_sweep.is_none() {
+        anyhow::bail!("--board: give its place with --board-pose, or --board-sweep N");
+    }
+    let target = (args.board.is_none())
+        .then(|| output::image_output(&args.out, &world_file))
+        .transpose()?;
     let mut state_args = args.state.clone();
     // Without --truth, --size names the fisheye frame (as in `synth --size 3840x2160`).
     let mut sensor = args.sensor;
@@ -182,6 +201,15 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
     };
     let sensor = (state.sensor.width, state.sensor.height);
     let lens = Lenses::new(cal).for_frame(state.lens, sensor, state.sensor.roi())?;
+    if let Some(board) = &args.board {
+        return super::calibrate_cmd::synth_boards(
+            board,
+            &args.board_pose,
+            args.board_sweep,
+            &lens,
+            &args.out,
+        );
+    }
     let bar = spinner("synthesising");
     let img = if let Some((w, h)) = args.equirect {
         equirect(world.as_ref(), &state, w, h)
@@ -191,5 +219,5 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
         fisheye(world.as_ref(), &lens, &state)
     };
     bar.finish_and_clear();
-    save(&img, target)
+    save(&img, target.expect("made without a board"))
 }

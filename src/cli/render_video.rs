@@ -39,7 +39,7 @@ enum Sink {
 }
 
 /// `pattern` with its printf-style number (`%05d`, `%d`) replaced by `n`.
-fn numbered(pattern: &str, n: u64) -> Result<String> {
+pub(super) fn numbered(pattern: &str, n: u64) -> Result<String> {
     let start = pattern.find('%').context("no % in the pattern")?;
     let rest = &pattern[start + 1..];
     let end = rest

@@ -4,8 +4,10 @@
 
 use crate::lens::Lens;
 use crate::lens::calibrate::Board;
+use crate::units::{parse_angle, parse_length};
 use glam::{DMat3, DVec2, DVec3};
 use image::RgbImage;
+use std::f64::consts::TAU;
 
 /// The background's shade behind and around the board (0..=1).
 const BACKGROUND: f64 = 0.45;
@@ -50,6 +52,98 @@ impl BoardPose {
             lens_from_board,
             origin,
         }
+    }
+
+    /// A pose written as `off=ANGLE,azimuth=ANGLE,distance=LENGTH[,tilt=ANGLE][,turn=ANGLE]
+    /// [,spin=ANGLE]`: the board's centre `off` from the lens axis at `azimuth` (0 the frame's
+    /// right, 90° down), `distance` away, facing the lens, then tilted about its own x axis,
+    /// turned about its y axis and spun about its normal. Angles in radians or with `deg`.
+    pub fn parse(board: &Board, spec: &str) -> Result<BoardPose, String> {
+        let fail = |why: String| {
+            format!(
+                "board pose `{spec}`: {why} (a pose is off=ANGLE,azimuth=ANGLE,distance=LENGTH\
+                 [,tilt=ANGLE][,turn=ANGLE][,spin=ANGLE], e.g. off=60deg,azimuth=90deg,distance=80cm)"
+            )
+        };
+        let (mut off, mut azimuth, mut distance) = (None, None, None);
+        let (mut tilt, mut turn, mut spin) = (0.0, 0.0, 0.0);
+        for field in spec.split(',').map(str::trim).filter(|f| !f.is_empty()) {
+            let (key, value) = field
+                .split_once('=')
+                .ok_or_else(|| fail(format!("`{field}` is not key=value")))?;
+            let angle = || parse_angle(value).map_err(|e| fail(format!("{key}: {e}")));
+            match key.trim() {
+                "off" => off = Some(angle()?),
+                "azimuth" => azimuth = Some(angle()?),
+                "distance" => {
+                    distance = Some(parse_length(value).map_err(|e| fail(e.to_string()))?)
+                }
+                "tilt" => tilt = angle()?,
+                "turn" => turn = angle()?,
+                "spin" => spin = angle()?,
+                other => return Err(fail(format!("no field `{other}`"))),
+            }
+        }
+        let (Some(off), Some(azimuth), Some(distance)) = (off, azimuth, distance) else {
+            return Err(fail("off, azimuth and distance are needed".into()));
+        };
+        if !(0.0..=std::f64::consts::PI).contains(&off) {
+            return Err(fail(format!(
+                "off is 0..=180deg from the axis (got {:.1}°)",
+                off.to_degrees()
+            )));
+        }
+        let direction = DVec3::new(
+            off.sin() * azimuth.cos(),
+            off.sin() * azimuth.sin(),
+            off.cos(),
+        );
+        Ok(BoardPose::facing(
+            board,
+            direction,
+            distance,
+            DVec2::new(tilt, turn),
+            spin,
+        ))
+    }
+
+    /// `count` poses spread over a lens's image circle of half field of view `half_fov`: a
+    /// twelfth in the middle, the rest on rings at 37%, 63% and 84% of `half_fov` (a quarter,
+    /// a third and a third), each tilted, turned and spun differently, at distances that make
+    /// the board fill about a sixth of the field.
+    pub fn sweep(board: &Board, count: usize, half_fov: f64) -> Vec<BoardPose> {
+        let (low, high) = board.extent();
+        // The reference board (6 × 6 tags of 60 mm, 0.52 m with its margin) sits 0.6 to 1 m away.
+        let scale = (high - low).max_element() / 0.522;
+        let middle = count.div_ceil(12).min(count);
+        let rest = count - middle;
+        let rings = [
+            (0.0, middle, 0.6),
+            (0.37, rest / 4, 0.7),
+            (0.63, (rest - rest / 4) / 2, 0.8),
+            (0.84, rest - rest / 4 - (rest - rest / 4) / 2, 1.0),
+        ];
+        let mut poses = vec![];
+        for (ring, (fraction, n, distance)) in rings.into_iter().enumerate() {
+            for i in 0..n {
+                let azimuth = (i as f64 + 0.5 * ring as f64) * TAU / n as f64;
+                let off = fraction * half_fov;
+                let direction = DVec3::new(
+                    off.sin() * azimuth.cos(),
+                    off.sin() * azimuth.sin(),
+                    off.cos(),
+                );
+                let tilt = DVec2::new(0.35 * (i as f64 * 1.7).sin(), 0.35 * (i as f64 * 2.3).cos());
+                poses.push(BoardPose::facing(
+                    board,
+                    direction,
+                    distance * scale,
+                    tilt,
+                    0.4 * i as f64,
+                ));
+            }
+        }
+        poses
     }
 
     /// Board point (metres, on its face) in the lens frame.

@@ -154,6 +154,7 @@ pub fn three_tracked() -> Vec<Tracked> {
             pitch: -50.0 * DEG,
             size: 12.0 * DEG,
             score: 90,
+            ..Tracked::default()
         })
         .collect()
 }
@@ -205,4 +206,63 @@ pub fn probe_frames(path: &std::path::Path) -> (u64, String) {
             String::from_utf8_lossy(&out.stderr)
         ),
     }
+}
+
+/// A fitted lens against the truth: the worst distance between where each projects rays
+/// within `half_fov` of the axis (where the truth's projection is in its frame).
+pub fn worst_gap(fitted: &Lens, truth: &Lens, half_fov: f64) -> f64 {
+    let mut worst: f64 = 0.0;
+    for i in 0..=40 {
+        let theta = half_fov * i as f64 / 40.0;
+        for j in 0..24 {
+            let phi = j as f64 * std::f64::consts::TAU / 24.0;
+            let ray = glam::DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            if let (Some(a), Some(b)) = (fitted.project(ray), truth.project(ray))
+                && truth.in_frame(b)
+            {
+                worst = worst.max(a.distance(b));
+            }
+        }
+    }
+    worst
+}
+
+/// Encodes the PNG sequence `dir/%03d.png` to an H.264 MP4 at 10 fps and constant
+/// `quantizer`, with GStreamer's own tools (independent of DigiView's encoder).
+pub fn encode_sequence(dir: &std::path::Path, clip: &std::path::Path, quantizer: u32) {
+    let made = std::process::Command::new("gst-launch-1.0")
+        .arg("-q")
+        .arg("multifilesrc")
+        .arg(format!("location={}/%03d.png", dir.display()))
+        .args([
+            "caps=image/png,framerate=10/1",
+            "!",
+            "pngdec",
+            "!",
+            "videoconvert",
+        ])
+        .args([
+            "!",
+            "x264enc",
+            "pass=quant",
+            &format!("quantizer={quantizer}"),
+        ])
+        .args(["!", "h264parse", "!", "mp4mux", "!", "filesink"])
+        .arg(format!("location={}", clip.display()))
+        .status()
+        .unwrap();
+    assert!(made.success());
+}
+
+/// `digiview ctl --addr ADDR ARGS...`, run to its end.
+pub fn ctl(addr: &str, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["ctl", "--addr", addr])
+        .args(args)
+        .output()
+        .unwrap()
 }

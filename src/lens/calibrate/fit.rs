@@ -1,19 +1,117 @@
-//! Fitting a lens to the board's sightings: Kannala-Brandt intrinsics (fx, fy, cx, cy and
-//! k1..k4, as OpenCV's fisheye module and Kalibr's "equidistant") and each frame's board pose,
+//! Fitting a lens to the board's sightings: the intrinsics of Kannala-Brandt (fx, fy, cx, cy
+//! and k1..k4, as OpenCV's fisheye module and Kalibr's "equidistant") or of the Double Sphere
+//! model (fx, fy, cx, cy, ξ and α, as Basalt and Kalibr's "ds") and each frame's board pose,
 //! by Levenberg-Marquardt on the corners' reprojection error (the `levenberg-marquardt`
 //! crate). A start comes from an equidistant lens whose focal length is searched, each pose
 //! from the homography between the board and the corners' rays; corners far off the fit are
 //! dropped and the fit run again.
 
 use super::detect::Sighting;
-use crate::lens::models::KannalaBrandt;
+use crate::lens::models::{DoubleSphere, KannalaBrandt};
 use crate::lens::{Lens, Model, PixelAffine};
 use glam::{DMat3, DQuat, DVec2, DVec3};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 
-/// Intrinsic parameters: fx, fy, cx, cy, k1..k4.
-const INTRINSICS: usize = 8;
+/// The models a lens can be fitted with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FitModel {
+    #[default]
+    KannalaBrandt,
+    DoubleSphere,
+}
+
+impl std::str::FromStr for FitModel {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<FitModel, String> {
+        match text.trim().replace('-', "_").as_str() {
+            "kannala_brandt" => Ok(FitModel::KannalaBrandt),
+            "double_sphere" => Ok(FitModel::DoubleSphere),
+            _ => Err(format!(
+                "`{text}`: the fit knows kannala_brandt and double_sphere"
+            )),
+        }
+    }
+}
+
+impl FitModel {
+    /// fx, fy, cx, cy and the model's own coefficients.
+    fn intrinsics(self) -> usize {
+        match self {
+            FitModel::KannalaBrandt => 8,
+            FitModel::DoubleSphere => 6,
+        }
+    }
+
+    /// The model's coefficients that start it as close to an equidistant lens of the same
+    /// focal length as it comes: KB's k = 0 is one; Double Sphere with ξ = 0 and α = 2/π
+    /// meets it at the axis and at 90°.
+    fn start(self) -> Vec<f64> {
+        match self {
+            FitModel::KannalaBrandt => vec![0.0; 4],
+            FitModel::DoubleSphere => vec![0.0, std::f64::consts::FRAC_2_PI],
+        }
+    }
+
+    /// The lens model with the intrinsics `p`.
+    pub fn model(self, p: &[f64]) -> Model {
+        match self {
+            FitModel::KannalaBrandt => Model::KannalaBrandt(KannalaBrandt {
+                k: [p[4], p[5], p[6], p[7]],
+            }),
+            FitModel::DoubleSphere => Model::DoubleSphere(DoubleSphere {
+                xi: p[4],
+                alpha: p[5],
+            }),
+        }
+    }
+
+    /// Projection of a lens-frame point with intrinsics `p`: None beyond the model's reach.
+    fn project(self, p: &[f64], x: DVec3) -> Option<DVec2> {
+        let m = match self {
+            FitModel::KannalaBrandt => kannala_brandt(&p[4..8], x)?,
+            FitModel::DoubleSphere => double_sphere(p[4], p[5], x)?,
+        };
+        Some(DVec2::new(p[0] * m.x + p[2], p[1] * m.y + p[3]))
+    }
+}
+
+/// Kannala-Brandt's normalized image point: r(θ) = θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸).
+fn kannala_brandt(k: &[f64], x: DVec3) -> Option<DVec2> {
+    let rho = x.x.hypot(x.y);
+    let theta = rho.atan2(x.z);
+    let t2 = theta * theta;
+    let r = theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
+    if !r.is_finite() {
+        return None;
+    }
+    Some(if rho > 1e-12 {
+        DVec2::new(x.x, x.y) * (r / rho)
+    } else {
+        DVec2::ZERO
+    })
+}
+
+/// Double Sphere's normalized image point (Usenko et al. 2018, eqs. 40-43), None where the
+/// model does not project (α outside [0, 1] included).
+fn double_sphere(xi: f64, alpha: f64, x: DVec3) -> Option<DVec2> {
+    if !(0.0..=1.0).contains(&alpha) {
+        return None;
+    }
+    let d1 = x.length();
+    let zx = xi * d1 + x.z;
+    let d2 = (x.x * x.x + x.y * x.y + zx * zx).sqrt();
+    let w1 = if alpha <= 0.5 {
+        alpha / (1.0 - alpha)
+    } else {
+        (1.0 - alpha) / alpha
+    };
+    let w2 = (w1 + xi) / (2.0 * w1 * xi + xi * xi + 1.0).sqrt();
+    let denom = alpha * d2 + (1.0 - alpha) * zx;
+    (x.z > -w2 * d1 && denom > 1e-12).then(|| DVec2::new(x.x, x.y) / denom)
+}
+
 /// Per frame: rotation vector (3) and translation (3).
 const POSE: usize = 6;
 /// A board pose: lens_from_board rotation, and the board's origin in the lens frame.
@@ -59,7 +157,8 @@ pub struct Fit {
     pub fy: f64,
     pub cx: f64,
     pub cy: f64,
-    pub k: [f64; 4],
+    /// The model with its fitted coefficients.
+    pub model: Model,
     /// Each frame's board pose: lens_from_board rotation and the board origin in the lens frame.
     pub poses: Vec<Pose>,
     /// Reprojection error over the corners kept, pixels: root mean square and worst.
@@ -76,29 +175,12 @@ impl Fit {
         Lens::new(
             name,
             id,
-            Model::KannalaBrandt(KannalaBrandt { k: self.k }),
+            self.model.clone(),
             PixelAffine::pinhole(self.fx, self.fy, self.cx, self.cy),
             size,
             fov,
         )
     }
-}
-
-/// Kannala-Brandt projection of a lens-frame point: None behind the model's reach.
-fn project(p: &[f64], x: DVec3) -> Option<DVec2> {
-    let rho = x.x.hypot(x.y);
-    let theta = rho.atan2(x.z);
-    let t2 = theta * theta;
-    let r = theta * (1.0 + t2 * (p[4] + t2 * (p[5] + t2 * (p[6] + t2 * p[7]))));
-    if !r.is_finite() {
-        return None;
-    }
-    let (dx, dy) = if rho > 1e-12 {
-        (x.x / rho, x.y / rho)
-    } else {
-        (0.0, 0.0)
-    };
-    Some(DVec2::new(p[0] * r * dx + p[2], p[1] * r * dy + p[3]))
 }
 
 fn pose_of(p: &[f64]) -> Pose {
@@ -108,6 +190,7 @@ fn pose_of(p: &[f64]) -> Pose {
 
 /// The least-squares problem: every kept corner of every frame.
 struct Problem<'a> {
+    model: FitModel,
     frames: &'a [Frame],
     /// Per frame, which corners count.
     keep: Vec<Vec<bool>>,
@@ -118,7 +201,12 @@ struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
-    fn new(frames: &'a [Frame], keep: Vec<Vec<bool>>, params: DVector<f64>) -> Problem<'a> {
+    fn new(
+        model: FitModel,
+        frames: &'a [Frame],
+        keep: Vec<Vec<bool>>,
+        params: DVector<f64>,
+    ) -> Problem<'a> {
         let mut rows = vec![];
         let mut total = 0;
         for k in &keep {
@@ -126,6 +214,7 @@ impl<'a> Problem<'a> {
             total += 2 * k.iter().filter(|&&b| b).count();
         }
         Problem {
+            model,
             frames,
             keep,
             params,
@@ -136,14 +225,14 @@ impl<'a> Problem<'a> {
 
     /// Frame `i`'s residuals (image minus projection) into `out`, with parameters `p`.
     fn frame_residuals(&self, p: &[f64], i: usize, out: &mut [f64]) {
-        let (rotation, t) = pose_of(&p[INTRINSICS + POSE * i..]);
+        let (rotation, t) = pose_of(&p[self.model.intrinsics() + POSE * i..]);
         let f = &self.frames[i];
         let mut row = 0;
         for (j, (b, img)) in f.board.iter().zip(&f.image).enumerate() {
             if !self.keep[i][j] {
                 continue;
             }
-            let d = match project(p, rotation * b.extend(0.0) + t) {
+            let d = match self.model.project(p, rotation * b.extend(0.0) + t) {
                 Some(q) => q - *img,
                 None => DVec2::splat(1e3),
             };
@@ -187,14 +276,15 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     /// Central differences; a pose moves only its own frame's rows.
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         let n = self.params.len();
+        let intrinsics = self.model.intrinsics();
         let mut jac = DMatrix::zeros(self.total, n);
         let mut p = self.params.as_slice().to_vec();
         for col in 0..n {
             let h = 1e-6 * p[col].abs().max(1e-2);
-            let frames = if col < INTRINSICS {
+            let frames = if col < intrinsics {
                 0..self.frames.len()
             } else {
-                let i = (col - INTRINSICS) / POSE;
+                let i = (col - intrinsics) / POSE;
                 i..i + 1
             };
             for i in frames {
@@ -272,8 +362,8 @@ fn pose_from_rays(board: &[DVec2], rays: &[DVec3]) -> Option<Pose> {
 }
 
 /// Equidistant start: the focal length (searched over a range) whose per-frame poses fit
-/// the corners best, and those poses.
-fn start(frames: &[Frame], size: (u32, u32)) -> Option<(DVector<f64>, f64)> {
+/// the corners best, and those poses, with `model`'s coefficients nearest equidistant.
+fn start(model: FitModel, frames: &[Frame], size: (u32, u32)) -> Option<(DVector<f64>, f64)> {
     let c = DVec2::new(size.0 as f64 - 1.0, size.1 as f64 - 1.0) / 2.0;
     // A 180° circle as wide as the frame's short side, and from half to four times that.
     let nominal = size.0.min(size.1) as f64 / 2.0 / std::f64::consts::FRAC_PI_2;
@@ -298,7 +388,11 @@ fn start(frames: &[Frame], size: (u32, u32)) -> Option<(DVector<f64>, f64)> {
                 .board
                 .iter()
                 .zip(&frame.image)
-                .map(|(b, q)| project(&p, r * b.extend(0.0) + t).map_or(1e3, |x| x.distance(*q)))
+                .map(|(b, q)| {
+                    FitModel::KannalaBrandt
+                        .project(&p, r * b.extend(0.0) + t)
+                        .map_or(1e3, |x| x.distance(*q))
+                })
                 .sum::<f64>()
                 / frame.board.len() as f64;
             errors.push(e);
@@ -311,7 +405,8 @@ fn start(frames: &[Frame], size: (u32, u32)) -> Option<(DVector<f64>, f64)> {
         }
     }
     let (median, f, poses) = best?;
-    let mut params = vec![f, f, c.x, c.y, 0.0, 0.0, 0.0, 0.0];
+    let mut params = vec![f, f, c.x, c.y];
+    params.extend(model.start());
     for (r, t) in poses {
         params.extend(DQuat::from_mat3(&r).to_scaled_axis().to_array());
         params.extend(t.to_array());
@@ -322,6 +417,7 @@ fn start(frames: &[Frame], size: (u32, u32)) -> Option<(DVector<f64>, f64)> {
 /// Fits the lens to the frames' corners (each frame its own board pose). `progress` is told
 /// each stage as it starts.
 pub fn fit(
+    model: FitModel,
     frames: &[Frame],
     size: (u32, u32),
     mut progress: impl FnMut(&str),
@@ -331,7 +427,7 @@ pub fn fit(
         return Err(FitError::TooFewFrames(frames.len(), LEAST));
     }
     progress("starting point");
-    let (params, _) = start(frames, size).ok_or(FitError::NoStart)?;
+    let (params, _) = start(model, frames, size).ok_or(FitError::NoStart)?;
     let mut keep: Vec<Vec<bool>> = frames.iter().map(|f| vec![true; f.board.len()]).collect();
     let mut params = params;
     let mut dropped = 0;
@@ -341,7 +437,7 @@ pub fn fit(
         } else {
             "fitting without outliers"
         });
-        let problem = Problem::new(frames, keep.clone(), params.clone());
+        let problem = Problem::new(model, frames, keep.clone(), params.clone());
         let (solved, report) = LevenbergMarquardt::new()
             .with_patience(200)
             .minimize(problem);
@@ -356,14 +452,14 @@ pub fn fit(
             let worst = errors.iter().copied().fold(0.0, f64::max);
             let p = params.as_slice();
             let poses = (0..frames.len())
-                .map(|i| pose_of(&p[INTRINSICS + POSE * i..]))
+                .map(|i| pose_of(&p[model.intrinsics() + POSE * i..]))
                 .collect();
             return Ok(Fit {
                 fx: p[0],
                 fy: p[1],
                 cx: p[2],
                 cy: p[3],
-                k: [p[4], p[5], p[6], p[7]],
+                model: model.model(p),
                 poses,
                 rms,
                 worst,

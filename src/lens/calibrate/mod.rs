@@ -1,21 +1,21 @@
 //! Calibrating a lens from pictures of a board: the board itself (`board`: its geometry, its
 //! picture to print, its shade for the synthetic scene), finding it in frames (`detect`), and
-//! fitting a lens to the corners found (`fit`).
+//! fitting a lens to the corners found (`fit`) over a well-spread choice of frames (`select`).
 //! Off the frame path: this produces lens.cal entries, which the renderers then use.
 
 pub mod board;
 pub mod detect;
 pub mod fit;
+pub mod select;
 
 pub use board::{Board, BoardError};
 pub use detect::{Finder, Sighting};
 
 use crate::lens::import::widest_angle;
-use crate::lens::models::KannalaBrandt;
-use crate::lens::{LensCal, LensEntry, LensError, Model, PixelAffine, Provenance, Radial};
+use crate::lens::{LensCal, LensEntry, LensError, PixelAffine, Provenance, Radial};
 use glam::DVec2;
 
-/// The lens.cal entry for a fit: Kannala-Brandt, marked `calibrated` with the date and RMS,
+/// The lens.cal entry for a fit: its model, marked `calibrated` with the date and RMS,
 /// valid over `fov` (by default the widest angle the frame shows).
 pub fn entry(
     got: &fit::Fit,
@@ -26,7 +26,7 @@ pub fn entry(
     date: &str,
     source: String,
 ) -> Result<LensEntry, LensError> {
-    let model = Model::KannalaBrandt(KannalaBrandt { k: got.k });
+    let model = got.model.clone();
     let affine = PixelAffine::pinhole(got.fx, got.fy, got.cx, got.cy);
     let fov = fov
         .unwrap_or_else(|| 2.0 * widest_angle(&Radial::new(model.clone()), &affine, width, height));
