@@ -20,6 +20,8 @@ packages=(
   ffmpeg
   # Chromium driven over WebDriver: the tuning page's end-to-end tests.
   chromium chromium-driver
+  # pip fetches the onnxruntime wheel, whose ONNX Runtime library the ONNX detector loads.
+  python3 python3-pip
 )
 
 missing=()
@@ -87,6 +89,41 @@ if ((${#backports[@]})); then
       DEBIAN_FRONTEND=noninteractive "${as_root[@]}" apt-get install -y -qq \
         --no-install-recommends "${backports[@]}"
     }
+fi
+
+# ONNX Runtime for the ONNX detector (serve --detector onnx): the shared library inside the
+# onnxruntime wheel, unpacked into the cache directory where DigiView looks for it. Pinned, so
+# every machine runs the same one; any 1.17 or newer works (ORT_DYLIB_PATH picks another).
+onnxruntime_version=1.26.0
+cache="${XDG_CACHE_HOME:-$HOME/.cache}/digiview"
+if ! ls "$cache/onnxruntime/libonnxruntime.so.$onnxruntime_version" >/dev/null 2>&1; then
+  echo "setup: fetching ONNX Runtime $onnxruntime_version (the onnxruntime wheel)"
+  wheels=$(mktemp -d)
+  python3 -m pip download --quiet --no-deps --only-binary=:all: \
+    --dest "$wheels" "onnxruntime==$onnxruntime_version"
+  mkdir -p "$cache/onnxruntime"
+  python3 - "$wheels"/onnxruntime-*.whl "$cache/onnxruntime" <<'PY'
+import sys, zipfile, os
+wheel, dest = sys.argv[1], sys.argv[2]
+with zipfile.ZipFile(wheel) as z:
+    for name in z.namelist():
+        base = os.path.basename(name)
+        if name.startswith("onnxruntime/capi/") and base.startswith("libonnxruntime.so"):
+            with z.open(name) as src, open(os.path.join(dest, base), "wb") as out:
+                out.write(src.read())
+PY
+  rm -rf "$wheels"
+  ls "$cache/onnxruntime/libonnxruntime.so.$onnxruntime_version" >/dev/null
+fi
+# The tests' photographs (person, dog, horses, kite, giraffe): Debian's darknet package's
+# data, unpacked without installing it (it would bring OpenCV along).
+if ! ls "$cache/darknet/usr/share/darknet/data/person.jpg" >/dev/null 2>&1; then
+  echo "setup: fetching darknet's sample photographs"
+  debs=$(mktemp -d)
+  chmod 777 "$debs"
+  (cd "$debs" && apt-get download darknet >/dev/null)
+  dpkg-deb -x "$debs"/darknet_*.deb "$cache/darknet"
+  rm -rf "$debs"
 fi
 
 if ! command -v cargo >/dev/null; then

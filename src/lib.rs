@@ -13,13 +13,15 @@
 //! and ground truth from a known world. Beside the path, changing the live state: `protocol`
 //! (the control protocol's codec) and `control` (its request handling, server and client),
 //! `autopilot` (the MAVLink link the vehicle's attitude and position come in on) and `cameras`
-//! (each view a MAVLink camera and gimbal on that link); `http` is the head's HTTP server.
+//! (each view a MAVLink camera and gimbal on that link); `http` is the head's HTTP server;
+//! `detect` finds and tracks objects in crops of the frames, for the detection tiles.
 //! `cli` is the command line.
 
 pub mod autopilot;
 pub mod cameras;
 pub mod cli;
 pub mod control;
+pub mod detect;
 pub mod exposure;
 pub mod frame;
 pub mod geometry;

@@ -4,9 +4,9 @@
 //! tests/protocol_system.rs's and tests/protocol_camera.rs's.
 
 mod common;
-use common::DEG;
 use common::frames::{Client, MRAD, ack, raw_frame, verdict};
 use common::serve::{Serve, udp_exchange};
+use common::{DEG, ctl};
 use digiview::protocol::params::*;
 use digiview::protocol::{Body, Message, Param, ParamType, Verdict};
 use std::io::{Read, Write};
@@ -205,14 +205,6 @@ fn fifty_pipelining_clients_all_get_correct_replies_beside_a_stalled_one() {
     // One client pipelining far more than its reply queue holds is slowed, not dropped.
     let r = digiview::control::load::run(server.addr, 1, 50_000, false).unwrap();
     assert_eq!((r.replies, r.wrong), (50_000, 0), "{r:?}");
-}
-
-fn ctl(addr: &str, args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
-        .args(["ctl", "--addr", addr])
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 fn text(b: &[u8]) -> String {

@@ -117,6 +117,7 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
                 pitch: (-40.0f64).to_radians(),
                 size: 10f64.to_radians(),
                 score: 90,
+                ..Tracked::default()
             })
             .collect();
     }

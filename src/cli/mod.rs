@@ -3,7 +3,9 @@
 
 mod bench_cmd;
 mod calibrate_cmd;
+mod calibrate_frames;
 mod ctl_cmd;
+mod detect_cmd;
 mod doctor;
 mod lens_cmd;
 pub mod locate;
@@ -43,6 +45,8 @@ pub enum Command {
     Render(render_cmd::RenderArgs),
     /// Synthesise a fisheye frame (or, with --truth, the exact output frame) from a known world.
     Synth(render_cmd::SynthArgs),
+    /// Run the ONNX detector on a photograph and print what it finds.
+    Detect(detect_cmd::DetectArgs),
     /// Time the renderer: N frames of a 4K fisheye, a new attitude each, per-stage medians.
     Bench(bench_cmd::BenchArgs),
     /// Run the system; `--no-video` runs the control server alone on the live state.
@@ -170,6 +174,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render_cmd::render(&lens_cal()?, args),
         Command::Synth(args) => render_cmd::synth(&lens_cal()?, args),
         Command::Bench(args) => bench_cmd::bench(&lens_cal()?, args),
+        Command::Detect(args) => detect_cmd::detect(args),
         Command::Serve(args) => serve_cmd::serve(&lens_cal()?, args),
         Command::Doctor(args) => doctor::doctor(cli.lens_cal.as_deref(), args),
         Command::Ctl(args) => ctl_cmd::run(args),

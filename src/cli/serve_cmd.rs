@@ -44,6 +44,14 @@ pub struct ServeArgs {
     /// srt://HOST:PORT (repeatable; replaces the config's `publish`).
     #[arg(long = "publish", value_name = "URL")]
     publish: Vec<String>,
+    /// The detector for the detection tiles: motion (built in), onnx (a model, NanoDet-m by
+    /// default) or off (default: the config's, motion; off when the state gives objects with
+    /// --track).
+    #[arg(long, value_enum)]
+    detector: Option<crate::head::config::Detector>,
+    /// The ONNX detector's model file (replaces the config's `[detection] model`).
+    #[arg(long, value_name = "FILE")]
+    model: Option<std::path::PathBuf>,
     /// The demo vehicle hovers at the state's attitude and position instead of flying.
     #[arg(long)]
     demo_hover: bool,
@@ -124,6 +132,12 @@ fn config(args: &ServeArgs) -> Result<Config> {
     if args.demo_stamp {
         cfg.demo.stamp = true;
     }
+    if let Some(d) = args.detector {
+        cfg.detection.detector = d;
+    }
+    if let Some(m) = &args.model {
+        cfg.detection.model = m.clone();
+    }
     if let Some((w, h)) = args.demo_size {
         (cfg.demo.width, cfg.demo.height) = (w, h);
     }
@@ -148,7 +162,7 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     if !args.no_video && std::env::var_os("MALLOC_ARENA_MAX").is_none() {
         cap_malloc_arenas();
     }
-    let cfg = config(&args)?;
+    let mut cfg = config(&args)?;
     if !args.no_video {
         // A source that can never open (a missing file, a pipeline that does not parse) is an
         // error now, not retried for ever; a camera that is not there yet is waited for.
@@ -159,6 +173,10 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
     state_args.state = state_args.state.or(cfg.state.clone());
     state_args.lens = state_args.lens.or(cfg.lens.clone());
     let state = state_args.state(cal)?;
+    if !state.tracked.is_empty() && args.detector.is_none() {
+        tracing::info!("objects given with --track or the state: the detector is off");
+        cfg.detection.detector = crate::head::config::Detector::Off;
+    }
     let permissions = Permissions {
         set: match &args.allow_set {
             Some(a) => a.clone(),
@@ -259,6 +277,7 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
             telemetry,
             key_wanted,
         );
+        head.load_detector()?;
         let running = head.clone();
         let stop_all = shutdown.clone();
         let thread = std::thread::Builder::new()

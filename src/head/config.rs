@@ -3,6 +3,7 @@
 //! lists them all. Unknown keys are errors that name the key.
 
 use crate::cameras::CamerasConfig;
+use crate::detect::onnx::{DEFAULT_MODEL, Decoder, OnnxConfig};
 use crate::frame::PixelFormat;
 use crate::http::HttpConfig;
 use crate::source::SpecError;
@@ -38,6 +39,8 @@ pub struct Config {
     pub cameras: CamerasConfig,
     /// The head's HTTP server (the cameras' definition file).
     pub http: HttpConfig,
+    /// Finding and tracking objects for the detection tiles.
+    pub detection: DetectionConfig,
     /// Relays to publish the stream to: `rtsp://HOST:PORT/PATH` (RTSP RECORD) or
     /// `srt://HOST:PORT` (MPEG-TS over SRT).
     pub publish: Vec<String>,
@@ -62,8 +65,66 @@ impl Default for Config {
             mavlink: MavlinkConfig::default(),
             cameras: CamerasConfig::default(),
             http: HttpConfig::default(),
+            detection: DetectionConfig::default(),
             publish: Vec::new(),
             health_interval_s: 10.0,
+        }
+    }
+}
+
+/// Which detector finds objects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Detector {
+    /// Things that move, by comparing scans (built in, no model file).
+    Motion,
+    /// A detection model run by ONNX Runtime (`model`, `decoder`, `classes`).
+    Onnx,
+    /// None: the tracked objects are only those the state gives (`--track`).
+    Off,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DetectionConfig {
+    pub detector: Detector,
+    /// Scans of the whole field a second (at most: a model slower than this sets the pace).
+    pub scan_hz: f64,
+    /// The ONNX detector's model, and which layout its outputs follow.
+    pub model: PathBuf,
+    pub decoder: Decoder,
+    /// The classes that count (COCO names or numbers); empty, all.
+    pub classes: Vec<String>,
+    /// ONNX Runtime's library (libonnxruntime.so), if not in ORT_DYLIB_PATH or where
+    /// scripts/setup.sh puts it.
+    pub onnxruntime: Option<PathBuf>,
+    /// Threads the model runs on.
+    pub threads: usize,
+}
+
+impl Default for DetectionConfig {
+    fn default() -> Self {
+        DetectionConfig {
+            detector: Detector::Motion,
+            scan_hz: 2.0,
+            model: DEFAULT_MODEL.into(),
+            decoder: Decoder::Nanodet,
+            classes: vec![],
+            onnxruntime: None,
+            threads: 1,
+        }
+    }
+}
+
+impl DetectionConfig {
+    /// The ONNX detector's settings.
+    pub fn onnx(&self) -> OnnxConfig {
+        OnnxConfig {
+            model: crate::detect::onnx::locate_model(&self.model),
+            decoder: self.decoder,
+            classes: self.classes.clone(),
+            runtime: self.onnxruntime.clone(),
+            threads: self.threads,
         }
     }
 }
@@ -300,6 +361,21 @@ impl Config {
         }
         if !(1..=120).contains(&d.fps) {
             return out_of_range(format!("demo fps {} is outside 1..=120", d.fps));
+        }
+        if !(0.5..=30.0).contains(&self.detection.scan_hz) {
+            return out_of_range(format!(
+                "detection scan_hz {} is outside 0.5..=30",
+                self.detection.scan_hz
+            ));
+        }
+        if !(1..=16).contains(&self.detection.threads) {
+            return out_of_range(format!(
+                "detection threads {} is outside 1..=16",
+                self.detection.threads
+            ));
+        }
+        if let Err(e) = crate::detect::onnx::wanted(&self.detection.classes) {
+            return out_of_range(format!("detection classes: {e}"));
         }
         self.rtsp.check()?;
         if let Err(e) = self.http.address() {

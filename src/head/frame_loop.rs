@@ -77,6 +77,7 @@ impl Head {
         let mut gpu = Gpu::new()?;
         let mut renderer = self.renderer(&gpu)?;
         let mut views = ViewOutputs::default();
+        let mut scans = super::detection::ScanRenderer::default();
         let mut encoder = self.encoder(self.live.snapshot().output.fps)?;
         let start = Instant::now();
         let mut pacer = Pacer::default();
@@ -147,6 +148,7 @@ impl Head {
                         Err(e) => error!("GPU: {e}"),
                     }
                     views.reset_gpu();
+                    scans.reset_gpu();
                     continue;
                 }
             };
@@ -175,6 +177,9 @@ impl Head {
                 _ => None,
             };
             self.render_views(&mut views, &gpu, context, pts, state.output.fps);
+            if let Some((frame, s, lens)) = context {
+                self.offer_scan(&mut scans, &gpu, frame, s, lens);
+            }
             let now_ok = health(signal, self.source_error().is_some(), last_frame.is_some());
             if now_ok != healthy {
                 match now_ok {

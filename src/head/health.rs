@@ -30,6 +30,10 @@ pub struct Health {
     pub source_down: Option<String>,
     /// Views rendered alone (their own streams and stills) per second, and ms each.
     pub views_alone: (f64, f64),
+    /// Detection: scans a second, ms to render each (in the frame loop) and ms to detect and
+    /// track in each (on its own thread); and the objects tracked.
+    pub scans: (f64, f64, f64),
+    pub tracked: usize,
 }
 
 /// The counters at one moment.
@@ -44,6 +48,9 @@ struct Sample {
     encode_us: u64,
     views: u64,
     view_us: u64,
+    scans: u64,
+    scan_us: u64,
+    detect_us: u64,
 }
 
 impl std::fmt::Display for Health {
@@ -66,6 +73,15 @@ impl std::fmt::Display for Health {
         if self.views_alone.0 > 0.0 {
             let (fps, ms) = self.views_alone;
             write!(f, ", views alone {fps:.1} fps, {ms:.1} ms each")?;
+        }
+        if self.scans.0 > 0.0 {
+            let (hz, render, detect) = self.scans;
+            write!(
+                f,
+                ", detection {hz:.1} scans/s ({render:.1} ms render, {detect:.1} ms detect), \
+                 {} tracked",
+                self.tracked
+            )?;
         }
         if self.relays.1 > 0 {
             write!(
@@ -98,6 +114,9 @@ impl Head {
             encode_us: s.encode_us.load(Ordering::Relaxed),
             views: s.views.load(Ordering::Relaxed),
             view_us: s.view_us.load(Ordering::Relaxed),
+            scans: s.scans.load(Ordering::Relaxed),
+            scan_us: s.scan_us.load(Ordering::Relaxed),
+            detect_us: s.detect_us.load(Ordering::Relaxed),
         }
     }
 
@@ -106,6 +125,7 @@ impl Head {
         let secs = (b.at - a.at).as_secs_f64().max(1e-3);
         let out = b.out - a.out;
         let views = b.views - a.views;
+        let scans = b.scans - a.scans;
         let per = |us: u64, n: u64| us as f64 / 1000.0 / n.max(1) as f64;
         Health {
             fps_in: (b.received - a.received) as f64 / secs,
@@ -123,6 +143,12 @@ impl Head {
             exposure: self.exposure_summary().trim_start_matches(", ").to_string(),
             source_down: self.source_error(),
             views_alone: (views as f64 / secs, per(b.view_us - a.view_us, views)),
+            scans: (
+                scans as f64 / secs,
+                per(b.scan_us - a.scan_us, scans),
+                per(b.detect_us - a.detect_us, scans),
+            ),
+            tracked: self.live.snapshot().tracked.len(),
         }
     }
 

@@ -7,9 +7,12 @@
 //! VIDEO_OUTPUT at each frame. Watched views get streams of their own (`views`). A failed source is retried with back-off while a "no signal"
 //! frame is streamed; a failed encoder or GPU is rebuilt; `health` logs a summary line.
 //! `exposure` sets the camera's exposure and runs DigiView's auto exposure on new frames.
+//! `detection` renders scan views of the frames for the detector and tracker on a thread of
+//! their own, whose objects the detection tiles follow.
 
 pub mod capture;
 pub mod config;
+mod detection;
 mod exposure;
 mod frame_loop;
 pub mod health;
@@ -72,6 +75,10 @@ pub struct Head {
     /// The figures over the last second.
     health: Mutex<health::Health>,
     exposure: exposure::ExposureStage,
+    /// The newest scan for the detection thread.
+    scans: detection::ScanSlot,
+    /// The ONNX detector, once loaded.
+    model: std::sync::OnceLock<detection::Model>,
 }
 
 /// Counters the frame loop keeps and the health log reads.
@@ -87,6 +94,10 @@ struct Stats {
     /// Views rendered alone (their own streams and stills), and the time it took.
     views: AtomicU64,
     view_us: AtomicU64,
+    /// Scans rendered (their time), and detected and tracked (theirs).
+    scan_us: AtomicU64,
+    scans: AtomicU64,
+    detect_us: AtomicU64,
 }
 
 impl Head {
@@ -116,6 +127,8 @@ impl Head {
             stats: Stats::default(),
             health: Mutex::default(),
             exposure,
+            scans: detection::ScanSlot::default(),
+            model: std::sync::OnceLock::new(),
         })
     }
 
@@ -140,6 +153,15 @@ impl Head {
                 })
             })?
         };
+        let detection = {
+            let head = self.clone();
+            thread("detection", move || {
+                head.supervised("detection", || {
+                    head.detection_thread();
+                    Ok(())
+                })
+            })?
+        };
         let exposure = self.start_exposure();
         let result = self.supervised("frames", || self.frame_loop());
         self.stop.store(true, Ordering::Relaxed);
@@ -148,7 +170,7 @@ impl Head {
         }
         self.capture.finish();
         // The first failure is the one to report: a stage that gave up stopped the others.
-        let others = [source, health].map(|t| t.join().unwrap_or(Ok(())));
+        let others = [source, health, detection].map(|t| t.join().unwrap_or(Ok(())));
         result.and(others.into_iter().collect::<Result<Vec<()>, _>>().map(drop))
     }
 

@@ -77,22 +77,20 @@ pub(crate) fn snapshot(web: &Web) -> Value {
     Value::Object(out)
 }
 
-/// DETECTED_ROI 255's replies, each known object's with `views`: the views showing it, with its
-/// centre and radius in output pixels (what the page draws over the picture).
+/// DETECTED_ROI 255's replies, each known object's with its `id`, its `label` (what it is:
+/// "moving", a model's class; the binary reply has no room for it) and `views`: the views
+/// showing it, with its centre and radius in output pixels (what the page draws over the
+/// picture). All from one snapshot of the state.
 fn objects(web: &Web) -> Value {
     let c = &web.controller;
-    let mut q = ParamType::DetectedRoi.zeroed();
-    let _ = q.set_field("index", 255.0);
-    let mut list: Vec<Value> = c
-        .get(&q)
-        .unwrap_or_default()
-        .iter()
-        .map(|p| json!(p))
-        .collect();
     let state = c.live.snapshot();
+    let replies = crate::control::detection::detected_roi(&state, 255).unwrap_or_default();
     let seen = crate::control::detection::seen(&c.live, &state);
-    for (object, views) in list.iter_mut().zip(seen) {
+    let mut list: Vec<Value> = replies.iter().map(|p| json!(p)).collect();
+    for ((object, views), tracked) in list.iter_mut().zip(seen).zip(&state.tracked) {
         object["views"] = json!(views);
+        object["id"] = json!(tracked.id);
+        object["label"] = json!(tracked.label);
     }
     Value::Array(list)
 }

@@ -137,6 +137,52 @@ impl FramePlan {
         plan
     }
 
+    /// Level rectilinear views aimed at world directions (yaw, pitch, fov across; radians),
+    /// each `width` × `height` pixels, tiled row by row in one frame: the detector's input, scan views
+    /// and crops around objects. The frame is as wide as a row of `columns` views.
+    pub fn mosaic(
+        lens: &Lens,
+        lens_from_world: DMat3,
+        aims: &[(f64, f64, f64)],
+        (width, height): (u32, u32),
+        columns: u32,
+    ) -> FramePlan {
+        let columns = columns.max(1);
+        let rows = (aims.len() as u32).div_ceil(columns).max(1);
+        let mut plan = FramePlan {
+            layout: Layout {
+                width: columns * width,
+                height: rows * height,
+                views: vec![],
+                overlay_box: Rect::new(0, 0, 0, 0),
+                tiles: vec![],
+            },
+            views: vec![],
+            lens: lens.clone(),
+            lens_from_world,
+        };
+        for (i, &(yaw, pitch, fov)) in aims.iter().enumerate() {
+            let i = i as u32;
+            let rect = Rect::new(i % columns * width, i / columns * height, width, height);
+            plan.layout.views.push((rect, Slot::Square));
+            let mut view = PlannedView {
+                rect,
+                map: ViewMap::Rays {
+                    projection: Projection::Rectilinear {
+                        width: width as f64,
+                        height: height as f64,
+                        fov,
+                    },
+                    world_from_view: Euler::new(yaw, pitch, 0.0).matrix(),
+                },
+                samples: 1,
+            };
+            view.samples = plan.samples_for(&view);
+            plan.views.push(view);
+        }
+        plan
+    }
+
     /// Camera `i`'s view as the frame draws it or, when the layout does not show that camera,
     /// as a square of [`UNSHOWN_VIEW`] pixels (what CAM_OFFSET and CAM_TARGET measure in).
     pub fn camera_view(&self, state: &State, i: usize) -> PlannedView {

@@ -223,6 +223,8 @@ pub struct Tracked {
     #[serde(deserialize_with = "de_angle")]
     pub size: f64,
     pub score: u8,
+    /// What it is, as its detector names it ("moving", a model's class); empty if not said.
+    pub label: String,
 }
 
 impl Default for Tracked {
@@ -233,6 +235,7 @@ impl Default for Tracked {
             pitch: -FRAC_PI_4,
             size: 0.05,
             score: 100,
+            label: String::new(),
         }
     }
 }

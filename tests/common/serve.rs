@@ -86,10 +86,18 @@ impl Serve {
         } else {
             &["--cam-sensor", "ae=0"]
         };
+        // No detector unless the test asks for one: its tiles would follow the demo's movers,
+        // and the pictures compare with offline renders of the state given.
+        let detector: &[&str] = if extra.contains(&"--detector") || mode.contains(&"--no-video") {
+            &[]
+        } else {
+            &["--detector", "off"]
+        };
         let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["serve", "--control", "127.0.0.1:0"])
             .args(mode)
             .args(link)
+            .args(detector)
             .args(http)
             .args(sensor)
             .args(extra)

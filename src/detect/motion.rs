@@ -1,0 +1,360 @@
+//! The built-in detector, no model file: things that move. Each scan view keeps a background
+//! (a slow average of what it showed); before each comparison the background is moved to
+//! where the vehicle now is, point by point through the ground plane (the views are fixed in
+//! the world, so the vehicle's rotation needs nothing). Pixels far from their background are
+//! foreground; their connected blobs are the detections.
+
+use super::angular::Detection;
+use super::scan::{ScanView, owner, to_world};
+use crate::geometry::Projection;
+use crate::render::FramePlan;
+use crate::render::plan::ViewMap;
+use glam::{DVec2, DVec3};
+use std::collections::HashMap;
+
+/// A pixel this many grey levels from its background is foreground.
+const THRESHOLD: f32 = 18.0;
+/// How fast the background follows the scene, per scan: background pixels, foreground ones.
+const FOLLOW: f32 = 0.15;
+const FOLLOW_FOREGROUND: f32 = 0.02;
+/// Scans a view's background takes to settle before it is compared with: long enough for
+/// what moved in the first scan to have left its place, so its stain there is cleaned.
+const WARM_UP: u32 = 6;
+/// Where the background has edges, the threshold rises by this many times the edge's grey
+/// levels per pixel: a background moved with the vehicle is a fraction of a pixel off.
+const EDGE_SLACK: f32 = 2.0;
+/// The fewest pixels a blob has.
+const MIN_PIXELS: usize = 4;
+/// The warp between backgrounds is computed on a grid this many pixels apart.
+const GRID: usize = 8;
+/// A blob's confidence: its mean difference over this (capped below 1).
+const FULL_CONFIDENCE: f32 = 64.0;
+/// Below this a pixel is taken for the black outside the lens's circle (16 in video-range
+/// luma).
+const DARK: f32 = 20.0;
+/// How far from the rim of the circle (and from a view's edge) a pixel must be to count.
+const EDGE: usize = 3;
+/// The least width and height of a blob, pixels.
+const MIN_SIDE: f64 = 2.0;
+/// Blobs this many pixels apart or less are one.
+const JOIN: usize = 3;
+/// How wide a ring around a blob its surroundings are read from, pixels.
+const RING: usize = 3;
+/// The class motion detections carry.
+pub const MOVING: u16 = 0;
+
+struct Background {
+    luma: Vec<f32>,
+    /// Where the vehicle was (world NED, ground at z = 0) when it was last brought up to date.
+    eye: DVec3,
+    scans: u32,
+}
+
+/// The moving-object detector over the scan views.
+#[derive(Default)]
+pub struct MotionDetector {
+    backgrounds: HashMap<usize, Background>,
+}
+
+impl Background {
+    fn new(luma: Vec<f32>, eye: DVec3) -> Background {
+        Background {
+            luma,
+            eye,
+            scans: 1,
+        }
+    }
+}
+
+impl MotionDetector {
+    pub fn new() -> MotionDetector {
+        MotionDetector::default()
+    }
+
+    /// Compares one scan with the backgrounds and brings them up to date. `plan` is the
+    /// mosaic `views` were rendered with, `luma` its picture (`stride` bytes a row), `eye`
+    /// the vehicle's position in a world frame whose ground is z = 0 (NED, metres).
+    pub fn detect(
+        &mut self,
+        views: &[ScanView],
+        plan: &FramePlan,
+        luma: &[u8],
+        stride: usize,
+        eye: DVec3,
+    ) -> Vec<Detection> {
+        // Views no longer seen lose their background.
+        self.backgrounds
+            .retain(|i, _| views.iter().any(|v| v.index == *i));
+        let mut found = vec![];
+        for (view, planned) in views.iter().zip(&plan.views) {
+            let ViewMap::Rays {
+                projection,
+                world_from_view,
+            } = planned.map
+            else {
+                continue;
+            };
+            let r = planned.rect;
+            let (w, h) = (r.w as usize, r.h as usize);
+            let current: Vec<f32> = (0..h)
+                .flat_map(|y| {
+                    let row = (r.y as usize + y) * stride + r.x as usize;
+                    luma[row..row + w].iter().map(|&v| v as f32)
+                })
+                .collect();
+            let Some(bg) = self.backgrounds.get_mut(&view.index) else {
+                self.backgrounds
+                    .insert(view.index, Background::new(current, eye));
+                continue;
+            };
+            if bg.luma.len() != current.len() {
+                *bg = Background::new(current, eye);
+                continue;
+            }
+            let from = sources(w, h, projection, world_from_view, bg.eye, eye);
+            let moved = resample(&bg.luma, w, h, &from);
+            let mut mask = vec![false; w * h];
+            let mut diff = vec![0f32; w * h];
+            let lit = |i: usize| current[i] > DARK && moved[i].is_some_and(|b| b > DARK);
+            for y in EDGE..h.saturating_sub(EDGE) {
+                for x in EDGE..w.saturating_sub(EDGE) {
+                    let i = y * w + x;
+                    let Some(b) = moved[i] else {
+                        continue;
+                    };
+                    let d = (current[i] - b).abs();
+                    diff[i] = d;
+                    let slope = |a: usize, c: usize| match (moved[a], moved[c]) {
+                        (Some(a), Some(c)) => (a - c).abs() / 2.0,
+                        _ => 0.0,
+                    };
+                    let edge = slope(i - 1, i + 1).max(slope(i - w, i + w));
+                    // Outside the lens's circle the views are black, and the circle's rim
+                    // moves with the vehicle's attitude: only pixels inside in both, with
+                    // their neighbours, count.
+                    mask[i] = d > THRESHOLD + EDGE_SLACK * edge
+                        && [i, i - EDGE, i + EDGE, i - EDGE * w, i + EDGE * w]
+                            .into_iter()
+                            .all(lit);
+                }
+            }
+            // A blob that looks like its surroundings now is not a thing but a stain in the
+            // background (what stood there when it started, or the wake of something that
+            // passed): the background takes the picture there at once.
+            let (things, stains): (Vec<Blob>, Vec<Blob>) = blobs(&mask, w, h)
+                .into_iter()
+                .partition(|b| stands_out(b, &current, &mask, w, h));
+            for i in stains.iter().flat_map(|b| &b.pixels) {
+                mask[*i] = false;
+            }
+            let settled = bg.scans >= WARM_UP;
+            for i in 0..w * h {
+                bg.luma[i] = match moved[i] {
+                    Some(b) if b > DARK && current[i] > DARK => {
+                        let follow = if mask[i] { FOLLOW_FOREGROUND } else { FOLLOW };
+                        b + follow * (current[i] - b)
+                    }
+                    // Newly inside the circle (or the view), or a stain: taken as it is.
+                    _ => current[i],
+                };
+            }
+            for i in stains.iter().flat_map(|b| &b.pixels) {
+                bg.luma[*i] = current[*i];
+            }
+            bg.eye = eye;
+            bg.scans += 1;
+            if !settled {
+                continue;
+            }
+            for blob in things {
+                let mean =
+                    blob.pixels.iter().map(|&i| diff[i]).sum::<f32>() / blob.pixels.len() as f32;
+                let Some(bbox) = to_world(view, planned, blob.low, blob.high + DVec2::ONE) else {
+                    continue;
+                };
+                // Views overlap: a thing is reported once, by the view whose centre is
+                // nearest of those that show it clear of their edges. Thin slivers are the
+                // edges of lines a fraction of a pixel off, not things.
+                let extent = blob.high - blob.low + DVec2::ONE;
+                let margin = (EDGE + RING) as f64;
+                if extent.min_element() < MIN_SIDE
+                    || owner(views, plan, bbox.centre, bbox.size(), margin) != Some(view.index)
+                {
+                    continue;
+                }
+                found.push(Detection {
+                    bbox,
+                    confidence: (mean / FULL_CONFIDENCE).min(0.99) as f64,
+                    class: MOVING,
+                });
+            }
+        }
+        found
+    }
+}
+
+/// For each pixel of a view seen from `to` (world NED), where the view seen from `from`
+/// showed the same thing: through the ground point it shows (the sky, through no point,
+/// stays where it is). None where that is outside the view. Computed on a grid and
+/// interpolated.
+fn sources(
+    w: usize,
+    h: usize,
+    projection: Projection,
+    world_from_view: glam::DMat3,
+    from: DVec3,
+    to: DVec3,
+) -> Vec<Option<DVec2>> {
+    let still = from.distance(to) < 1e-3;
+    let view_from_world = world_from_view.transpose();
+    let source = |p: DVec2| -> Option<DVec2> {
+        if still {
+            return Some(p);
+        }
+        let ray = world_from_view * projection.ray(p);
+        let seen = if ray.z > 1e-6 && to.z < 0.0 {
+            let ground = to + ray * (-to.z / ray.z);
+            (ground - from).normalize()
+        } else {
+            ray
+        };
+        projection.point(view_from_world * seen)
+    };
+    let (gw, gh) = (w.div_ceil(GRID) + 1, h.div_ceil(GRID) + 1);
+    let nodes: Vec<Option<DVec2>> = (0..gh)
+        .flat_map(|j| (0..gw).map(move |i| (i, j)))
+        .map(|(i, j)| source(DVec2::new((i * GRID) as f64, (j * GRID) as f64) + 0.5))
+        .collect();
+    let mut out = vec![None; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (i, j) = (x / GRID, y / GRID);
+            let (fx, fy) = (
+                (x % GRID) as f64 / GRID as f64,
+                (y % GRID) as f64 / GRID as f64,
+            );
+            let corners = [
+                nodes[j * gw + i],
+                nodes[j * gw + i + 1],
+                nodes[(j + 1) * gw + i],
+                nodes[(j + 1) * gw + i + 1],
+            ];
+            if let [Some(a), Some(b), Some(c), Some(d)] = corners {
+                out[y * w + x] =
+                    Some((a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy);
+            }
+        }
+    }
+    out
+}
+
+/// `picture` (w × h) sampled bilinearly at each of `at` (view points); None outside it.
+fn resample(picture: &[f32], w: usize, h: usize, at: &[Option<DVec2>]) -> Vec<Option<f32>> {
+    let sample = |q: DVec2| -> Option<f32> {
+        let q = q - 0.5;
+        let (x0, y0) = (q.x.floor(), q.y.floor());
+        if x0 < 0.0 || y0 < 0.0 || x0 + 1.0 >= w as f64 || y0 + 1.0 >= h as f64 {
+            return None;
+        }
+        let (fx, fy) = ((q.x - x0) as f32, (q.y - y0) as f32);
+        let v = |x: f64, y: f64| picture[y as usize * w + x as usize];
+        let top = v(x0, y0) * (1.0 - fx) + v(x0 + 1.0, y0) * fx;
+        let bottom = v(x0, y0 + 1.0) * (1.0 - fx) + v(x0 + 1.0, y0 + 1.0) * fx;
+        Some(top * (1.0 - fy) + bottom * fy)
+    };
+    at.iter().map(|q| q.and_then(sample)).collect()
+}
+
+/// A connected set of foreground pixels and its bounding box (pixel indices, inclusive).
+struct Blob {
+    pixels: Vec<usize>,
+    low: DVec2,
+    high: DVec2,
+}
+
+/// Whether a blob differs from the ring of background pixels around it in the picture now
+/// (by at least [`THRESHOLD`] on average).
+fn stands_out(blob: &Blob, current: &[f32], mask: &[bool], w: usize, h: usize) -> bool {
+    let inside = blob.pixels.iter().map(|&i| current[i]).sum::<f32>() / blob.pixels.len() as f32;
+    let (x0, y0) = (
+        (blob.low.x as usize).saturating_sub(RING),
+        (blob.low.y as usize).saturating_sub(RING),
+    );
+    let (x1, y1) = (
+        (blob.high.x as usize + RING).min(w - 1),
+        (blob.high.y as usize + RING).min(h - 1),
+    );
+    let (mut sum, mut n) = (0f32, 0usize);
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let i = y * w + x;
+            if !mask[i] && current[i] > DARK {
+                sum += current[i];
+                n += 1;
+            }
+        }
+    }
+    n == 0 || (inside - sum / n as f32).abs() >= THRESHOLD
+}
+
+/// The 8-connected blobs of `mask` with at least [`MIN_PIXELS`] pixels.
+fn blobs(mask: &[bool], w: usize, h: usize) -> Vec<Blob> {
+    let mut seen = vec![false; w * h];
+    let mut out = vec![];
+    for start in 0..w * h {
+        if !mask[start] || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let mut stack = vec![start];
+        let mut blob = Blob {
+            pixels: vec![],
+            low: DVec2::splat(f64::MAX),
+            high: DVec2::splat(f64::MIN),
+        };
+        while let Some(i) = stack.pop() {
+            blob.pixels.push(i);
+            let (x, y) = (i % w, i / w);
+            let p = DVec2::new(x as f64, y as f64);
+            (blob.low, blob.high) = (blob.low.min(p), blob.high.max(p));
+            for (dx, dy) in [
+                (-1, -1),
+                (0, -1),
+                (1, -1),
+                (-1, 0),
+                (1, 0),
+                (-1, 1),
+                (0, 1),
+                (1, 1),
+            ] {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                    continue;
+                }
+                let n = ny as usize * w + nx as usize;
+                if mask[n] && !seen[n] {
+                    seen[n] = true;
+                    stack.push(n);
+                }
+            }
+        }
+        out.push(blob);
+    }
+    // Pieces of one thing (cut by the lines it crosses) within a few pixels join.
+    let near = |a: &Blob, b: &Blob| {
+        let gap = (a.low - b.high).max(b.low - a.high);
+        gap.x <= JOIN as f64 && gap.y <= JOIN as f64
+    };
+    let mut joined: Vec<Blob> = vec![];
+    for mut blob in out {
+        while let Some(k) = joined.iter().position(|j| near(j, &blob)) {
+            let other = joined.swap_remove(k);
+            blob.pixels.extend(other.pixels);
+            blob.low = blob.low.min(other.low);
+            blob.high = blob.high.max(other.high);
+        }
+        joined.push(blob);
+    }
+    joined.retain(|b| b.pixels.len() >= MIN_PIXELS);
+    joined
+}

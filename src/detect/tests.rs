@@ -1,0 +1,263 @@
+//! The tracker against the seed's rules, replaying scripted detections: every score change and
+//! every drop, settings changed the way DETECTION's SET changes them (255 keeps a score
+//! field, an out-of-range threshold keeps the old one), suppression, association in angles,
+//! and the tiles' sorting modes.
+
+use super::angular::{AngularBox, Detection, suppress};
+use super::tracker::{Change, MAX_SCORE, Tracker, Why};
+use crate::control::detection::set_detection;
+use crate::protocol::params::Detection as DetectionParams;
+use crate::state::{DetectionSettings, State};
+
+const DEG: f64 = std::f64::consts::PI / 180.0;
+
+/// A detection at world yaw/pitch (degrees), `size` degrees square.
+fn det(yaw: f64, pitch: f64, size: f64, confidence: f64) -> Detection {
+    Detection {
+        bbox: AngularBox::new(yaw * DEG, pitch * DEG, size * DEG, size * DEG),
+        confidence,
+        class: 0,
+    }
+}
+
+fn everywhere(_: &AngularBox) -> bool {
+    true
+}
+
+fn change(id: u32, why: Why, from: u8, to: u8) -> Change {
+    Change { id, why, from, to }
+}
+
+/// DETECTION's SET applied to the default settings, as the protocol applies it.
+fn settings(edit: impl FnOnce(&mut DetectionParams)) -> DetectionSettings {
+    let mut state = State::default();
+    let mut p = crate::control::detection::detection(&state);
+    edit(&mut p);
+    set_detection(&mut state, &p).unwrap();
+    state.detection
+}
+
+#[test]
+fn scores_follow_the_seeds_rules_from_creation_to_drop() {
+    let s = DetectionSettings::default();
+    let (create, scan_bonus, track_bonus) = (
+        s.creation_score_scale,
+        s.bonus_detection_scale,
+        s.bonus_redetection_scale,
+    );
+    let (scan_miss, track_miss) = (s.missed_detection_penalty, s.missed_redetection_penalty);
+    let mut t = Tracker::new();
+    // Created by a scan, at the creation score.
+    let c = t.scan(&s, 0.0, vec![det(10.0, -20.0, 4.0, 0.8)], everywhere);
+    assert_eq!(c, vec![change(0, Why::Created, 0, create)]);
+    // Found again by a scan (moved a little), then by its crop.
+    let c = t.scan(&s, 0.5, vec![det(10.5, -20.0, 4.0, 0.8)], everywhere);
+    let a = create + scan_bonus;
+    assert_eq!(c, vec![change(0, Why::FoundByScan, create, a)]);
+    let c = t.track(&s, 0.6, 0, vec![det(10.6, -20.0, 4.0, 0.9)]);
+    assert_eq!(c, Some(change(0, Why::FoundByTrack, a, a + track_bonus)));
+    let a = a + track_bonus;
+    // Missed by its crop, then by a scan that covered it; a scan that did not cover it
+    // changes nothing.
+    let c = t.track(&s, 0.7, 0, vec![]);
+    assert_eq!(c, Some(change(0, Why::MissedByTrack, a, a - track_miss)));
+    let a = a - track_miss;
+    let c = t.scan(&s, 1.0, vec![], everywhere);
+    assert_eq!(c, vec![change(0, Why::MissedByScan, a, a - scan_miss)]);
+    let mut a = a - scan_miss;
+    assert!(t.scan(&s, 1.5, vec![], |_| false).is_empty());
+    assert_eq!(t.get(0).unwrap().score, a);
+    // Missed until it is dropped at 0: each step exactly the penalty, the last to 0.
+    let mut now = 2.0;
+    while a > 0 {
+        let c = t.scan(&s, now, vec![], everywhere);
+        let to = a.saturating_sub(scan_miss);
+        assert_eq!(c, vec![change(0, Why::MissedByScan, a, to)]);
+        a = to;
+        now += 0.5;
+    }
+    assert!(t.objects().is_empty() && t.get(0).is_none());
+    // A crop for an object that is gone answers nothing.
+    assert_eq!(t.track(&s, now, 0, vec![det(10.0, -20.0, 4.0, 0.9)]), None);
+    // The next object gets a new id.
+    let c = t.scan(&s, now, vec![det(10.0, -20.0, 4.0, 0.8)], everywhere);
+    assert_eq!(c, vec![change(1, Why::Created, 0, create)]);
+}
+
+#[test]
+fn scores_stop_at_254() {
+    let s = settings(|p| {
+        p.creation_score_scale = 250;
+        p.bonus_detection_scale = 3;
+        p.bonus_redetection_scale = 254;
+    });
+    let mut t = Tracker::new();
+    t.scan(&s, 0.0, vec![det(0.0, 0.0, 5.0, 0.9)], everywhere);
+    let c = t.scan(&s, 1.0, vec![det(0.0, 0.0, 5.0, 0.9)], everywhere);
+    assert_eq!(c, vec![change(0, Why::FoundByScan, 250, 253)]);
+    let c = t.scan(&s, 2.0, vec![det(0.0, 0.0, 5.0, 0.9)], everywhere);
+    assert_eq!(c, vec![change(0, Why::FoundByScan, 253, MAX_SCORE)]);
+    let c = t.track(&s, 3.0, 0, vec![det(0.0, 0.0, 5.0, 0.9)]);
+    assert_eq!(c, Some(change(0, Why::FoundByTrack, MAX_SCORE, MAX_SCORE)));
+}
+
+#[test]
+fn a_set_of_255_keeps_a_score_field_and_out_of_range_thresholds_keep_theirs() {
+    let before = DetectionSettings::default();
+    let s = settings(|p| {
+        p.creation_score_scale = 255;
+        p.bonus_detection_scale = 255;
+        p.bonus_redetection_scale = 255;
+        p.missed_detection_penalty = 255;
+        p.missed_redetection_penalty = 255;
+        p.var_confidence_threshold = 1.5;
+        p.crop_confidence_threshold = -0.1;
+        p.var_box_overlap = 0.99;
+        p.crop_box_overlap = f64::NAN;
+    });
+    assert_eq!(s, before);
+    // And the tracker runs on the kept values: a box at 0.35 is over the kept scan threshold
+    // (0.3), not over the crop's (0.5).
+    let mut t = Tracker::new();
+    let c = t.scan(&s, 0.0, vec![det(30.0, 0.0, 5.0, 0.35)], everywhere);
+    assert_eq!(
+        c,
+        vec![change(0, Why::Created, 0, before.creation_score_scale)]
+    );
+    let c = t.track(&s, 0.1, 0, vec![det(30.0, 0.0, 5.0, 0.35)]);
+    let a = before.creation_score_scale;
+    assert_eq!(
+        c,
+        Some(change(
+            0,
+            Why::MissedByTrack,
+            a,
+            a - before.missed_redetection_penalty
+        ))
+    );
+    // Changed values take effect: a new penalty, and a creation score of 0 creates nothing.
+    let s = settings(|p| {
+        p.missed_redetection_penalty = 200;
+        p.creation_score_scale = 0;
+    });
+    let c = t.track(&s, 0.2, 0, vec![]);
+    let a = a - before.missed_redetection_penalty;
+    assert_eq!(c, Some(change(0, Why::MissedByTrack, a, 0)));
+    assert!(t.objects().is_empty());
+    assert!(
+        t.scan(&s, 0.3, vec![det(30.0, 0.0, 5.0, 0.9)], everywhere)
+            .is_empty()
+    );
+}
+
+#[test]
+fn thresholds_overlap_limits_and_box_limits_decide_what_counts() {
+    let s = DetectionSettings::default();
+    // Below the scan threshold: nothing.
+    let mut t = Tracker::new();
+    assert!(
+        t.scan(&s, 0.0, vec![det(0.0, 0.0, 5.0, 0.29)], everywhere)
+            .is_empty()
+    );
+    // Two boxes overlapping by more than var_box_overlap are one object (the surer box);
+    // by less, two.
+    let a = det(0.0, 0.0, 10.0, 0.6);
+    let (near, far) = (det(1.0, 0.0, 10.0, 0.9), det(5.0, 0.0, 10.0, 0.9));
+    assert!(a.bbox.overlap(&near.bbox) > 0.5 && a.bbox.overlap(&far.bbox) < 0.5);
+    let c = t.scan(&s, 0.0, vec![a, near], everywhere);
+    assert_eq!(c.len(), 1);
+    assert_eq!(t.objects()[0].confidence, 0.9);
+    let mut t = Tracker::new();
+    assert_eq!(t.scan(&s, 0.0, vec![a, far], everywhere).len(), 2);
+    // var_box_limit (clamped by SET to 10..=500) keeps only the surest boxes.
+    let s = settings(|p| p.var_box_limit = 3);
+    assert_eq!(s.var_box_limit, 10);
+    let many: Vec<Detection> = (0..15)
+        .map(|i| det(i as f64 * 20.0, 0.0, 5.0, 0.4 + 0.01 * i as f64))
+        .collect();
+    let mut t = Tracker::new();
+    assert_eq!(t.scan(&s, 0.0, many.clone(), everywhere).len(), 10);
+    assert!(t.objects().iter().all(|o| o.confidence >= 0.45 - 1e-9));
+    assert_eq!(suppress(many, 0.3, 0.5, 500).len(), 15);
+}
+
+/// Matching is by angle on the sphere: near the nadir a small step can change yaw by half a
+/// turn and still be the same object; a box far away of the same size is another.
+#[test]
+fn association_is_in_angles_not_yaw_and_pitch_numbers() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    t.scan(&s, 0.0, vec![det(10.0, -89.0, 3.0, 0.8)], everywhere);
+    let c = t.scan(&s, 0.5, vec![det(185.0, -89.2, 3.0, 0.8)], everywhere);
+    assert_eq!(c, vec![change(0, Why::FoundByScan, 50, 60)]);
+    let c = t.scan(&s, 1.0, vec![det(185.0, -70.0, 3.0, 0.8)], everywhere);
+    assert_eq!(
+        c,
+        vec![
+            change(0, Why::MissedByScan, 60, 50),
+            change(1, Why::Created, 0, 50)
+        ]
+    );
+}
+
+#[test]
+fn sorting_mode_2_keeps_an_object_in_its_tile_and_modes_0_and_1_re_sort() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    // Object 0 (older), then object 1 found again twice: 1 outscores 0.
+    t.scan(&s, 0.0, vec![det(0.0, 0.0, 5.0, 0.8)], everywhere);
+    t.scan(
+        &s,
+        1.0,
+        vec![det(0.0, 0.0, 5.0, 0.8), det(90.0, 0.0, 5.0, 0.8)],
+        everywhere,
+    );
+    assert_eq!(t.tiles(2, 1), vec![Some(0)]);
+    for now in [2.0, 3.0, 4.0] {
+        t.track(&s, now, 1, vec![det(90.0, 0.0, 5.0, 0.9)]);
+    }
+    assert!(t.get(1).unwrap().score > t.get(0).unwrap().score);
+    // Mode 2: the higher score does not take the tile.
+    assert_eq!(t.tiles(2, 1), vec![Some(0)]);
+    assert_eq!(t.tiles(2, 2), vec![Some(0), Some(1)]);
+    // Mode 0 re-sorts by score; mode 1 by age, oldest first.
+    assert_eq!(t.tiles(0, 2), vec![Some(1), Some(0)]);
+    assert_eq!(t.tiles(1, 2), vec![Some(0), Some(1)]);
+    assert_eq!(t.tiles(0, 1), vec![Some(1)]);
+    // Mode 2 from here: object 1 holds tile 0 until it is dropped, then the best other.
+    assert_eq!(t.tiles(2, 1), vec![Some(1)]);
+    let s = settings(|p| p.missed_redetection_penalty = 254);
+    t.track(&s, 5.0, 1, vec![]);
+    assert!(t.get(1).is_none());
+    assert_eq!(t.tiles(2, 1), vec![Some(0)]);
+    assert_eq!(t.tiles(2, 3), vec![Some(0)]);
+}
+
+/// An object moving steadily, almost its size between scans, that one scan misses, is found
+/// again two steps (more than its size) from where it was last seen: each scan looks for it
+/// where its motion takes it.
+#[test]
+fn a_moving_object_is_looked_for_where_it_is_going() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    let at = |k: usize| det(10.0 + 3.5 * k as f64, -30.0, 4.0, 0.8);
+    for k in 0..6 {
+        let found = if k == 3 { vec![] } else { vec![at(k)] };
+        let c = t.scan(&s, k as f64 * 0.5, found, everywhere);
+        let why = match k {
+            0 => Why::Created,
+            3 => Why::MissedByScan,
+            _ => Why::FoundByScan,
+        };
+        assert_eq!(c.len(), 1, "scan {k}: {c:?}");
+        assert_eq!((c[0].id, c[0].why), (0, why), "scan {k}");
+    }
+    // Between scans it is expected further on.
+    let o = t.get(0).unwrap();
+    let (yaw, _) = o.at(o.seen + 0.5).yaw_pitch();
+    assert!(
+        (yaw / DEG - (10.0 + 3.5 * 6.0)).abs() < 0.5,
+        "{}",
+        yaw / DEG
+    );
+}

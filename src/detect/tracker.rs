@@ -1,0 +1,285 @@
+//! The seed's scored tracker. A scan ("var") over the whole field finds new objects and finds
+//! known ones again; a track ("crop") step looks for one known object in the crop around it.
+//! Each object carries a score in 0..=254: it starts at `creation_score_scale`, gains
+//! `bonus_detection_scale` when a scan finds it again and `bonus_redetection_scale` when its
+//! crop does, loses `missed_detection_penalty` when a scan that covered it misses it and
+//! `missed_redetection_penalty` when its crop does, and is dropped at 0. Objects live in world
+//! directions, so a vehicle turning between frames does not break an association, and are
+//! looked for where their motion so far takes them. The tiles show the objects as
+//! `sorting_mode` orders them.
+
+use super::angular::{AngularBox, Detection, suppress};
+use crate::state::DetectionSettings;
+use glam::DVec3;
+
+/// The highest score.
+pub const MAX_SCORE: u8 = 254;
+
+/// A detection belongs to an object when their boxes overlap at least this much, or when its
+/// centre is within the larger box's size of the object's (objects move between scans).
+const MATCH_OVERLAP: f64 = 0.1;
+
+/// One tracked object.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    /// Unique for the tracker's life, never reused.
+    pub id: u32,
+    pub bbox: AngularBox,
+    pub class: u16,
+    /// The confidence of the detection last seen.
+    pub confidence: f64,
+    pub score: u8,
+    /// When it was created and last found, seconds on the caller's clock.
+    pub born: f64,
+    pub seen: f64,
+    /// How fast its centre moves across the sky (world NED, per second), from the times it
+    /// was found: between scans it is looked for where it should have got to.
+    pub velocity: DVec3,
+}
+
+/// Prediction reaches this far past the last sighting at most, seconds.
+const MAX_PREDICTION: f64 = 2.0;
+
+impl Object {
+    /// Where the object should be at time `t`, moving as it did.
+    pub fn at(&self, t: f64) -> AngularBox {
+        let dt = (t - self.seen).clamp(0.0, MAX_PREDICTION);
+        AngularBox {
+            centre: (self.bbox.centre + self.velocity * dt)
+                .try_normalize()
+                .unwrap_or(self.bbox.centre),
+            ..self.bbox
+        }
+    }
+}
+
+/// Why a score changed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Why {
+    Created,
+    FoundByScan,
+    FoundByTrack,
+    MissedByScan,
+    MissedByTrack,
+}
+
+/// One score change: object `id` went `from` → `to` (0: dropped).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Change {
+    pub id: u32,
+    pub why: Why,
+    pub from: u8,
+    pub to: u8,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Tracker {
+    objects: Vec<Object>,
+    next_id: u32,
+    /// The object each detection tile shows, in tile order (sorting mode 2 keeps it).
+    tiles: Vec<Option<u32>>,
+}
+
+/// Whether `d`, seen at time `t`, belongs to `o`: how well (higher is better), or None.
+fn fit(o: &Object, d: &Detection, t: f64) -> Option<(bool, f64)> {
+    let expected = o.at(t);
+    let overlap = expected.overlap(&d.bbox);
+    let near = expected.angle_to(&d.bbox) <= expected.size().max(d.bbox.size());
+    (overlap >= MATCH_OVERLAP || near).then_some((o.class == d.class, overlap))
+}
+
+impl Tracker {
+    pub fn new() -> Tracker {
+        Tracker::default()
+    }
+
+    /// Every known object, oldest first.
+    pub fn objects(&self) -> &[Object] {
+        &self.objects
+    }
+
+    pub fn get(&self, id: u32) -> Option<&Object> {
+        self.objects.iter().find(|o| o.id == id)
+    }
+
+    /// A scan at time `t`: `found` is the detector's raw boxes over the scanned views, and
+    /// `covered` says whether a direction was inside them (an object outside was not
+    /// expected, and is not penalised). Returns every score change, in order.
+    pub fn scan(
+        &mut self,
+        s: &DetectionSettings,
+        t: f64,
+        found: Vec<Detection>,
+        covered: impl Fn(&AngularBox) -> bool,
+    ) -> Vec<Change> {
+        let limit = s.var_box_limit as usize;
+        let found = suppress(found, s.var_confidence_threshold, s.var_box_overlap, limit);
+        // Pairs best first: same class, then overlap; each object and box used once.
+        let mut pairs: Vec<(usize, usize, (bool, f64))> = vec![];
+        for (i, o) in self.objects.iter().enumerate() {
+            for (j, d) in found.iter().enumerate() {
+                if let Some(q) = fit(o, d, t) {
+                    pairs.push((i, j, q));
+                }
+            }
+        }
+        pairs.sort_by(|a, b| b.2.0.cmp(&a.2.0).then(b.2.1.total_cmp(&a.2.1)));
+        let mut object_found = vec![None; self.objects.len()];
+        let mut used = vec![false; found.len()];
+        for (i, j, _) in pairs {
+            if object_found[i].is_none() && !used[j] {
+                object_found[i] = Some(j);
+                used[j] = true;
+            }
+        }
+        let mut changes = vec![];
+        for (i, o) in self.objects.iter_mut().enumerate() {
+            match object_found[i] {
+                Some(j) => {
+                    let change = found_again(o, &found[j], t, s.bonus_detection_scale);
+                    changes.push(Change {
+                        why: Why::FoundByScan,
+                        ..change
+                    });
+                }
+                None if covered(&o.at(t)) => {
+                    changes.push(missed(o, s.missed_detection_penalty, Why::MissedByScan));
+                }
+                None => {}
+            }
+        }
+        // New objects: boxes no object took that overlap no object more than the scan allows.
+        for (j, d) in found.iter().enumerate() {
+            let duplicate = self
+                .objects
+                .iter()
+                .any(|o| o.score > 0 && o.bbox.overlap(&d.bbox) > s.var_box_overlap);
+            if used[j] || duplicate || s.creation_score_scale == 0 {
+                continue;
+            }
+            let score = s.creation_score_scale.min(MAX_SCORE);
+            let id = self.next_id;
+            self.next_id += 1;
+            self.objects.push(Object {
+                id,
+                bbox: d.bbox,
+                class: d.class,
+                confidence: d.confidence,
+                score,
+                born: t,
+                seen: t,
+                velocity: DVec3::ZERO,
+            });
+            changes.push(Change {
+                id,
+                why: Why::Created,
+                from: 0,
+                to: score,
+            });
+        }
+        self.objects.retain(|o| o.score > 0);
+        changes
+    }
+
+    /// The track step for object `id` at time `t`: `found` is the detector's raw boxes in
+    /// the crop around it. None if there is no such object.
+    pub fn track(
+        &mut self,
+        s: &DetectionSettings,
+        t: f64,
+        id: u32,
+        found: Vec<Detection>,
+    ) -> Option<Change> {
+        let limit = s.crop_box_limit as usize;
+        let found = suppress(
+            found,
+            s.crop_confidence_threshold,
+            s.crop_box_overlap,
+            limit,
+        );
+        let o = self.objects.iter_mut().find(|o| o.id == id)?;
+        let best = found
+            .iter()
+            .filter_map(|d| fit(o, d, t).map(|q| (d, q)))
+            .max_by(|a, b| a.1.0.cmp(&b.1.0).then(a.1.1.total_cmp(&b.1.1)));
+        let change = match best {
+            Some((d, _)) => Change {
+                why: Why::FoundByTrack,
+                ..found_again(o, d, t, s.bonus_redetection_scale)
+            },
+            None => missed(o, s.missed_redetection_penalty, Why::MissedByTrack),
+        };
+        self.objects.retain(|o| o.score > 0);
+        Some(change)
+    }
+
+    /// The objects the `count` detection tiles show, in tile order, as `sorting_mode` orders
+    /// them: 0 by score, 1 by age (oldest first), 2 by score with each object kept in its
+    /// tile for its life (a freed tile takes the best object not shown).
+    pub fn tiles(&mut self, sorting_mode: u8, count: usize) -> Vec<Option<u32>> {
+        let mut order: Vec<&Object> = self.objects.iter().collect();
+        match sorting_mode {
+            1 => order.sort_by(|a, b| a.born.total_cmp(&b.born).then(b.score.cmp(&a.score))),
+            _ => order.sort_by(|a, b| b.score.cmp(&a.score).then(a.born.total_cmp(&b.born))),
+        }
+        let ids: Vec<u32> = order.iter().map(|o| o.id).collect();
+        if sorting_mode != 2 {
+            self.tiles = ids.into_iter().take(count).map(Some).collect();
+        } else {
+            let alive = |id: &u32| self.objects.iter().any(|o| o.id == *id);
+            let mut tiles: Vec<Option<u32>> = self.tiles.iter().map(|t| t.filter(alive)).collect();
+            tiles.resize(count, None);
+            let waiting: Vec<u32> = ids
+                .into_iter()
+                .filter(|id| !tiles.contains(&Some(*id)))
+                .collect();
+            let mut waiting = waiting.into_iter();
+            for tile in tiles.iter_mut().filter(|t| t.is_none()) {
+                *tile = waiting.next();
+            }
+            while tiles.last() == Some(&None) {
+                tiles.pop();
+            }
+            self.tiles = tiles;
+        }
+        self.tiles.clone()
+    }
+}
+
+/// `o` found again by `d`: its place, size, class and confidence taken from `d`, its score
+/// raised by `bonus` (up to [`MAX_SCORE`]).
+fn found_again(o: &mut Object, d: &Detection, t: f64, bonus: u8) -> Change {
+    let from = o.score;
+    if t > o.seen + 1e-3 {
+        let measured = (d.bbox.centre - o.bbox.centre) / (t - o.seen);
+        // The first measurement as it is, then each new one half.
+        o.velocity = if o.seen == o.born {
+            measured
+        } else {
+            (o.velocity + measured) / 2.0
+        };
+    }
+    o.bbox = d.bbox;
+    o.class = d.class;
+    o.confidence = d.confidence;
+    o.seen = t;
+    o.score = o.score.saturating_add(bonus).min(MAX_SCORE);
+    Change {
+        id: o.id,
+        why: Why::FoundByScan,
+        from,
+        to: o.score,
+    }
+}
+
+/// `o` missed: its score lowered by `penalty` (0 drops it).
+fn missed(o: &mut Object, penalty: u8, why: Why) -> Change {
+    let from = o.score;
+    o.score = o.score.saturating_sub(penalty);
+    Change {
+        id: o.id,
+        why,
+        from,
+        to: o.score,
+    }
+}

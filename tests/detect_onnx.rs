@@ -1,0 +1,364 @@
+//! The ONNX detector (NanoDet-m, as shipped) on real photographs: Debian's darknet samples,
+//! which scripts/setup.sh unpacks. Laid flat (aspect kept) at known directions in a panorama,
+//! seen through a fisheye lens by `synth`, then scanned by `serve`: every object the model
+//! finds in a photograph itself, `serve` reports too, with its class, where the panorama put
+//! it. And a missing runtime, model or class is a clear error, not a crash.
+
+mod common;
+
+use common::ctl;
+use common::gcs::http_get;
+use digiview::detect::scan::model_views;
+use digiview::geometry::rotation::direction;
+use digiview::scene::PanoramaWorld;
+use glam::{DVec2, DVec3};
+use image::RgbImage;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+const DEG: f64 = std::f64::consts::PI / 180.0;
+
+/// Where setup.sh unpacks darknet's photographs.
+fn photos() -> PathBuf {
+    let cache = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(&std::env::var_os("HOME").unwrap()).join(".cache"));
+    let dir = cache.join("digiview/darknet/usr/share/darknet/data");
+    assert!(
+        dir.join("person.jpg").is_file(),
+        "{}: no photographs; run scripts/setup.sh",
+        dir.display()
+    );
+    dir
+}
+
+/// A photograph laid on the plane tangent to the sky at `yaw`, `pitch` (its top towards the
+/// zenith).
+struct Placed {
+    file: &'static str,
+    yaw: f64,
+    pitch: f64,
+}
+
+/// Five photographs, before a lens that looks ahead (mount pitch 0), each alone in its
+/// panorama (at the scale below, two would not fit side by side in the lens's field): three on
+/// the horizon, two 45° below it, each centred on one of the scan views.
+const PLACES: [Placed; 5] = [
+    Placed {
+        file: "person.jpg",
+        yaw: 0.0,
+        pitch: 0.0,
+    },
+    Placed {
+        file: "dog.jpg",
+        yaw: 36.0 * DEG,
+        pitch: 0.0,
+    },
+    Placed {
+        file: "horses.jpg",
+        yaw: -36.0 * DEG,
+        pitch: 0.0,
+    },
+    Placed {
+        file: "kite.jpg",
+        yaw: 0.0,
+        pitch: -45.0 * DEG,
+    },
+    Placed {
+        file: "giraffe.jpg",
+        yaw: 45.0 * DEG,
+        pitch: -45.0 * DEG,
+    },
+];
+
+impl Placed {
+    /// The plane's centre, right and down axes (world NED).
+    fn axes(&self) -> (DVec3, DVec3, DVec3) {
+        let centre = direction(self.yaw, self.pitch);
+        let right = direction(self.yaw + 90.0 * DEG, 0.0);
+        (centre, right, centre.cross(right))
+    }
+
+    /// Tangent-plane units per photo pixel: the photograph is as tall in a scan view as in
+    /// the model's input when the model ran on it directly (a view's height; a 3:2 photograph
+    /// fills the view as it filled the model's input), so objects are seen at the scale they
+    /// were found at.
+    fn scale(&self, _w: u32, h: u32) -> f64 {
+        let shape = model_views(416);
+        let down = 2.0 * (shape.fov / 2.0).tan() * shape.height as f64 / shape.width as f64;
+        down / h as f64
+    }
+
+    /// The direction of photo pixel `p` (pixel-edge coordinates) in a `w` × `h` photo.
+    fn direction(&self, p: DVec2, w: u32, h: u32) -> DVec3 {
+        let (centre, right, down) = self.axes();
+        let q = (p - DVec2::new(w as f64, h as f64) / 2.0) * self.scale(w, h);
+        (centre + right * q.x + down * q.y).normalize()
+    }
+
+    /// The photo point (pixel-edge coordinates) a ray falls on, if it does.
+    fn point(&self, ray: DVec3, w: u32, h: u32) -> Option<DVec2> {
+        let (centre, right, down) = self.axes();
+        let along = ray.dot(centre);
+        if along < 0.1 {
+            return None;
+        }
+        let q = DVec2::new(ray.dot(right), ray.dot(down)) / along / self.scale(w, h);
+        let p = q + DVec2::new(w as f64, h as f64) / 2.0;
+        (p.x >= 0.0 && p.y >= 0.0 && p.x < w as f64 && p.y < h as f64).then_some(p)
+    }
+}
+
+/// The panorama: grey, with the photograph laid on its plane (bilinear).
+fn panorama(place: &Placed, width: u32) -> RgbImage {
+    let photo = image::open(photos().join(place.file)).unwrap().to_rgb8();
+    let pano = PanoramaWorld::new(RgbImage::new(width, width / 2));
+    let mut out = RgbImage::from_pixel(width, width / 2, image::Rgb([118, 118, 118]));
+    for (x, y, px) in out.enumerate_pixels_mut() {
+        let ray = pano.ray(DVec2::new(x as f64, y as f64));
+        if let Some(p) = place.point(ray, photo.width(), photo.height()) {
+            let c = digiview::image_ops::bilinear(&photo, p - 0.5).round();
+            *px = image::Rgb([c.x as u8, c.y as u8, c.z as u8]);
+        }
+    }
+    out
+}
+
+/// An object the model found in a photograph: its class and where the panorama put it.
+#[derive(Debug)]
+struct Expected {
+    file: &'static str,
+    class: String,
+    confidence: f64,
+    ray: DVec3,
+}
+
+/// `digiview detect` on the photograph itself.
+fn found_in_photo(place: &Placed, threshold: f64) -> Vec<Expected> {
+    let mut all = vec![];
+    {
+        let path = photos().join(place.file);
+        let (w, h) = image::image_dimensions(&path).unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_digiview"))
+            .args(["detect", "--json", "--threshold", &threshold.to_string()])
+            .arg("--image")
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        for line in String::from_utf8_lossy(&out.stdout).lines() {
+            let b: serde_json::Value = serde_json::from_str(line).unwrap();
+            let n = |k: &str| b[k].as_f64().unwrap();
+            let centre = DVec2::new(n("x0") + n("x1"), n("y0") + n("y1")) / 2.0;
+            all.push(Expected {
+                file: place.file,
+                class: b["class"].as_str().unwrap().to_string(),
+                confidence: n("confidence"),
+                ray: place.direction(centre, w, h),
+            });
+        }
+    }
+    all
+}
+
+/// DETECTED_ROI 255 through the web API: each object's label and world direction.
+fn reported(http: &str) -> Vec<(String, DVec3, u64)> {
+    let (code, body) = http_get(&format!("{http}api/params"));
+    assert_eq!(code, 200);
+    let all: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    all["DETECTED_ROI"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|d| d["total_detections"].as_u64() != Some(0))
+        .map(|d| {
+            let n = |k: &str| d[k].as_f64().unwrap();
+            (
+                d["label"].as_str().unwrap_or("").to_string(),
+                direction(n("yaw_abs"), n("pitch_abs")),
+                d["score"].as_u64().unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// One photograph's panorama through the fisheye, scanned by `serve`: each object the model
+/// finds in the photograph, and how far (degrees) the nearest object `serve` reports with its
+/// class is from where the panorama put it (None: none of its class).
+fn scanned(place: &Placed, threshold: f64) -> Vec<(Expected, Option<f64>)> {
+    let dir = tempfile::tempdir().unwrap();
+    let pano = dir.path().join("pano.png");
+    panorama(place, 4096).save(&pano).unwrap();
+    let fish = dir.path().join("fish.png");
+    let made = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "synth",
+            "--lens",
+            "CIL216",
+            "--mount",
+            "pitch=0",
+            "--sensor",
+            "3840x2160",
+        ])
+        .arg("--world")
+        .arg(&pano)
+        .arg("--out")
+        .arg(&fish)
+        .env("DIGIVIEW_LENS_CAL", common::lens_cal_path())
+        .output()
+        .unwrap();
+    assert!(
+        made.status.success(),
+        "{}",
+        String::from_utf8_lossy(&made.stderr)
+    );
+    let expected = found_in_photo(place, threshold);
+
+    let source = format!("image:{}", fish.display());
+    let server = common::serve::Serve::start_video(&[
+        "--source",
+        &source,
+        "--lens",
+        "CIL216",
+        "--mount",
+        "pitch=0",
+        "--size",
+        "640x480",
+        "--detector",
+        "onnx",
+    ]);
+    let addr = server.addr.to_string();
+    let http = server.http.clone().unwrap();
+    let setting = format!("var_confidence_threshold={threshold}");
+    assert!(ctl(&addr, &["set", "detection", &setting]).status.success());
+
+    let offsets = |got: &[(String, DVec3, u64)]| -> Vec<Option<f64>> {
+        expected
+            .iter()
+            .map(|e| {
+                got.iter()
+                    .filter(|(label, _, _)| *label == e.class)
+                    .map(|(_, ray, _)| ray.angle_between(e.ray) / DEG)
+                    .min_by(|a, b| a.total_cmp(b))
+            })
+            .collect()
+    };
+    let start = Instant::now();
+    let (mut off, mut got) = (vec![], vec![]);
+    while start.elapsed() < Duration::from_secs(30) {
+        got = reported(&http);
+        off = offsets(&got);
+        if off.iter().all(|o| o.is_some_and(|o| o <= 2.0)) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    println!("{}: after {:.1?}", place.file, start.elapsed());
+    for (label, ray, score) in &got {
+        let (yaw, pitch) = digiview::geometry::rotation::yaw_pitch(*ray);
+        println!(
+            "  reported: {label} (score {score}) at {:.1}°, {:.1}°",
+            yaw / DEG,
+            pitch / DEG
+        );
+    }
+    expected.into_iter().zip(off).collect()
+}
+
+/// At var_confidence_threshold 0.45 (the issue's own figures: through a dewarped view
+/// NanoDet-m finds the person at 0.53-0.73 and a horse at 0.49): 11 objects in the five
+/// photographs. Through the lens and a scan view an object's score moves by up to about 0.13,
+/// so one near the threshold may take a few scans to be reported.
+#[test]
+fn serve_finds_in_a_fisheye_panorama_every_object_the_model_finds_in_the_photographs() {
+    const THRESHOLD: f64 = 0.45;
+    let mut all = vec![];
+    for place in &PLACES {
+        for (e, off) in scanned(place, THRESHOLD) {
+            println!("{} {} {:.2}: {off:.2?}", e.file, e.class, e.confidence);
+            all.push((e, off));
+        }
+    }
+    assert!(all.len() >= 5, "{all:#?}");
+    let missed: Vec<_> = all
+        .iter()
+        .filter(|(_, off)| off.is_none_or(|o| o > 2.0))
+        .collect();
+    assert!(missed.is_empty(), "not reported within 2°: {missed:#?}");
+}
+
+/// A detector that cannot run says why and what to do, on every path: `detect`, and `serve`
+/// at start-up (exit status non-zero, nothing served).
+#[test]
+fn a_missing_runtime_model_or_class_is_a_clear_error() {
+    let photo = photos().join("dog.jpg");
+    let detect = |env: &[(&str, &str)], args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_digiview"))
+            .arg("detect")
+            .arg("--image")
+            .arg(&photo)
+            .args(args)
+            .envs(env.iter().copied())
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let err = detect(&[("ORT_DYLIB_PATH", "/no/such/libonnxruntime.so")], &[]);
+    assert!(
+        err.contains("/no/such/libonnxruntime.so") && err.contains("no such file"),
+        "{err}"
+    );
+    // No runtime anywhere: where it was looked for, and what installs it.
+    let empty = tempfile::tempdir().unwrap();
+    let cache = empty.path().to_str().unwrap();
+    let err = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["detect", "--image"])
+        .arg(&photo)
+        .env_remove("ORT_DYLIB_PATH")
+        .env("XDG_CACHE_HOME", cache)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&err.stderr);
+    assert!(
+        !err.status.success() && text.contains("scripts/setup.sh"),
+        "{text}"
+    );
+    // A model that is not one.
+    let bogus = empty.path().join("model.onnx");
+    std::fs::write(&bogus, "not a model").unwrap();
+    let err = detect(&[], &["--model", bogus.to_str().unwrap()]);
+    assert!(err.contains("model.onnx"), "{err}");
+    let err = detect(&[], &["--classes", "person,unicorn"]);
+    assert!(err.contains("unicorn: no such class"), "{err}");
+    let err = detect(&[], &["--decoder", "yolov8"]);
+    assert!(err.contains("YOLOv8"), "{err}");
+
+    // serve refuses to start without its runtime, saying so.
+    let out = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "serve",
+            "--rtsp-port",
+            "0",
+            "--control",
+            "127.0.0.1:0",
+            "--http",
+            "off",
+        ])
+        .args(["--mavlink", "off", "--detector", "onnx"])
+        .env("DIGIVIEW_LENS_CAL", common::lens_cal_path())
+        .env("ORT_DYLIB_PATH", "/no/such/libonnxruntime.so")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("ONNX Runtime") && err.contains("/no/such/libonnxruntime.so"),
+        "{err}"
+    );
+}
