@@ -52,6 +52,10 @@ pub struct OnnxConfig {
     pub threads: usize,
 }
 
+/// The largest model input the scan views are drawn for (each view is this tall, 1.5 times
+/// as wide).
+const MAX_SIDE: u32 = 1280;
+
 /// A box this close to its view's edge (model pixels) is taken as cut by it.
 const EDGE: f64 = 2.0;
 
@@ -186,6 +190,11 @@ impl OnnxDetector {
                 )));
             }
         };
+        if !(32..=MAX_SIDE).contains(&side) {
+            return Err(model_error(format!(
+                "its input is {side}x{side}; scan views are 32 to {MAX_SIDE} pixels tall"
+            )));
+        }
         let wanted = wanted(&cfg.classes)?;
         Ok(OnnxDetector {
             input: input.name().to_string(),
