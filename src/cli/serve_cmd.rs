@@ -49,6 +49,9 @@ pub struct ServeArgs {
     /// --track).
     #[arg(long, value_enum)]
     detector: Option<crate::head::config::Detector>,
+    /// The external detector's socket (replaces the config's `[detection] socket`).
+    #[arg(long, value_name = "PATH")]
+    detections_socket: Option<std::path::PathBuf>,
     /// The ONNX detector's model file (replaces the config's `[detection] model`).
     #[arg(long, value_name = "FILE")]
     model: Option<std::path::PathBuf>,
@@ -137,6 +140,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if let Some(m) = &args.model {
         cfg.detection.model = m.clone();
+    }
+    if let Some(p) = &args.detections_socket {
+        cfg.detection.socket = p.clone();
     }
     if let Some((w, h)) = args.demo_size {
         (cfg.demo.width, cfg.demo.height) = (w, h);

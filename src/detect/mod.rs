@@ -6,6 +6,7 @@
 //! DETECTED_ROI.
 
 pub mod angular;
+pub mod external;
 pub mod motion;
 pub mod onnx;
 pub mod scan;

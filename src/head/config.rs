@@ -80,6 +80,8 @@ pub enum Detector {
     Motion,
     /// A detection model run by ONNX Runtime (`model`, `decoder`, `classes`).
     Onnx,
+    /// Another process's detections, JSON lines on the local socket `socket`.
+    External,
     /// None: the tracked objects are only those the state gives (`--track`).
     Off,
 }
@@ -100,6 +102,8 @@ pub struct DetectionConfig {
     pub onnxruntime: Option<PathBuf>,
     /// Threads the model runs on.
     pub threads: usize,
+    /// The external detector's socket (a Unix socket path).
+    pub socket: PathBuf,
 }
 
 impl Default for DetectionConfig {
@@ -112,6 +116,7 @@ impl Default for DetectionConfig {
             classes: vec![],
             onnxruntime: None,
             threads: 1,
+            socket: "/tmp/digiview-detections.sock".into(),
         }
     }
 }

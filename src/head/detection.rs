@@ -9,10 +9,11 @@
 
 use super::Head;
 use super::config::Detector;
+use crate::detect::external::{Batch, Inbox, Place, listen};
 use crate::detect::motion::MOVING;
 use crate::detect::onnx::class_name;
 use crate::detect::scan::{MOTION_VIEWS, ScanView, model_views, visible};
-use crate::detect::{AngularBox, MotionDetector, OnnxDetector, OnnxError, Tracker};
+use crate::detect::{AngularBox, Detection, MotionDetector, OnnxDetector, OnnxError, Tracker};
 use crate::frame::{Frame, PixelFormat};
 use crate::geometry::GeoPoint;
 use crate::geometry::ground::to_ned;
@@ -23,7 +24,7 @@ use crate::render::Filter;
 use crate::render::FramePlan;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::state::{Invalid, State, Tracked};
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -62,6 +63,18 @@ impl ScanRenderer {
     }
 }
 
+/// Why the configured detector cannot start.
+#[derive(Debug, thiserror::Error)]
+pub enum DetectorError {
+    #[error(transparent)]
+    Onnx(#[from] OnnxError),
+    #[error("detections socket {path}: {source}")]
+    Socket {
+        path: String,
+        source: std::io::Error,
+    },
+}
+
 /// The loaded ONNX model, and the side of the square pictures it takes (read by the frame
 /// loop without waiting for the model).
 pub(super) struct Model {
@@ -72,7 +85,17 @@ pub(super) struct Model {
 impl Head {
     /// Loads the ONNX model when the configuration chooses it: a missing model or ONNX
     /// Runtime is an error at start-up, not a silent stage.
-    pub fn load_detector(&self) -> Result<(), OnnxError> {
+    pub fn load_detector(self: &Arc<Head>) -> Result<(), DetectorError> {
+        if self.cfg.detection.detector == Detector::External && self.external.get().is_none() {
+            let path = &self.cfg.detection.socket;
+            let inbox = Arc::new(Inbox::default());
+            listen(path, inbox.clone(), self.stop.clone()).map_err(|e| DetectorError::Socket {
+                path: path.display().to_string(),
+                source: e,
+            })?;
+            info!("detection: external, JSON lines on {}", path.display());
+            let _ = self.external.set(inbox);
+        }
         if self.cfg.detection.detector != Detector::Onnx || self.model.get().is_some() {
             return Ok(());
         }
@@ -97,6 +120,7 @@ impl Head {
         let ready = match self.cfg.detection.detector {
             Detector::Motion => true,
             Detector::Onnx => self.model.get().is_some(),
+            Detector::External => self.external.get().is_some(),
             Detector::Off => false,
         };
         ready && state.detection.run_ai
@@ -122,8 +146,14 @@ impl Head {
         state: &State,
         lens: &Lens,
     ) {
+        let size = (frame.layout.width as u64) << 32 | frame.layout.height as u64;
+        self.frame_size.store(size, Ordering::Relaxed);
         let period = Duration::from_secs_f64(1.0 / self.cfg.detection.scan_hz);
-        if !self.detecting(state) || scans.last.is_some_and(|t| t.elapsed() < period) {
+        let scanned = matches!(
+            self.cfg.detection.detector,
+            Detector::Motion | Detector::Onnx
+        );
+        if !scanned || !self.detecting(state) || scans.last.is_some_and(|t| t.elapsed() < period) {
             return;
         }
         scans.last = Some(Instant::now());
@@ -178,6 +208,11 @@ impl Head {
         // The ground under the first position is the world's origin for the detector.
         let mut origin: Option<GeoPoint> = None;
         let mut owns_list = false;
+        // The external detector's class names, by the number the tracker knows them by; the
+        // time its last line gave; when this began (its lines' times are their arrivals).
+        let mut labels: Vec<String> = vec![];
+        let mut last_sent: Option<f64> = None;
+        let started = Instant::now();
         while !self.stop.load(Ordering::Relaxed) {
             let state = self.live.snapshot();
             if !self.detecting(&state) {
@@ -189,52 +224,149 @@ impl Head {
                 std::thread::sleep(Duration::from_millis(100));
                 continue;
             }
-            let Some(scan) = self.next_scan() else {
-                continue;
-            };
-            let t0 = Instant::now();
-            let home = *origin.get_or_insert(GeoPoint {
-                alt: scan.position.home_alt(),
-                ..scan.position.point()
-            });
-            let eye: DVec3 = to_ned(home, scan.position.point());
-            let found = match self.model.get() {
-                Some(model) => {
-                    let threshold = state.detection.var_confidence_threshold as f32;
-                    let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
-                    match model.scan(
-                        &scan.views,
-                        &scan.plan,
-                        &scan.picture,
-                        scan.stride,
-                        threshold,
-                    ) {
-                        Ok(found) => found,
-                        Err(e) => {
-                            warn!("detection: {e}");
-                            continue;
+            let (t, found, plan, t0) = if let Some(inbox) = self.external.get() {
+                let Some((batch, arrived)) = inbox.take(Duration::from_millis(100)) else {
+                    continue;
+                };
+                if batch
+                    .t
+                    .is_some_and(|t| last_sent.is_some_and(|last| t <= last))
+                {
+                    continue;
+                }
+                last_sent = batch.t.or(last_sent);
+                let t0 = Instant::now();
+                let Some((found, plan)) = self.external_boxes(&state, &batch, &mut labels) else {
+                    continue;
+                };
+                let t = arrived.duration_since(started).as_secs_f64();
+                (t, found, plan, t0)
+            } else {
+                let Some(scan) = self.next_scan() else {
+                    continue;
+                };
+                let t0 = Instant::now();
+                let home = *origin.get_or_insert(GeoPoint {
+                    alt: scan.position.home_alt(),
+                    ..scan.position.point()
+                });
+                let eye: DVec3 = to_ned(home, scan.position.point());
+                let found = match self.model.get() {
+                    Some(model) => {
+                        let threshold = state.detection.var_confidence_threshold as f32;
+                        let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
+                        let (v, p) = (&scan.views, &scan.plan);
+                        match model.scan(v, p, &scan.picture, scan.stride, threshold) {
+                            Ok(found) => found,
+                            Err(e) => {
+                                warn!("detection: {e}");
+                                continue;
+                            }
                         }
                     }
-                }
-                None => detector.detect(&scan.views, &scan.plan, &scan.picture, scan.stride, eye),
+                    None => {
+                        let (v, p) = (&scan.views, &scan.plan);
+                        detector.detect(v, p, &scan.picture, scan.stride, eye)
+                    }
+                };
+                (scan.t, found, scan.plan, t0)
             };
             let covered = |b: &AngularBox| {
-                scan.plan
-                    .views
+                plan.views
                     .iter()
-                    .any(|v| scan.plan.view_point(v, b.centre).is_some())
+                    .any(|v| plan.view_point(v, b.centre).is_some())
             };
-            tracker.scan(&state.detection, scan.t, found, covered);
+            tracker.scan(&state.detection, t, found, covered);
             let o = &state.output;
             let shown = layout(o.width, o.height, o.layout, o.overlay).map_or(0, |l| l.tiles.len());
             let tiles = tracker.tiles(state.detection.sorting_mode, shown);
-            self.publish(tracked(&tracker, &tiles, self.cfg.detection.detector));
+            let name = |class: u16| match self.cfg.detection.detector {
+                Detector::External => labels.get(class as usize).cloned().unwrap_or_default(),
+                Detector::Motion if class == MOVING => "moving".into(),
+                _ => class_name(class),
+            };
+            self.publish(tracked(&tracker, &tiles, name));
             owns_list = true;
             self.stats
                 .detect_us
                 .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
             self.stats.scans.fetch_add(1, Ordering::Relaxed);
         }
+    }
+
+    /// The external detector's boxes as directions in the world (fisheye pixels through the
+    /// lens at the state's attitude), and the views that cover the lens's field (what the
+    /// detector was looking at). Boxes the lens does not image are left out.
+    fn external_boxes(
+        &self,
+        state: &State,
+        batch: &Batch,
+        labels: &mut Vec<String>,
+    ) -> Option<(Vec<Detection>, FramePlan)> {
+        // The frames' own size (what the sender's pixels are in), once one has come.
+        let size = self.frame_size.load(Ordering::Relaxed);
+        let sensor = match ((size >> 32) as u32, size as u32) {
+            (0, _) | (_, 0) => (state.sensor.width, state.sensor.height),
+            wh => wh,
+        };
+        let lens = match self
+            .live
+            .lenses()
+            .for_frame(state.lens, sensor, state.sensor.roi())
+        {
+            Ok(lens) => lens,
+            Err(e) => {
+                warn!("detection: {e}");
+                return None;
+            }
+        };
+        let to_lens = crate::geometry::view::lens_from_world(
+            state.vehicle.attitude.euler(),
+            state.mount.euler(),
+        );
+        let to_world = |p: DVec2| lens.unproject(p).map(|r| to_lens.transpose() * r);
+        let mut found = vec![];
+        for b in &batch.boxes {
+            let bbox = match b.place {
+                Place::Angles {
+                    yaw,
+                    pitch,
+                    width,
+                    height,
+                } => AngularBox::new(yaw, pitch, width, height),
+                Place::Pixels { x0, y0, x1, y1 } => {
+                    let c = DVec2::new(x0 + x1, y0 + y1) / 2.0;
+                    let rays = [c, DVec2::new(x0, c.y), DVec2::new(x1, c.y)]
+                        .into_iter()
+                        .chain([DVec2::new(c.x, y0), DVec2::new(c.x, y1)])
+                        .map(to_world)
+                        .collect::<Option<Vec<_>>>();
+                    let Some(r) = rays else {
+                        continue;
+                    };
+                    AngularBox {
+                        centre: r[0],
+                        width: r[1].angle_between(r[2]),
+                        height: r[3].angle_between(r[4]),
+                    }
+                }
+            };
+            let class = match labels.iter().position(|l| *l == b.label) {
+                Some(i) => i,
+                None if labels.len() < u16::MAX as usize => {
+                    labels.push(b.label.clone());
+                    labels.len() - 1
+                }
+                None => continue,
+            };
+            found.push(Detection {
+                bbox,
+                confidence: b.confidence,
+                class: class as u16,
+            });
+        }
+        let (_, plan) = visible(&lens, to_lens, MOTION_VIEWS);
+        Some((found, plan))
     }
 
     /// The newest scan, waiting up to a tenth of a second for one.
@@ -262,7 +394,7 @@ impl Head {
 
 /// The tracker's objects as the state lists them: those in the tiles first, in tile order,
 /// then the others by score.
-fn tracked(tracker: &Tracker, tiles: &[Option<u32>], detector: Detector) -> Vec<Tracked> {
+fn tracked(tracker: &Tracker, tiles: &[Option<u32>], name: impl Fn(u16) -> String) -> Vec<Tracked> {
     let mut ids: Vec<u32> = tiles.iter().flatten().copied().collect();
     let mut rest: Vec<_> = tracker
         .objects()
@@ -281,18 +413,10 @@ fn tracked(tracker: &Tracker, tiles: &[Option<u32>], detector: Detector) -> Vec<
                 pitch,
                 size: o.bbox.size(),
                 score: o.score,
-                label: label(o.class, detector),
+                label: name(o.class),
             }
         })
         .collect()
-}
-
-/// What an object is called: "moving" for the motion detector, the class's name for a model.
-fn label(class: u16, detector: Detector) -> String {
-    match detector {
-        Detector::Motion if class == MOVING => "moving".into(),
-        _ => class_name(class),
-    }
 }
 
 /// Lowers this thread's priority to the least (nice 19): the detector takes what the video

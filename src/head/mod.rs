@@ -79,6 +79,10 @@ pub struct Head {
     scans: detection::ScanSlot,
     /// The ONNX detector, once loaded.
     model: std::sync::OnceLock<detection::Model>,
+    /// What the external detector sends, once its socket listens.
+    external: std::sync::OnceLock<Arc<crate::detect::external::Inbox>>,
+    /// The newest frame's width and height (high and low 32 bits; 0 before the first).
+    frame_size: AtomicU64,
 }
 
 /// Counters the frame loop keeps and the health log reads.
@@ -129,6 +133,8 @@ impl Head {
             exposure,
             scans: detection::ScanSlot::default(),
             model: std::sync::OnceLock::new(),
+            external: std::sync::OnceLock::new(),
+            frame_size: AtomicU64::new(0),
         })
     }
 
