@@ -48,35 +48,66 @@ impl AngularBox {
         self.centre.angle_between(other.centre)
     }
 
-    /// Intersection over union with `other`, both laid on the plane tangent to the sphere
-    /// midway between their centres (horizontal axis level, vertical axis towards the zenith).
-    pub fn overlap(&self, other: &AngularBox) -> f64 {
-        let Some(mid) = (self.centre + other.centre).try_normalize() else {
-            return 0.0;
-        };
+    /// Both boxes' centres on the plane tangent to the sphere midway between them (radians
+    /// near the middle; horizontal axis level, vertical axis towards the zenith), and that
+    /// plane's middle and axes. None for opposite directions.
+    fn on_tangent_plane(&self, other: &AngularBox) -> Option<(DVec2, DVec2, [DVec3; 3])> {
+        let mid = (self.centre + other.centre).try_normalize()?;
         // Level axis; at the zenith or nadir any pair of axes does.
         let (h, v) = match DVec3::Z.cross(mid).try_normalize() {
             Some(h) => (h, mid.cross(h)),
             None => mid.any_orthonormal_pair(),
         };
-        // Gnomonic projection onto the tangent plane, in radians near the middle.
+        // Gnomonic projection onto the tangent plane.
         let at = |d: DVec3| {
             let along = d.dot(mid);
             (along > 1e-9).then(|| DVec2::new(d.dot(h), d.dot(v)) / along)
         };
-        let (Some(a), Some(b)) = (at(self.centre), at(other.centre)) else {
+        Some((at(self.centre)?, at(other.centre)?, [mid, h, v]))
+    }
+
+    /// Intersection over union with `other`, both laid on the plane tangent to the sphere
+    /// midway between their centres.
+    pub fn overlap(&self, other: &AngularBox) -> f64 {
+        let Some((a, b, _)) = self.on_tangent_plane(other) else {
             return 0.0;
         };
-        let (ha, hb) = (
-            DVec2::new(self.width, self.height) / 2.0,
-            DVec2::new(other.width, other.height) / 2.0,
-        );
+        let (ha, hb) = (self.half(), other.half());
         let low = (a - ha).max(b - hb);
         let high = (a + ha).min(b + hb);
         let inter = (high - low).max(DVec2::ZERO);
         let inter = inter.x * inter.y;
         let union = self.width * self.height + other.width * other.height - inter;
         if union > 0.0 { inter / union } else { 0.0 }
+    }
+
+    /// The gap between the two boxes (radians; 0 where they touch or overlap), the larger of
+    /// the horizontal and vertical gaps.
+    pub fn gap(&self, other: &AngularBox) -> f64 {
+        let Some((a, b, _)) = self.on_tangent_plane(other) else {
+            return std::f64::consts::PI;
+        };
+        let gap = (a - b).abs() - self.half() - other.half();
+        gap.max_element().max(0.0)
+    }
+
+    /// The box enclosing both, on the plane tangent between them.
+    pub fn union(&self, other: &AngularBox) -> AngularBox {
+        let Some((a, b, [mid, h, v])) = self.on_tangent_plane(other) else {
+            return *self;
+        };
+        let low = (a - self.half()).min(b - other.half());
+        let high = (a + self.half()).max(b + other.half());
+        let c = (low + high) / 2.0;
+        AngularBox {
+            centre: (mid + h * c.x + v * c.y).normalize(),
+            width: high.x - low.x,
+            height: high.y - low.y,
+        }
+    }
+
+    fn half(&self) -> DVec2 {
+        DVec2::new(self.width, self.height) / 2.0
     }
 }
 

@@ -19,7 +19,7 @@ const FOLLOW: f32 = 0.15;
 const FOLLOW_FOREGROUND: f32 = 0.02;
 /// Scans a view's background takes to settle before it is compared with: long enough for
 /// what moved in the first scan to have left its place, so its stain there is cleaned.
-const WARM_UP: u32 = 6;
+const WARM_UP: u32 = 2;
 /// Where the background has edges, the threshold rises by this many times the edge's grey
 /// levels per pixel: a background moved with the vehicle is a fraction of a pixel off.
 const EDGE_SLACK: f32 = 2.0;
@@ -40,11 +40,15 @@ const MIN_SIDE: f64 = 2.0;
 const JOIN: usize = 3;
 /// How wide a ring around a blob its surroundings are read from, pixels.
 const RING: usize = 3;
+/// The least share of a blob's pixels that changed since the last scan for it to be moving.
+const MOVED_SHARE: f64 = 0.1;
 /// The class motion detections carry.
 pub const MOVING: u16 = 0;
 
 struct Background {
     luma: Vec<f32>,
+    /// The picture the last scan showed.
+    last: Vec<f32>,
     /// Where the vehicle was (world NED, ground at z = 0) when it was last brought up to date.
     eye: DVec3,
     scans: u32,
@@ -59,6 +63,7 @@ pub struct MotionDetector {
 impl Background {
     fn new(luma: Vec<f32>, eye: DVec3) -> Background {
         Background {
+            last: luma.clone(),
             luma,
             eye,
             scans: 1,
@@ -85,7 +90,9 @@ impl MotionDetector {
         // Views no longer seen lose their background.
         self.backgrounds
             .retain(|i, _| views.iter().any(|v| v.index == *i));
-        let mut found = vec![];
+        let mut found: Vec<Detection> = vec![];
+        // JOIN pixels, as an angle.
+        let mut join = 0f64;
         for (view, planned) in views.iter().zip(&plan.views) {
             let ViewMap::Rays {
                 projection,
@@ -96,6 +103,7 @@ impl MotionDetector {
             };
             let r = planned.rect;
             let (w, h) = (r.w as usize, r.h as usize);
+            join = join.max(JOIN as f64 / Projection::focal(r.w as f64, view.fov));
             let current: Vec<f32> = (0..h)
                 .flat_map(|y| {
                     let row = (r.y as usize + y) * stride + r.x as usize;
@@ -113,6 +121,7 @@ impl MotionDetector {
             }
             let from = sources(w, h, projection, world_from_view, bg.eye, eye);
             let moved = resample(&bg.luma, w, h, &from);
+            let before = resample(&bg.last, w, h, &from);
             let mut mask = vec![false; w * h];
             let mut diff = vec![0f32; w * h];
             let lit = |i: usize| current[i] > DARK && moved[i].is_some_and(|b| b > DARK);
@@ -138,12 +147,14 @@ impl MotionDetector {
                             .all(lit);
                 }
             }
-            // A blob that looks like its surroundings now is not a thing but a stain in the
-            // background (what stood there when it started, or the wake of something that
-            // passed): the background takes the picture there at once.
-            let (things, stains): (Vec<Blob>, Vec<Blob>) = blobs(&mask, w, h)
-                .into_iter()
-                .partition(|b| stands_out(b, &current, &mask, w, h));
+            // A blob that looks like its surroundings now, or where nothing changed since the
+            // last scan, is not a thing moving but a stain in the background (what stood
+            // there when the view was first seen, or the wake of something that passed) or a
+            // thing that stopped: the background takes the picture there at once.
+            let (things, stains): (Vec<Blob>, Vec<Blob>) =
+                blobs(&mask, w, h).into_iter().partition(|b| {
+                    stands_out(b, &current, &mask, w, h) && changed(b, &current, &before)
+                });
             for i in stains.iter().flat_map(|b| &b.pixels) {
                 mask[*i] = false;
             }
@@ -163,6 +174,7 @@ impl MotionDetector {
             }
             bg.eye = eye;
             bg.scans += 1;
+            bg.last = current;
             if !settled {
                 continue;
             }
@@ -189,8 +201,27 @@ impl MotionDetector {
                 });
             }
         }
-        found
+        join_across_views(found, join)
     }
+}
+
+/// Pieces of one thing reported by neighbouring views (each view judges by its own piece
+/// which view owns it, and near the line between two views' centres both may) become one, as
+/// pieces within a view do: boxes `join` radians apart or less are joined.
+fn join_across_views(found: Vec<Detection>, join: f64) -> Vec<Detection> {
+    let mut joined: Vec<Detection> = vec![];
+    for mut d in found {
+        while let Some(k) = joined.iter().position(|j| j.bbox.gap(&d.bbox) <= join) {
+            let other = joined.swap_remove(k);
+            d = Detection {
+                bbox: d.bbox.union(&other.bbox),
+                confidence: d.confidence.max(other.confidence),
+                class: MOVING,
+            };
+        }
+        joined.push(d);
+    }
+    joined
 }
 
 /// For each pixel of a view seen from `to` (world NED), where the view seen from `from`
@@ -295,6 +326,17 @@ fn stands_out(blob: &Blob, current: &[f32], mask: &[bool], w: usize, h: usize) -
         }
     }
     n == 0 || (inside - sum / n as f32).abs() >= THRESHOLD
+}
+
+/// Whether enough of a blob's pixels changed since the last scan (`before`, moved to where
+/// the vehicle is now; None where it was not seen) for it to be moving.
+fn changed(blob: &Blob, current: &[f32], before: &[Option<f32>]) -> bool {
+    let moving = blob
+        .pixels
+        .iter()
+        .filter(|&&i| before[i].is_none_or(|b| (current[i] - b).abs() > THRESHOLD))
+        .count();
+    moving as f64 >= MOVED_SHARE * blob.pixels.len() as f64
 }
 
 /// The 8-connected blobs of `mask` with at least [`MIN_PIXELS`] pixels.

@@ -261,3 +261,75 @@ fn a_moving_object_is_looked_for_where_it_is_going() {
         yaw / DEG
     );
 }
+
+/// An object lost for two scans (two things crossing) and found again 9° on, further than
+/// its size and its motion's prediction would reach, keeps its identity and score rather
+/// than leaving a stale object beside a new one; a box beyond what 5°/s could reach in that
+/// time is a new object, and one of another class is too.
+#[test]
+fn an_object_found_late_and_far_keeps_its_identity_and_a_box_beyond_reach_is_new() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    t.scan(&s, 0.0, vec![det(10.0, 0.0, 3.0, 0.8)], everywhere);
+    t.scan(&s, 0.5, vec![det(10.0, 0.0, 3.0, 0.8)], everywhere);
+    t.scan(&s, 1.0, vec![], everywhere);
+    t.scan(&s, 1.5, vec![], everywhere);
+    // 1.5 s since it was seen: 3° + 5°/s × 1.5 s = 10.5° of reach.
+    let c = t.scan(&s, 2.0, vec![det(19.0, 0.0, 3.0, 0.8)], everywhere);
+    assert_eq!(c, vec![change(0, Why::FoundByScan, 40, 50)]);
+    assert_eq!(t.objects().len(), 1);
+
+    let mut far = Tracker::new();
+    far.scan(&s, 0.0, vec![det(10.0, 0.0, 3.0, 0.8)], everywhere);
+    let c = far.scan(&s, 0.5, vec![det(17.0, 0.0, 3.0, 0.8)], everywhere);
+    assert_eq!(
+        c,
+        vec![
+            change(0, Why::MissedByScan, 50, 40),
+            change(1, Why::Created, 0, 50)
+        ]
+    );
+    let mut other = Tracker::new();
+    other.scan(&s, 0.0, vec![det(10.0, 0.0, 3.0, 0.8)], everywhere);
+    let cat = Detection {
+        class: 15,
+        ..det(14.0, 0.0, 3.0, 0.8)
+    };
+    let c = other.scan(&s, 0.5, vec![cat], everywhere);
+    assert_eq!(c[1], change(1, Why::Created, 0, 50));
+}
+
+/// Boxes on the sphere: the gap between two boxes side by side, and the box enclosing them.
+#[test]
+fn boxes_have_a_gap_and_a_union_in_angles() {
+    let a = AngularBox::new(0.0, 0.0, 4.0 * DEG, 2.0 * DEG);
+    let b = AngularBox::new(5.0 * DEG, 0.0, 4.0 * DEG, 2.0 * DEG);
+    assert!((a.gap(&b) / DEG - 1.0).abs() < 0.01, "{}", a.gap(&b) / DEG);
+    assert_eq!(a.gap(&a), 0.0);
+    let u = a.union(&b);
+    let (yaw, pitch) = u.yaw_pitch();
+    assert!((yaw / DEG - 2.5).abs() < 0.01 && pitch.abs() < 1e-9);
+    assert!((u.width / DEG - 9.0).abs() < 0.02 && (u.height / DEG - 2.0).abs() < 0.01);
+}
+
+/// A published object, as each frame aims its tile: moved on by its velocity to the frame's
+/// capture time, 2 s past its last sighting at most, and never back before it.
+#[test]
+fn a_frame_shows_an_object_where_it_has_got_to() {
+    let o = crate::state::Tracked {
+        yaw: 10.0 * DEG,
+        pitch: 0.0,
+        // 4°/s along the horizon, seen at 5 s.
+        velocity: [
+            -4.0 * DEG * (10.0 * DEG).sin(),
+            4.0 * DEG * (10.0 * DEG).cos(),
+            0.0,
+        ],
+        seen_us: 5_000_000,
+        ..Default::default()
+    };
+    let yaw_at = |t: f64| o.at((t * 1e6) as u64).yaw / DEG;
+    assert!((yaw_at(5.5) - 12.0).abs() < 0.05, "{}", yaw_at(5.5));
+    assert!((yaw_at(9.0) - 18.0).abs() < 0.2, "{}", yaw_at(9.0));
+    assert_eq!(yaw_at(4.0), 10.0);
+}

@@ -9,7 +9,7 @@
 //! `sorting_mode` orders them.
 
 use super::angular::{AngularBox, Detection, suppress};
-use crate::state::DetectionSettings;
+use crate::state::{DetectionSettings, MAX_PREDICTION};
 use glam::DVec3;
 
 /// The highest score.
@@ -35,10 +35,18 @@ pub struct Object {
     /// How fast its centre moves across the sky (world NED, per second), from the times it
     /// was found: between scans it is looked for where it should have got to.
     pub velocity: DVec3,
+    /// Its last few sightings (time, centre), oldest first, that the velocity is measured
+    /// over.
+    trail: Vec<(f64, DVec3)>,
 }
 
-/// Prediction reaches this far past the last sighting at most, seconds.
-const MAX_PREDICTION: f64 = 2.0;
+/// How many sightings an object's velocity is measured over at most.
+const TRAIL: usize = 4;
+
+/// How fast (radians a second) an object not found where it was expected may have moved
+/// across the sky since it was last seen, for a box near it to be taken as it: a car at
+/// 30 km/h seen from 100 m.
+const CATCH_UP_RATE: f64 = 5.0 * std::f64::consts::PI / 180.0;
 
 impl Object {
     /// Where the object should be at time `t`, moving as it did.
@@ -132,6 +140,30 @@ impl Tracker {
                 used[j] = true;
             }
         }
+        // A second chance, for the objects still not found and the boxes no object took: a
+        // box of the object's class within reach of how far the object could have gone
+        // since it was last seen is the object found late (lost while two things crossed,
+        // or moving faster than its size a scan), not a new object beside a stale one.
+        // Surest objects first, then nearest boxes.
+        let mut late: Vec<(usize, usize, f64)> = vec![];
+        for (i, o) in self.objects.iter().enumerate() {
+            for (j, d) in found.iter().enumerate() {
+                let away = o.at(t).angle_to(&d.bbox).min(o.bbox.angle_to(&d.bbox));
+                let since = (t - o.seen).clamp(0.0, MAX_PREDICTION);
+                let reach = o.bbox.size().max(d.bbox.size()) + CATCH_UP_RATE * since;
+                if object_found[i].is_none() && !used[j] && o.class == d.class && away <= reach {
+                    late.push((i, j, away));
+                }
+            }
+        }
+        let score = |i: usize| self.objects[i].score;
+        late.sort_by(|a, b| score(b.0).cmp(&score(a.0)).then(a.2.total_cmp(&b.2)));
+        for (i, j, _) in late {
+            if object_found[i].is_none() && !used[j] {
+                object_found[i] = Some(j);
+                used[j] = true;
+            }
+        }
         let mut changes = vec![];
         for (i, o) in self.objects.iter_mut().enumerate() {
             match object_found[i] {
@@ -169,6 +201,7 @@ impl Tracker {
                 born: t,
                 seen: t,
                 velocity: DVec3::ZERO,
+                trail: vec![(t, d.bbox.centre)],
             });
             changes.push(Change {
                 id,
@@ -251,12 +284,19 @@ impl Tracker {
 fn found_again(o: &mut Object, d: &Detection, t: f64, bonus: u8) -> Change {
     let from = o.score;
     if t > o.seen + 1e-3 {
-        let measured = (d.bbox.centre - o.bbox.centre) / (t - o.seen);
-        // The first measurement as it is, then each new one half.
-        o.velocity = if o.seen == o.born {
-            measured
+        // Measured from the oldest sighting within the last MAX_PREDICTION seconds: a
+        // detector's boxes wander by a fraction of their size, and over a longer baseline
+        // that wander is a smaller part of the motion.
+        o.trail.retain(|&(seen, _)| t - seen <= MAX_PREDICTION);
+        o.trail.push((t, d.bbox.centre));
+        if o.trail.len() > TRAIL {
+            o.trail.remove(0);
+        }
+        let (first, from_centre) = o.trail[0];
+        o.velocity = if t > first + 1e-3 {
+            (d.bbox.centre - from_centre) / (t - first)
         } else {
-            (o.velocity + measured) / 2.0
+            DVec3::ZERO
         };
     }
     o.bbox = d.bbox;

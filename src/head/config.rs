@@ -110,7 +110,7 @@ impl Default for DetectionConfig {
     fn default() -> Self {
         DetectionConfig {
             detector: Detector::Motion,
-            scan_hz: 2.0,
+            scan_hz: 3.0,
             model: DEFAULT_MODEL.into(),
             decoder: Decoder::Nanodet,
             classes: vec![],

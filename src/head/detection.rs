@@ -209,10 +209,9 @@ impl Head {
         let mut origin: Option<GeoPoint> = None;
         let mut owns_list = false;
         // The external detector's class names, by the number the tracker knows them by; the
-        // time its last line gave; when this began (its lines' times are their arrivals).
+        // time its last line gave (its lines are placed in time by their arrival).
         let mut labels: Vec<String> = vec![];
         let mut last_sent: Option<f64> = None;
-        let started = Instant::now();
         while !self.stop.load(Ordering::Relaxed) {
             let state = self.live.snapshot();
             if !self.detecting(&state) {
@@ -239,7 +238,8 @@ impl Head {
                 let Some((found, plan)) = self.external_boxes(&state, &batch, &mut labels) else {
                     continue;
                 };
-                let t = arrived.duration_since(started).as_secs_f64();
+                // On the sources' clock, as a scan's frames are.
+                let t = crate::source::clock_us() as f64 * 1e-6 - arrived.elapsed().as_secs_f64();
                 (t, found, plan, t0)
             } else {
                 let Some(scan) = self.next_scan() else {
@@ -380,10 +380,12 @@ impl Head {
         guard.take()
     }
 
-    /// Puts the objects in the live state.
+    /// Puts the objects in the live state, unless detection was turned off meanwhile.
     fn publish(&self, list: Vec<Tracked>) {
         let result = self.live.update(|s| {
-            s.tracked = list;
+            if s.detection.run_ai {
+                s.tracked = list;
+            }
             Ok::<_, Invalid>(())
         });
         if let Err(e) = result {
@@ -414,23 +416,28 @@ fn tracked(tracker: &Tracker, tiles: &[Option<u32>], name: impl Fn(u16) -> Strin
                 size: o.bbox.size(),
                 score: o.score,
                 label: name(o.class),
+                velocity: o.velocity.to_array(),
+                seen_us: (o.seen * 1e6) as u64,
             }
         })
         .collect()
 }
 
-/// Lowers this thread's priority to the least (nice 19): the detector takes what the video
-/// path leaves of the CPU, never the frames' time. A model run on the CPU keeps a core busy
-/// for a second a scan on a small board; with it at the same priority the output fell from
-/// 26 to 15 fps at 1920x1080 on a 2-core host.
+/// Lowers this thread's priority to the least: SCHED_IDLE, which runs only when nothing else
+/// wants the CPU and yields at once when a video thread wakes (nice 19 where that is not
+/// allowed). The detector takes what the video path leaves of the CPU, never the frames'
+/// time. A model run on the CPU keeps a core busy for a second a scan on a small board; with
+/// it at the same priority the output fell from 26 to 15 fps at 1920x1080 on a 2-core host.
 fn yield_to_video() {
-    // SAFETY: gettid and setpriority on the calling thread (Linux keeps a nice value per
-    // thread); neither touches memory.
+    // SAFETY: gettid, sched_setscheduler and setpriority on the calling thread (Linux keeps
+    // a policy and a nice value per thread); the parameter lives across the call.
     let done = unsafe {
-        let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
-        libc::setpriority(libc::PRIO_PROCESS, tid, 19)
+        let tid = libc::syscall(libc::SYS_gettid) as libc::pid_t;
+        let param = libc::sched_param { sched_priority: 0 };
+        libc::sched_setscheduler(tid, libc::SCHED_IDLE, &param) == 0
+            || libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, 19) == 0
     };
-    if done != 0 {
+    if !done {
         warn!(
             "detection: cannot lower its priority: {}",
             std::io::Error::last_os_error()

@@ -244,6 +244,10 @@ impl Head {
         if let Some(p) = position {
             s.vehicle.position = p;
         }
+        // Tiles follow their objects between scans.
+        for o in &mut s.tracked {
+            *o = o.at(frame.captured_us);
+        }
         let size = (frame.layout.width, frame.layout.height);
         let lens = self
             .live

@@ -335,8 +335,13 @@ fn debug_map(rect: Rect, lens: &Lens) -> ViewMap {
 }
 
 /// A level rectilinear view aimed at a tracked object, framing it with a margin.
+/// The field across a detection tile showing an object `size` radians across.
+pub fn tile_fov(size: f64) -> f64 {
+    (size * TILE_MARGIN).clamp(TILE_FOV_RANGE.0, TILE_FOV_RANGE.1)
+}
+
 fn tile_map(rect: Rect, obj: &Tracked) -> ViewMap {
-    let fov = (obj.size * TILE_MARGIN).clamp(TILE_FOV_RANGE.0, TILE_FOV_RANGE.1);
+    let fov = tile_fov(obj.size);
     let aim = direction(obj.yaw, obj.pitch);
     let (yaw, pitch) = crate::geometry::rotation::yaw_pitch(aim);
     ViewMap::Rays {

@@ -85,7 +85,13 @@ impl Live {
     ) -> Result<T, E> {
         let _one_writer = self.writer.lock().unwrap_or_else(|e| e.into_inner());
         let mut next = State::clone(&self.state.load());
+        let detecting = next.detection.run_ai;
         let out = change(&mut next)?;
+        // Detection turned off (run_ai, from any entry) takes its objects with it at once,
+        // whether or not the detection thread gets the CPU to say so.
+        if detecting && !next.detection.run_ai {
+            next.tracked.clear();
+        }
         next.validate(&self.lenses)?;
         self.state.store(Arc::new(next));
         Ok(out)
@@ -220,5 +226,34 @@ mod tests {
             go_tx.send(()).unwrap();
         });
         assert_eq!(live.snapshot().lens, 1);
+    }
+
+    /// Detection turned off takes its objects with it in the same change; a change that
+    /// leaves it on, or turns it on, leaves them.
+    #[test]
+    fn turning_detection_off_empties_the_tracked_list_at_once() {
+        let live = live();
+        let set = |on: bool, objects: usize| {
+            live.update(|s| {
+                s.detection.run_ai = on;
+                if objects > 0 {
+                    s.tracked = vec![crate::state::Tracked::default(); objects];
+                }
+                Ok::<_, Invalid>(())
+            })
+            .unwrap()
+        };
+        set(true, 2);
+        set(true, 0);
+        assert_eq!(live.snapshot().tracked.len(), 2);
+        set(false, 0);
+        assert!(live.snapshot().tracked.is_empty());
+        set(false, 1);
+        set(true, 0);
+        assert_eq!(
+            live.snapshot().tracked.len(),
+            1,
+            "set while off, kept on turning on"
+        );
     }
 }

@@ -225,6 +225,35 @@ pub struct Tracked {
     pub score: u8,
     /// What it is, as its detector names it ("moving", a model's class); empty if not said.
     pub label: String,
+    /// How fast its centre moves across the sky (world NED, per second) and when it was
+    /// last seen (`crate::source::clock_us`): each frame shows it where it has got to by the
+    /// time that frame was captured. The tracker's alone; not in state files.
+    #[serde(skip)]
+    pub velocity: [f64; 3],
+    #[serde(skip)]
+    pub seen_us: u64,
+}
+
+/// Prediction reaches this far past an object's last sighting at most, seconds.
+pub const MAX_PREDICTION: f64 = 2.0;
+
+impl Tracked {
+    /// The object where it should be at `t_us` (`crate::source::clock_us`), moving as it did.
+    pub fn at(&self, t_us: u64) -> Tracked {
+        let since = (t_us.saturating_sub(self.seen_us) as f64 * 1e-6).min(MAX_PREDICTION);
+        let velocity = glam::DVec3::from_array(self.velocity);
+        if since <= 0.0 || velocity == glam::DVec3::ZERO {
+            return self.clone();
+        }
+        let seen = crate::geometry::rotation::direction(self.yaw, self.pitch);
+        let now = (seen + velocity * since).try_normalize().unwrap_or(seen);
+        let (yaw, pitch) = crate::geometry::rotation::yaw_pitch(now);
+        Tracked {
+            yaw,
+            pitch,
+            ..self.clone()
+        }
+    }
 }
 
 impl Default for Tracked {
@@ -236,6 +265,8 @@ impl Default for Tracked {
             size: 0.05,
             score: 100,
             label: String::new(),
+            velocity: [0.0; 3],
+            seen_us: 0,
         }
     }
 }
