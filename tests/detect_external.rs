@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::gcs::http_get;
+use common::gcs::reported;
 use digiview::geometry::rotation::direction;
 use digiview::geometry::view::lens_from_world;
 use digiview::lens::Lenses;
@@ -16,26 +16,6 @@ use std::os::unix::net::UnixStream;
 use std::time::{Duration, Instant};
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
-
-/// The objects DETECTED_ROI 255 lists through the web API: label and direction.
-fn reported(http: &str) -> Vec<(String, DVec3)> {
-    let (code, body) = http_get(&format!("{http}api/params"));
-    assert_eq!(code, 200);
-    let all: serde_json::Value = serde_json::from_slice(&body).unwrap();
-    all["DETECTED_ROI"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|d| d["total_detections"].as_u64() != Some(0))
-        .map(|d| {
-            let n = |k: &str| d[k].as_f64().unwrap();
-            (
-                d["label"].as_str().unwrap().to_string(),
-                direction(n("yaw_abs"), n("pitch_abs")),
-            )
-        })
-        .collect()
-}
 
 #[test]
 fn an_external_detectors_lines_are_tracked_where_they_point() {
@@ -90,8 +70,8 @@ fn an_external_detectors_lines_are_tracked_where_they_point() {
     println!("after {:.1?}: {got:?}", start.elapsed());
     let off = |label: &str, truth: DVec3| {
         got.iter()
-            .filter(|(l, _)| l == label)
-            .map(|(_, d)| d.angle_between(truth) / DEG)
+            .filter(|(l, _, _)| l == label)
+            .map(|(_, d, _)| d.angle_between(truth) / DEG)
             .next()
     };
     let (car_off, person_off) = (off("car", car), off("person", person));

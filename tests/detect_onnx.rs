@@ -7,7 +7,7 @@
 mod common;
 
 use common::ctl;
-use common::gcs::http_get;
+use common::gcs::reported;
 use digiview::detect::scan::model_views;
 use digiview::geometry::rotation::direction;
 use digiview::scene::PanoramaWorld;
@@ -164,27 +164,6 @@ fn found_in_photo(place: &Placed, threshold: f64) -> Vec<Expected> {
         }
     }
     all
-}
-
-/// DETECTED_ROI 255 through the web API: each object's label and world direction.
-fn reported(http: &str) -> Vec<(String, DVec3, u64)> {
-    let (code, body) = http_get(&format!("{http}api/params"));
-    assert_eq!(code, 200);
-    let all: serde_json::Value = serde_json::from_slice(&body).unwrap();
-    all["DETECTED_ROI"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|d| d["total_detections"].as_u64() != Some(0))
-        .map(|d| {
-            let n = |k: &str| d[k].as_f64().unwrap();
-            (
-                d["label"].as_str().unwrap_or("").to_string(),
-                direction(n("yaw_abs"), n("pitch_abs")),
-                d["score"].as_u64().unwrap(),
-            )
-        })
-        .collect()
 }
 
 /// One photograph's panorama through the fisheye, scanned by `serve`: each object the model

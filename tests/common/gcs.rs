@@ -255,3 +255,25 @@ pub fn http_get(url: &str) -> (u16, Vec<u8>) {
     let head = reply.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
     (status, reply[head + 4..].to_vec())
 }
+
+/// DETECTED_ROI 255 through the web API at `http` (`http://HOST:PORT/`): each object reported,
+/// its label, world direction and score.
+pub fn reported(http: &str) -> Vec<(String, glam::DVec3, u64)> {
+    let (code, body) = http_get(&format!("{http}api/params"));
+    assert_eq!(code, 200);
+    let all: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    all["DETECTED_ROI"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|d| d["total_detections"].as_u64() != Some(0))
+        .map(|d| {
+            let n = |k: &str| d[k].as_f64().unwrap();
+            (
+                d["label"].as_str().unwrap_or("").to_string(),
+                digiview::geometry::rotation::direction(n("yaw_abs"), n("pitch_abs")),
+                d["score"].as_u64().unwrap(),
+            )
+        })
+        .collect()
+}
