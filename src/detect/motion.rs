@@ -17,8 +17,8 @@ const THRESHOLD: f32 = 18.0;
 /// How fast the background follows the scene, per scan: background pixels, foreground ones.
 const FOLLOW: f32 = 0.15;
 const FOLLOW_FOREGROUND: f32 = 0.02;
-/// Scans a view's background takes to settle before it is compared with: long enough for
-/// what moved in the first scan to have left its place, so its stain there is cleaned.
+/// Scans a view's background takes before it is compared with (what moved in the first
+/// scan leaves a stain where it stood, which the stain rules below take back).
 const WARM_UP: u32 = 2;
 /// Where the background has edges, the threshold rises by this many times the edge's grey
 /// levels per pixel: a background moved with the vehicle is a fraction of a pixel off.

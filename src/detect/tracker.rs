@@ -9,7 +9,7 @@
 //! `sorting_mode` orders them.
 
 use super::angular::{AngularBox, Detection, suppress};
-use crate::state::{DetectionSettings, MAX_PREDICTION};
+use crate::state::{DetectionSettings, MAX_PREDICTION, moved_on};
 use glam::DVec3;
 
 /// The highest score.
@@ -51,11 +51,8 @@ const CATCH_UP_RATE: f64 = 5.0 * std::f64::consts::PI / 180.0;
 impl Object {
     /// Where the object should be at time `t`, moving as it did.
     pub fn at(&self, t: f64) -> AngularBox {
-        let dt = (t - self.seen).clamp(0.0, MAX_PREDICTION);
         AngularBox {
-            centre: (self.bbox.centre + self.velocity * dt)
-                .try_normalize()
-                .unwrap_or(self.bbox.centre),
+            centre: moved_on(self.bbox.centre, self.velocity, t - self.seen),
             ..self.bbox
         }
     }

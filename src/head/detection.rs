@@ -216,9 +216,9 @@ impl Head {
             let state = self.live.snapshot();
             if !self.detecting(&state) {
                 if owns_list {
+                    // Turning run_ai off emptied the list in the same change.
                     info!("detection: off (run_ai); its objects are dropped");
                     (detector, tracker, owns_list) = (MotionDetector::new(), Tracker::new(), false);
-                    self.publish(vec![]);
                 }
                 std::thread::sleep(Duration::from_millis(100));
                 continue;

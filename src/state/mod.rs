@@ -237,16 +237,24 @@ pub struct Tracked {
 /// Prediction reaches this far past an object's last sighting at most, seconds.
 pub const MAX_PREDICTION: f64 = 2.0;
 
+/// Where a thing seen at `centre` (a unit direction), its direction moving at `velocity` a
+/// second, should be `seconds` later: 0 to [`MAX_PREDICTION`] of that motion.
+pub fn moved_on(centre: glam::DVec3, velocity: glam::DVec3, seconds: f64) -> glam::DVec3 {
+    let seconds = seconds.clamp(0.0, MAX_PREDICTION);
+    (centre + velocity * seconds)
+        .try_normalize()
+        .unwrap_or(centre)
+}
+
 impl Tracked {
     /// The object where it should be at `t_us` (`crate::source::clock_us`), moving as it did.
     pub fn at(&self, t_us: u64) -> Tracked {
-        let since = (t_us.saturating_sub(self.seen_us) as f64 * 1e-6).min(MAX_PREDICTION);
-        let velocity = glam::DVec3::from_array(self.velocity);
-        if since <= 0.0 || velocity == glam::DVec3::ZERO {
+        let since = t_us.saturating_sub(self.seen_us) as f64 * 1e-6;
+        if since <= 0.0 || self.velocity == [0.0; 3] {
             return self.clone();
         }
         let seen = crate::geometry::rotation::direction(self.yaw, self.pitch);
-        let now = (seen + velocity * since).try_normalize().unwrap_or(seen);
+        let now = moved_on(seen, glam::DVec3::from_array(self.velocity), since);
         let (yaw, pitch) = crate::geometry::rotation::yaw_pitch(now);
         Tracked {
             yaw,
