@@ -268,17 +268,21 @@ fn factory(
 }
 
 /// One access unit to every client of a mount that has had its key frame (or gets one now).
+/// A client has had its key frame only once one was handed to it: one that comes while its
+/// media is not running yet is not sent, so the delta frames after it must wait for the next
+/// (FFmpeg reports them, without the SPS and PPS before them, as decode errors).
 fn push(medias: &Medias, au: &gst::Buffer) {
     let key = !au.flags().contains(gst::BufferFlags::DELTA_UNIT);
     let ready: Vec<_> = lock(medias)
         .iter_mut()
         .filter_map(|m| {
-            m.started |= key;
-            if !m.started {
+            if !(m.started || key) {
                 return None;
             }
             let now = m.src.current_running_time()?;
-            Some((m.src.clone(), m.clock.restamped(au, now)?))
+            let unit = m.clock.restamped(au, now)?;
+            m.started = true;
+            Some((m.src.clone(), unit))
         })
         .collect();
     for (src, buffer) in ready {
@@ -301,5 +305,59 @@ impl Drop for Rtsp {
             }
             let _ = t.join();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit(key: bool) -> gst::Buffer {
+        let mut b = gst::Buffer::from_slice(vec![0u8, 0, 0, 1, 0x65]);
+        let m = b.get_mut().unwrap();
+        m.set_pts(gst::ClockTime::ZERO);
+        if !key {
+            m.set_flags(gst::BufferFlags::DELTA_UNIT);
+        }
+        b
+    }
+
+    #[test]
+    fn a_client_whose_key_frame_came_before_its_media_ran_gets_no_delta_frames_before_the_next() {
+        crate::gst::init().unwrap();
+        let pipeline = gst::parse::launch("appsrc name=src is-live=true format=time ! fakesink")
+            .unwrap()
+            .downcast::<gst::Pipeline>()
+            .unwrap();
+        let src = pipeline
+            .by_name("src")
+            .unwrap()
+            .downcast::<gst_app::AppSrc>()
+            .unwrap();
+        let medias: Medias = Arc::default();
+        lock(&medias).push(Media {
+            src: src.clone(),
+            clock: Restamp::default(),
+            started: false,
+        });
+        let started = || lock(&medias)[0].started;
+
+        // Not running yet: the key frame cannot be handed over.
+        push(&medias, &unit(true));
+        assert!(
+            !started(),
+            "a key frame its client never got counts as its start"
+        );
+        pipeline.set_state(gst::State::Playing).unwrap();
+        let t = std::time::Instant::now();
+        while src.current_running_time().is_none() {
+            assert!(t.elapsed().as_secs() < 5, "the pipeline never runs");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        push(&medias, &unit(false));
+        assert!(!started(), "a delta frame went out before any key frame");
+        push(&medias, &unit(true));
+        assert!(started(), "the next key frame starts the client");
+        pipeline.set_state(gst::State::Null).unwrap();
     }
 }
