@@ -169,11 +169,12 @@ fn found_in_photo(place: &Placed, threshold: f64) -> Vec<Expected> {
 /// One photograph's panorama through the fisheye, scanned by `serve`: each object the model
 /// finds in the photograph, and how far (degrees) the nearest object `serve` reports with its
 /// class is from where the panorama put it (None: none of its class).
-fn scanned(place: &Placed, threshold: f64) -> Vec<(Expected, Option<f64>)> {
-    let dir = tempfile::tempdir().unwrap();
-    let pano = dir.path().join("pano.png");
+/// `place`'s panorama seen through CIL216 looking ahead, as `synth` draws it at 3840x2160,
+/// written in `dir`.
+fn fisheye(place: &Placed, dir: &Path) -> PathBuf {
+    let pano = dir.join("pano.png");
     panorama(place, 4096).save(&pano).unwrap();
-    let fish = dir.path().join("fish.png");
+    let fish = dir.join("fish.png");
     let made = Command::new(env!("CARGO_BIN_EXE_digiview"))
         .args([
             "synth",
@@ -196,10 +197,13 @@ fn scanned(place: &Placed, threshold: f64) -> Vec<(Expected, Option<f64>)> {
         "{}",
         String::from_utf8_lossy(&made.stderr)
     );
-    let expected = found_in_photo(place, threshold);
+    fish
+}
 
+/// `serve --detector onnx` on `fish` (640x480 out), with `extra` flags.
+fn serve_onnx(fish: &Path, extra: &[&str]) -> common::serve::Serve {
     let source = format!("image:{}", fish.display());
-    let server = common::serve::Serve::start_video(&[
+    let flags = [
         "--source",
         &source,
         "--lens",
@@ -210,7 +214,16 @@ fn scanned(place: &Placed, threshold: f64) -> Vec<(Expected, Option<f64>)> {
         "640x480",
         "--detector",
         "onnx",
-    ]);
+    ];
+    common::serve::Serve::start_video(&[&flags[..], extra].concat())
+}
+
+fn scanned(place: &Placed, threshold: f64) -> Vec<(Expected, Option<f64>)> {
+    let dir = tempfile::tempdir().unwrap();
+    let fish = fisheye(place, dir.path());
+    let expected = found_in_photo(place, threshold);
+
+    let server = serve_onnx(&fish, &[]);
     let addr = server.addr.to_string();
     let http = server.http.clone().unwrap();
     let setting = format!("var_confidence_threshold={threshold}");
@@ -269,6 +282,62 @@ fn serve_finds_in_a_fisheye_panorama_every_object_the_model_finds_in_the_photogr
         .filter(|(_, off)| off.is_none_or(|o| o > 2.0))
         .collect();
     assert!(missed.is_empty(), "not reported within 2°: {missed:#?}");
+}
+
+/// The track step: with a scan's bonus and penalty at 0 (and a crop's penalty), scans only
+/// create objects, so a score above the creation score (50) comes from the crops around the
+/// object alone. With the default crop rate the person's score climbs; with `crop_hz = 0` it
+/// stays at 50.
+#[test]
+fn the_track_step_finds_an_object_again_in_the_crop_around_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let fish = fisheye(&PLACES[0], dir.path());
+    for crop_hz in [10, 0] {
+        let config = dir.path().join(format!("crops-{crop_hz}.toml"));
+        std::fs::write(&config, format!("[detection]\ncrop_hz = {crop_hz}\n")).unwrap();
+        let server = serve_onnx(&fish, &["--config", config.to_str().unwrap()]);
+        let addr = server.addr.to_string();
+        let http = server.http.clone().unwrap();
+        let settings = [
+            "var_confidence_threshold=0.45",
+            "crop_confidence_threshold=0.3",
+            "bonus_detection_scale=0",
+            "missed_detection_penalty=0",
+            "missed_redetection_penalty=0",
+        ];
+        let set = [&["set", "detection"][..], &settings[..]].concat();
+        assert!(ctl(&addr, &set).status.success());
+        let person = || {
+            reported(&http)
+                .into_iter()
+                .filter(|(label, _, _)| label == "person")
+                .map(|(_, _, score)| score)
+                .max()
+        };
+        let start = Instant::now();
+        while person().is_none() {
+            assert!(start.elapsed() < Duration::from_secs(30), "no person found");
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        // Then 10 s of track steps, or none.
+        let found = Instant::now();
+        let mut score = 0;
+        while found.elapsed() < Duration::from_secs(10) {
+            score = person().expect("the person is still tracked");
+            if crop_hz > 0 && score > 50 {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        println!(
+            "crop_hz {crop_hz}: the person's score {score} after {:.1?}",
+            found.elapsed()
+        );
+        match crop_hz {
+            0 => assert_eq!(score, 50, "without crops only a scan changes a score"),
+            _ => assert!(score > 50, "the crops never found the person again"),
+        }
+    }
 }
 
 /// A detector that cannot run says why and what to do, on every path: `detect`, and `serve`

@@ -169,3 +169,22 @@ pub fn owner(
     };
     nearest(true).or_else(|| nearest(false))
 }
+
+/// A crop around a tracked object for the track step: a square view aimed at where the
+/// object should be, `CROP_MARGIN` times its size across (within [`CROP_FOV`]), so that it
+/// is whole in it after moving a little, and large enough for a detector to see.
+pub fn crop_view(id: u32, yaw: f64, pitch: f64, size: f64) -> ScanView {
+    ScanView {
+        index: CROPS + id as usize,
+        yaw,
+        pitch,
+        fov: (size * CROP_MARGIN).clamp(CROP_FOV.0, CROP_FOV.1),
+    }
+}
+
+/// A crop is this many times its object's size across.
+const CROP_MARGIN: f64 = 3.0;
+/// A crop's narrowest and widest field.
+pub const CROP_FOV: (f64, f64) = (8.0 * DEG, 80.0 * DEG);
+/// Crops' view indices start here, past the scan views'.
+const CROPS: usize = 1 << 20;

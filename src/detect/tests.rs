@@ -333,3 +333,30 @@ fn a_frame_shows_an_object_where_it_has_got_to() {
     assert!((yaw_at(9.0) - 18.0).abs() < 0.2, "{}", yaw_at(9.0));
     assert_eq!(yaw_at(4.0), 10.0);
 }
+
+#[test]
+fn a_crop_finds_only_its_own_object_not_another_thing_beside_it() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    t.scan(&s, 0.0, vec![det(10.0, -20.0, 4.0, 0.8)], everywhere);
+    // A dog where the person is expected: the person's crop missed it.
+    let dog = Detection {
+        class: 16,
+        ..det(10.2, -20.0, 4.0, 0.9)
+    };
+    let c = t.track(&s, 0.1, 0, vec![dog]);
+    let (create, miss) = (s.creation_score_scale, s.missed_redetection_penalty);
+    assert_eq!(
+        c,
+        Some(change(0, Why::MissedByTrack, create, create - miss))
+    );
+    assert_eq!(
+        t.get(0).unwrap().class,
+        0,
+        "the object took the dog's class"
+    );
+    assert_eq!(
+        t.get(0).unwrap().bbox.centre,
+        det(10.0, -20.0, 4.0, 0.8).bbox.centre
+    );
+}

@@ -212,7 +212,8 @@ impl Tracker {
     }
 
     /// The track step for object `id` at time `t`: `found` is the detector's raw boxes in
-    /// the crop around it. None if there is no such object.
+    /// the crop around it, of which one of its class near where it should be is it. None if
+    /// there is no such object.
     pub fn track(
         &mut self,
         s: &DetectionSettings,
@@ -228,10 +229,12 @@ impl Tracker {
             limit,
         );
         let o = self.objects.iter_mut().find(|o| o.id == id)?;
+        // The crop looks for its own object: another thing in it (of another class) is not it.
         let best = found
             .iter()
-            .filter_map(|d| fit(o, d, t).map(|q| (d, q)))
-            .max_by(|a, b| a.1.0.cmp(&b.1.0).then(a.1.1.total_cmp(&b.1.1)));
+            .filter(|d| d.class == o.class)
+            .filter_map(|d| fit(o, d, t).map(|q| (d, q.1)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
         let change = match best {
             Some((d, _)) => Change {
                 why: Why::FoundByTrack,

@@ -92,6 +92,9 @@ pub struct DetectionConfig {
     pub detector: Detector,
     /// Scans of the whole field a second (at most: a model slower than this sets the pace).
     pub scan_hz: f64,
+    /// Track steps a second at most: the ONNX detector looks again for each object in the
+    /// tiles in a crop around it (0: no track step; a model slower than this sets the pace).
+    pub crop_hz: f64,
     /// The ONNX detector's model, and which layout its outputs follow.
     pub model: PathBuf,
     pub decoder: Decoder,
@@ -111,6 +114,7 @@ impl Default for DetectionConfig {
         DetectionConfig {
             detector: Detector::Motion,
             scan_hz: 3.0,
+            crop_hz: 10.0,
             model: DEFAULT_MODEL.into(),
             decoder: Decoder::Nanodet,
             classes: vec![],
@@ -371,6 +375,12 @@ impl Config {
             return out_of_range(format!(
                 "detection scan_hz {} is outside 0.5..=30",
                 self.detection.scan_hz
+            ));
+        }
+        if !(0.0..=30.0).contains(&self.detection.crop_hz) {
+            return out_of_range(format!(
+                "detection crop_hz {} is outside 0..=30",
+                self.detection.crop_hz
             ));
         }
         if !(1..=16).contains(&self.detection.threads) {

@@ -4,20 +4,22 @@
 //! waits for it. There the detector (the built-in motion detector on the scans' luma, or an
 //! ONNX model on their colours, each view drawn at the model's input size) and the seed's
 //! tracker run, and the tracked objects, those the tiles show first, go into the live state,
-//! where the detection tiles and DETECTED_ROI read them. GENERAL_SETTINGS' run_ai turns it
-//! on and off.
+//! where the detection tiles and DETECTED_ROI read them. Between scans, at the crop rate, the
+//! ONNX detector's track step looks again for each object in the tiles, in a crop the frame
+//! loop renders around where it should be (handed over the same way; a scan goes first).
+//! GENERAL_SETTINGS' run_ai turns it on and off.
 
 use super::Head;
 use super::config::Detector;
 use crate::detect::external::{Batch, Inbox, Place, listen};
 use crate::detect::motion::MOVING;
 use crate::detect::onnx::class_name;
-use crate::detect::scan::{MOTION_VIEWS, ScanView, model_views, visible};
+use crate::detect::scan::{MOTION_VIEWS, ScanView, crop_view, model_views, visible};
 use crate::detect::{AngularBox, Detection, MotionDetector, OnnxDetector, OnnxError, Tracker};
 use crate::frame::{Frame, PixelFormat};
 use crate::geometry::GeoPoint;
 use crate::geometry::ground::to_ned;
-use crate::geometry::rotation::yaw_pitch;
+use crate::geometry::rotation::{direction, yaw_pitch};
 use crate::layout::layout;
 use crate::lens::Lens;
 use crate::render::Filter;
@@ -30,9 +32,11 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 use tracing::{info, warn};
 
-/// One scan, as the detection thread takes it.
+/// One scan, or the crops of one track step, as the detection thread takes it.
 pub(super) struct Scan {
     views: Vec<ScanView>,
+    /// For a track step, the object each view is a crop around (empty for a scan).
+    crops: Vec<u32>,
     plan: FramePlan,
     /// The mosaic: I420 for the motion detector (its luma plane first), RGBA for a model.
     picture: Vec<u8>,
@@ -42,19 +46,30 @@ pub(super) struct Scan {
     t: f64,
 }
 
-/// The hand-over between the frame loop and the detection thread: the newest scan only.
+/// The hand-over between the frame loop and the detection thread: the newest scan and the
+/// newest crops only.
 #[derive(Default)]
 pub(super) struct ScanSlot {
-    scan: Mutex<Option<Scan>>,
+    pending: Mutex<Pending>,
     ready: Condvar,
 }
 
-/// What the frame loop keeps for the scans.
+#[derive(Default)]
+struct Pending {
+    scan: Option<Scan>,
+    crops: Option<Scan>,
+}
+
+/// What the frame loop keeps for the scans and crops.
 #[derive(Default)]
 pub(super) struct ScanRenderer {
     renderer: Option<Renderer>,
     last: Option<Instant>,
+    last_crops: Option<Instant>,
 }
+
+/// The track step looks again for this many objects at most, those in the tiles first.
+const MAX_CROPS: usize = 6;
 
 impl ScanRenderer {
     /// Forgets the renderer (the GPU was rebuilt).
@@ -137,7 +152,8 @@ impl Head {
     }
 
     /// Renders the scan views of `frame` (rendered with `state` and `lens`) when a scan is
-    /// due, and hands them to the detection thread.
+    /// due, else the crops of a track step when one is, and hands them to the detection
+    /// thread.
     pub(super) fn offer_scan(
         &self,
         scans: &mut ScanRenderer,
@@ -148,15 +164,49 @@ impl Head {
     ) {
         let size = (frame.layout.width as u64) << 32 | frame.layout.height as u64;
         self.frame_size.store(size, Ordering::Relaxed);
-        let period = Duration::from_secs_f64(1.0 / self.cfg.detection.scan_hz);
-        let scanned = matches!(
-            self.cfg.detection.detector,
-            Detector::Motion | Detector::Onnx
-        );
-        if !scanned || !self.detecting(state) || scans.last.is_some_and(|t| t.elapsed() < period) {
+        if !self.detecting(state) {
             return;
         }
-        scans.last = Some(Instant::now());
+        // How many periods ago each was last offered; None if it has no rate.
+        let late = |last: Option<Instant>, hz: f64| {
+            (hz > 0.0).then(|| last.map_or(f64::INFINITY, |t| t.elapsed().as_secs_f64() * hz))
+        };
+        let cfg = &self.cfg.detection;
+        let to_lens = crate::geometry::view::lens_from_world(
+            state.vehicle.attitude.euler(),
+            state.mount.euler(),
+        );
+        // What the detection thread has not taken yet is not drawn again: a model slower
+        // than the scan rate sets the pace, and the frame loop's time goes to what it uses.
+        let (scan_waits, crops_wait) = {
+            let pending = self.scans.pending.lock().unwrap_or_else(|e| e.into_inner());
+            (pending.scan.is_some(), pending.crops.is_some())
+        };
+        let scanned = matches!(cfg.detector, Detector::Motion | Detector::Onnx);
+        let model = self.model.get();
+        let scan_late =
+            late(scans.last, cfg.scan_hz).filter(|&l| scanned && !scan_waits && l >= 1.0);
+        let crops_late = late(scans.last_crops, cfg.crop_hz)
+            .filter(|&l| model.is_some() && !crops_wait && !state.tracked.is_empty() && l >= 1.0);
+        // Of the two that are due, the later by its own period.
+        let take_scan = match (scan_late, crops_late) {
+            (Some(s), Some(c)) => s >= c,
+            (s, _) => s.is_some(),
+        };
+        let (views, crops, plan) = if take_scan {
+            scans.last = Some(Instant::now());
+            let shape = model.map_or(MOTION_VIEWS, |m| model_views(m.side));
+            let (views, plan) = visible(lens, to_lens, shape);
+            (views, vec![], plan)
+        } else if let Some(model) = model.filter(|_| crops_late.is_some()) {
+            scans.last_crops = Some(Instant::now());
+            crop_plan(state, lens, to_lens, model.side, frame.captured_us)
+        } else {
+            return;
+        };
+        if views.is_empty() {
+            return;
+        }
         if scans.renderer.is_none() {
             match self.scan_renderer(gpu) {
                 Ok(r) => scans.renderer = Some(r),
@@ -164,26 +214,16 @@ impl Head {
             }
         }
         let renderer = scans.renderer.as_mut().expect("made above");
-        let to_lens = crate::geometry::view::lens_from_world(
-            state.vehicle.attitude.euler(),
-            state.mount.euler(),
-        );
-        let shape = self
-            .model
-            .get()
-            .map_or(MOTION_VIEWS, |m| model_views(m.side));
-        let (views, plan) = visible(lens, to_lens, shape);
-        if views.is_empty() {
-            return;
-        }
         let t0 = Instant::now();
         let out = match renderer.render(&frame.data, &frame.layout, &plan) {
             Ok(out) => out,
             Err(e) => return warn!("detection: the scan did not render: {e}"),
         };
-        self.stats
-            .scan_us
-            .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+        if crops.is_empty() {
+            self.stats
+                .scan_us
+                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+        }
         let scan = Scan {
             views,
             plan,
@@ -191,9 +231,14 @@ impl Head {
             picture: out.data,
             position: state.vehicle.position,
             t: frame.captured_us as f64 * 1e-6,
+            crops,
         };
         let slot = &self.scans;
-        *slot.scan.lock().unwrap_or_else(|e| e.into_inner()) = Some(scan);
+        let mut pending = slot.pending.lock().unwrap_or_else(|e| e.into_inner());
+        match scan.crops.is_empty() {
+            true => pending.scan = Some(scan),
+            false => pending.crops = Some(scan),
+        }
         slot.ready.notify_one();
     }
 
@@ -246,6 +291,13 @@ impl Head {
                     continue;
                 };
                 let t0 = Instant::now();
+                if !scan.crops.is_empty() {
+                    if self.track_step(&mut tracker, &state, &scan) {
+                        self.show(&mut tracker, &state, &labels);
+                        owns_list = true;
+                    }
+                    continue;
+                }
                 let home = *origin.get_or_insert(GeoPoint {
                     alt: scan.position.home_alt(),
                     ..scan.position.point()
@@ -277,15 +329,7 @@ impl Head {
                     .any(|v| plan.view_point(v, b.centre).is_some())
             };
             tracker.scan(&state.detection, t, found, covered);
-            let o = &state.output;
-            let shown = layout(o.width, o.height, o.layout, o.overlay).map_or(0, |l| l.tiles.len());
-            let tiles = tracker.tiles(state.detection.sorting_mode, shown);
-            let name = |class: u16| match self.cfg.detection.detector {
-                Detector::External => labels.get(class as usize).cloned().unwrap_or_default(),
-                Detector::Motion if class == MOVING => "moving".into(),
-                _ => class_name(class),
-            };
-            self.publish(tracked(&tracker, &tiles, name));
+            self.show(&mut tracker, &state, &labels);
             owns_list = true;
             self.stats
                 .detect_us
@@ -369,15 +413,63 @@ impl Head {
         Some((found, plan))
     }
 
-    /// The newest scan, waiting up to a tenth of a second for one.
+    /// The newest scan or the newest crops, the older first, waiting up to a tenth of a
+    /// second for one.
     fn next_scan(&self) -> Option<Scan> {
         let slot = &self.scans;
-        let guard = slot.scan.lock().unwrap_or_else(|e| e.into_inner());
+        let guard = slot.pending.lock().unwrap_or_else(|e| e.into_inner());
         let (mut guard, _) = slot
             .ready
-            .wait_timeout_while(guard, Duration::from_millis(100), |s| s.is_none())
+            .wait_timeout_while(guard, Duration::from_millis(100), |p| {
+                p.scan.is_none() && p.crops.is_none()
+            })
             .unwrap_or_else(|e| e.into_inner());
-        guard.take()
+        // The older first: crops taken after a newer scan would put objects back where they
+        // were before it, and a scan always pending would starve the crops.
+        let crops_first = match (&guard.scan, &guard.crops) {
+            (Some(scan), Some(crops)) => crops.t < scan.t,
+            (scan, _) => scan.is_none(),
+        };
+        match crops_first {
+            true => guard.crops.take(),
+            false => guard.scan.take(),
+        }
+    }
+
+    /// The track step: the model on each crop, each object found again or missed in its own
+    /// (at `crop_confidence_threshold`). False if the model failed.
+    fn track_step(&self, tracker: &mut Tracker, state: &State, crops: &Scan) -> bool {
+        let Some(model) = self.model.get() else {
+            return false;
+        };
+        let threshold = state.detection.crop_confidence_threshold as f32;
+        let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
+        for ((view, planned), &id) in crops.views.iter().zip(&crops.plan.views).zip(&crops.crops) {
+            match model.crop(view, planned, &crops.picture, crops.stride, threshold) {
+                Ok(found) => {
+                    tracker.track(&state.detection, crops.t, id, found);
+                }
+                Err(e) => {
+                    warn!("detection: {e}");
+                    return false;
+                }
+            }
+            self.stats.crops.fetch_add(1, Ordering::Relaxed);
+        }
+        true
+    }
+
+    /// Orders the tracker's objects into the tiles and puts them in the live state.
+    fn show(&self, tracker: &mut Tracker, state: &State, labels: &[String]) {
+        let o = &state.output;
+        let shown = layout(o.width, o.height, o.layout, o.overlay).map_or(0, |l| l.tiles.len());
+        let tiles = tracker.tiles(state.detection.sorting_mode, shown);
+        let name = |class: u16| match self.cfg.detection.detector {
+            Detector::External => labels.get(class as usize).cloned().unwrap_or_default(),
+            Detector::Motion if class == MOVING => "moving".into(),
+            _ => class_name(class),
+        };
+        self.publish(tracked(tracker, &tiles, name));
     }
 
     /// Puts the objects in the live state, unless detection was turned off meanwhile.
@@ -392,6 +484,34 @@ impl Head {
             warn!("detection: the objects were not taken: {e}");
         }
     }
+}
+
+/// The crops of a track step for `state`'s objects, tiles first, where they should be at
+/// `t_us`: square views of the model's `side`, those the lens images. Their ids, and the
+/// mosaic that renders them.
+fn crop_plan(
+    state: &State,
+    lens: &Lens,
+    to_lens: glam::DMat3,
+    side: u32,
+    t_us: u64,
+) -> (Vec<ScanView>, Vec<u32>, FramePlan) {
+    let (mut views, mut ids) = (vec![], vec![]);
+    for o in state.tracked.iter().take(MAX_CROPS) {
+        let o = o.at(t_us);
+        let ray = direction(o.yaw, o.pitch);
+        if lens
+            .project(to_lens * ray)
+            .is_some_and(|q| lens.in_frame(q))
+        {
+            views.push(crop_view(o.id, o.yaw, o.pitch, o.size));
+            ids.push(o.id);
+        }
+    }
+    let aims: Vec<_> = views.iter().map(|v| (v.yaw, v.pitch, v.fov)).collect();
+    let columns = (views.len() as f64).sqrt().ceil() as u32;
+    let plan = FramePlan::mosaic(lens, to_lens, &aims, (side, side), columns);
+    (views, ids, plan)
 }
 
 /// The tracker's objects as the state lists them: those in the tiles first, in tile order,

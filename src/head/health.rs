@@ -33,6 +33,8 @@ pub struct Health {
     /// Detection: scans a second, ms to render each (in the frame loop) and ms to detect and
     /// track in each (on its own thread); and the objects tracked.
     pub scans: (f64, f64, f64),
+    /// Crops the track step looked at again, a second.
+    pub crops: f64,
     pub tracked: usize,
 }
 
@@ -51,6 +53,7 @@ struct Sample {
     scans: u64,
     scan_us: u64,
     detect_us: u64,
+    crops: u64,
 }
 
 impl std::fmt::Display for Health {
@@ -82,6 +85,9 @@ impl std::fmt::Display for Health {
                  {} tracked",
                 self.tracked
             )?;
+            if self.crops > 0.0 {
+                write!(f, ", {:.1} crops/s", self.crops)?;
+            }
         }
         if self.relays.1 > 0 {
             write!(
@@ -117,6 +123,7 @@ impl Head {
             scans: s.scans.load(Ordering::Relaxed),
             scan_us: s.scan_us.load(Ordering::Relaxed),
             detect_us: s.detect_us.load(Ordering::Relaxed),
+            crops: s.crops.load(Ordering::Relaxed),
         }
     }
 
@@ -148,6 +155,7 @@ impl Head {
                 per(b.scan_us - a.scan_us, scans),
                 per(b.detect_us - a.detect_us, scans),
             ),
+            crops: (b.crops - a.crops) as f64 / secs,
             tracked: self.live.snapshot().tracked.len(),
         }
     }

@@ -75,7 +75,7 @@ pub struct Head {
     /// The figures over the last second.
     health: Mutex<health::Health>,
     exposure: exposure::ExposureStage,
-    /// The newest scan for the detection thread.
+    /// The newest scan and the newest crops for the detection thread.
     scans: detection::ScanSlot,
     /// The ONNX detector, once loaded.
     model: std::sync::OnceLock<detection::Model>,
@@ -102,6 +102,8 @@ struct Stats {
     scan_us: AtomicU64,
     scans: AtomicU64,
     detect_us: AtomicU64,
+    /// Crops looked at again by the track step.
+    crops: AtomicU64,
 }
 
 impl Head {

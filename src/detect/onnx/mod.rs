@@ -12,7 +12,7 @@ use super::Detection;
 #[cfg(doc)]
 use super::scan::model_views;
 use super::scan::{ScanView, owner, to_world};
-use crate::render::FramePlan;
+use crate::render::{FramePlan, PlannedView};
 use decode::Level;
 use glam::DVec2;
 use image::imageops::FilterType;
@@ -332,32 +332,66 @@ impl OnnxDetector {
     ) -> Result<Vec<Detection>, OnnxError> {
         let mut found = vec![];
         for (view, planned) in views.iter().zip(&plan.views) {
-            let r = planned.rect;
-            let rows = rgba
-                .get(r.y as usize * stride..(r.y + r.h) as usize * stride)
-                .ok_or_else(|| OnnxError::Run("a scan view lies outside its mosaic".into()))?;
-            let picture: image::RgbaImage = image::ImageBuffer::from_fn(r.w, r.h, |x, y| {
-                let i = y as usize * stride + (r.x + x) as usize * 4;
-                image::Rgba([rows[i], rows[i + 1], rows[i + 2], 255])
-            });
-            let side = self.side;
-            let input = image::imageops::resize(&picture, side, side, FilterType::Triangle);
-            let back = DVec2::new(r.w as f64, r.h as f64) / side as f64;
-            for b in self.detect(input.as_raw(), side as usize * 4, 4, threshold)? {
-                let Some(bbox) = to_world(view, planned, b.low * back, b.high * back) else {
-                    continue;
-                };
-                let whole = b.low.min_element() > EDGE
-                    && b.high.x < side as f64 - EDGE
-                    && b.high.y < side as f64 - EDGE;
-                if whole || owner(views, plan, bbox.centre, bbox.size(), EDGE) == Some(view.index) {
-                    found.push(Detection {
-                        bbox,
-                        confidence: b.confidence as f64,
-                        class: b.class,
-                    });
+            for (d, whole) in self.view(view, planned, rgba, stride, threshold)? {
+                if whole
+                    || owner(views, plan, d.bbox.centre, d.bbox.size(), EDGE) == Some(view.index)
+                {
+                    found.push(d);
                 }
             }
+        }
+        Ok(found)
+    }
+
+    /// Runs the model on one view of an RGBA mosaic (a crop around a tracked object, for the
+    /// track step): its boxes as directions in the world, those cut by its edge included.
+    pub fn crop(
+        &mut self,
+        view: &ScanView,
+        planned: &PlannedView,
+        rgba: &[u8],
+        stride: usize,
+        threshold: f32,
+    ) -> Result<Vec<Detection>, OnnxError> {
+        let found = self.view(view, planned, rgba, stride, threshold)?;
+        Ok(found.into_iter().map(|(d, _)| d).collect())
+    }
+
+    /// The boxes the model finds in one view of a mosaic, each with whether it is clear of
+    /// the view's edges.
+    fn view(
+        &mut self,
+        view: &ScanView,
+        planned: &PlannedView,
+        rgba: &[u8],
+        stride: usize,
+        threshold: f32,
+    ) -> Result<Vec<(Detection, bool)>, OnnxError> {
+        let r = planned.rect;
+        let rows = rgba
+            .get(r.y as usize * stride..(r.y + r.h) as usize * stride)
+            .ok_or_else(|| OnnxError::Run("a scan view lies outside its mosaic".into()))?;
+        let picture: image::RgbaImage = image::ImageBuffer::from_fn(r.w, r.h, |x, y| {
+            let i = y as usize * stride + (r.x + x) as usize * 4;
+            image::Rgba([rows[i], rows[i + 1], rows[i + 2], 255])
+        });
+        let side = self.side;
+        let input = image::imageops::resize(&picture, side, side, FilterType::Triangle);
+        let back = DVec2::new(r.w as f64, r.h as f64) / side as f64;
+        let mut found = vec![];
+        for b in self.detect(input.as_raw(), side as usize * 4, 4, threshold)? {
+            let Some(bbox) = to_world(view, planned, b.low * back, b.high * back) else {
+                continue;
+            };
+            let whole = b.low.min_element() > EDGE
+                && b.high.x < side as f64 - EDGE
+                && b.high.y < side as f64 - EDGE;
+            let d = Detection {
+                bbox,
+                confidence: b.confidence as f64,
+                class: b.class,
+            };
+            found.push((d, whole));
         }
         Ok(found)
     }
