@@ -6,7 +6,7 @@
 //! tracker run, and the tracked objects, those the tiles show first, go into the live state,
 //! where the detection tiles and DETECTED_ROI read them. Between scans, at the crop rate, the
 //! ONNX detector's track step looks again for each object in the tiles, in a crop the frame
-//! loop renders around where it should be (handed over the same way; a scan goes first).
+//! loop renders around where it should be (handed over the same way, the older first).
 //! GENERAL_SETTINGS' run_ai turns it on and off.
 
 use super::Head;
@@ -58,6 +58,11 @@ pub(super) struct ScanSlot {
 struct Pending {
     scan: Option<Scan>,
     crops: Option<Scan>,
+    /// When the detection thread should be done with what it took last, from how long the
+    /// last scan and the last crops took it.
+    busy_until: Option<Instant>,
+    scan_took: Duration,
+    crops_took: Duration,
 }
 
 /// What the frame loop keeps for the scans and crops.
@@ -176,18 +181,27 @@ impl Head {
             state.vehicle.attitude.euler(),
             state.mount.euler(),
         );
-        // What the detection thread has not taken yet is not drawn again: a model slower
-        // than the scan rate sets the pace, and the frame loop's time goes to what it uses.
-        let (scan_waits, crops_wait) = {
+        // What the detection thread would not take within a period is not drawn yet (nor
+        // again while one waits): a model slower than the rate sets the pace, the frame loop's
+        // time goes to what is used, and what is used is at most a period old when taken.
+        let (scan_free, crops_free) = {
             let pending = self.scans.pending.lock().unwrap_or_else(|e| e.into_inner());
-            (pending.scan.is_some(), pending.crops.is_some())
+            let soon = |hz: f64| {
+                let period = Duration::from_secs_f64(1.0 / hz.max(0.1));
+                pending
+                    .busy_until
+                    .is_none_or(|b| Instant::now() + period >= b)
+            };
+            (
+                pending.scan.is_none() && soon(cfg.scan_hz),
+                pending.crops.is_none() && soon(cfg.crop_hz),
+            )
         };
         let scanned = matches!(cfg.detector, Detector::Motion | Detector::Onnx);
         let model = self.model.get();
-        let scan_late =
-            late(scans.last, cfg.scan_hz).filter(|&l| scanned && !scan_waits && l >= 1.0);
+        let scan_late = late(scans.last, cfg.scan_hz).filter(|&l| scanned && scan_free && l >= 1.0);
         let crops_late = late(scans.last_crops, cfg.crop_hz)
-            .filter(|&l| model.is_some() && !crops_wait && !state.tracked.is_empty() && l >= 1.0);
+            .filter(|&l| model.is_some() && crops_free && !state.tracked.is_empty() && l >= 1.0);
         // Of the two that are due, the later by its own period.
         let take_scan = match (scan_late, crops_late) {
             (Some(s), Some(c)) => s >= c,
@@ -290,14 +304,16 @@ impl Head {
                 let Some(scan) = self.next_scan() else {
                     continue;
                 };
-                let t0 = Instant::now();
                 if !scan.crops.is_empty() {
+                    let t0 = Instant::now();
                     if self.track_step(&mut tracker, &state, &scan) {
                         self.show(&mut tracker, &state, &labels);
                         owns_list = true;
                     }
+                    self.took(|p| &mut p.crops_took, t0);
                     continue;
                 }
+                let t0 = Instant::now();
                 let home = *origin.get_or_insert(GeoPoint {
                     alt: scan.position.home_alt(),
                     ..scan.position.point()
@@ -331,6 +347,7 @@ impl Head {
             tracker.scan(&state.detection, t, found, covered);
             self.show(&mut tracker, &state, &labels);
             owns_list = true;
+            self.took(|p| &mut p.scan_took, t0);
             self.stats
                 .detect_us
                 .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
@@ -430,10 +447,20 @@ impl Head {
             (Some(scan), Some(crops)) => crops.t < scan.t,
             (scan, _) => scan.is_none(),
         };
-        match crops_first {
-            true => guard.crops.take(),
-            false => guard.scan.take(),
+        let (taken, took) = match crops_first {
+            true => (guard.crops.take(), guard.crops_took),
+            false => (guard.scan.take(), guard.scan_took),
+        };
+        if taken.is_some() {
+            guard.busy_until = Some(Instant::now() + took);
         }
+        taken
+    }
+
+    /// Notes how long a scan or the crops took the detection thread, since `t0`.
+    fn took(&self, which: impl FnOnce(&mut Pending) -> &mut Duration, t0: Instant) {
+        let mut pending = self.scans.pending.lock().unwrap_or_else(|e| e.into_inner());
+        *which(&mut pending) = t0.elapsed();
     }
 
     /// The track step: the model on each crop, each object found again or missed in its own
