@@ -236,10 +236,28 @@ fn attitude_is_slerped_between_the_samples_around_the_capture_time() {
         (track.at(0).unwrap().yaw - 10.0 * DEG).abs() < 1e-12,
         "before the span: the first sample"
     );
+    // After it: turning on as the last two samples did, for 50 ms at most.
+    let mut turning = AttitudeTrack::new(8);
+    turning.push(0, Euler::new(0.0, 0.0, 5.0 * DEG));
+    turning.push(10_000, Euler::new(1.0 * DEG, 0.0, 5.0 * DEG)); // 100°/s of yaw
+    let ahead = |t: u64| turning.at(t).unwrap();
     assert!(
-        (track.at(9_000).unwrap().yaw - 30.0 * DEG).abs() < 1e-12,
-        "after it: the last"
+        (ahead(15_000).yaw - 1.5 * DEG).abs() < 1e-9,
+        "{:?}",
+        ahead(15_000)
     );
+    assert!((ahead(15_000).roll - 5.0 * DEG).abs() < 1e-9);
+    assert!((ahead(60_000).yaw - 6.0 * DEG).abs() < 1e-9);
+    assert!(
+        (ahead(900_000).yaw - 6.0 * DEG).abs() < 1e-9,
+        "a silent autopilot: held"
+    );
+    let one = {
+        let mut t = AttitudeTrack::new(4);
+        t.push(1_000, Euler::new(30.0 * DEG, 0.0, 0.0));
+        t.at(9_000).unwrap()
+    };
+    assert!((one.yaw - 30.0 * DEG).abs() < 1e-12, "one sample: held");
     // Across ±180° the short way round.
     let mut t = AttitudeTrack::new(4);
     t.push(0, Euler::new(170.0 * DEG, 0.0, 0.0));
