@@ -306,10 +306,9 @@ impl Head {
                 };
                 if !scan.crops.is_empty() {
                     let t0 = Instant::now();
-                    if self.track_step(&mut tracker, &state, &scan) {
-                        self.show(&mut tracker, &state, &labels);
-                        owns_list = true;
-                    }
+                    self.track_step(&mut tracker, &state, &scan);
+                    self.show(&mut tracker, &state, &labels);
+                    owns_list = true;
                     self.took(|p| &mut p.crops_took, t0);
                     continue;
                 }
@@ -464,10 +463,10 @@ impl Head {
     }
 
     /// The track step: the model on each crop, each object found again or missed in its own
-    /// (at `crop_confidence_threshold`). False if the model failed.
-    fn track_step(&self, tracker: &mut Tracker, state: &State, crops: &Scan) -> bool {
+    /// (at `crop_confidence_threshold`). A model that fails stops the step where it is.
+    fn track_step(&self, tracker: &mut Tracker, state: &State, crops: &Scan) {
         let Some(model) = self.model.get() else {
-            return false;
+            return;
         };
         let threshold = state.detection.crop_confidence_threshold as f32;
         let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
@@ -476,14 +475,10 @@ impl Head {
                 Ok(found) => {
                     tracker.track(&state.detection, crops.t, id, found);
                 }
-                Err(e) => {
-                    warn!("detection: {e}");
-                    return false;
-                }
+                Err(e) => return warn!("detection: {e}"),
             }
             self.stats.crops.fetch_add(1, Ordering::Relaxed);
         }
-        true
     }
 
     /// Orders the tracker's objects into the tiles and puts them in the live state.
