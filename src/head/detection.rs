@@ -11,11 +11,11 @@
 
 use super::Head;
 use super::config::Detector;
-use crate::detect::external::{Batch, Inbox, Place, listen};
+use crate::detect::external::{Inbox, listen};
 use crate::detect::motion::MOVING;
 use crate::detect::onnx::class_name;
 use crate::detect::scan::{MOTION_VIEWS, ScanView, crop_view, model_views, visible};
-use crate::detect::{AngularBox, Detection, MotionDetector, OnnxDetector, OnnxError, Tracker};
+use crate::detect::{AngularBox, MotionDetector, OnnxDetector, OnnxError, Tracker};
 use crate::frame::{Frame, PixelFormat};
 use crate::geometry::GeoPoint;
 use crate::geometry::ground::to_ned;
@@ -26,7 +26,7 @@ use crate::render::Filter;
 use crate::render::FramePlan;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::state::{Invalid, State, Tracked};
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -352,81 +352,6 @@ impl Head {
                 .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
             self.stats.scans.fetch_add(1, Ordering::Relaxed);
         }
-    }
-
-    /// The external detector's boxes as directions in the world (fisheye pixels through the
-    /// lens at the state's attitude), and the views that cover the lens's field (what the
-    /// detector was looking at). Boxes the lens does not image are left out.
-    fn external_boxes(
-        &self,
-        state: &State,
-        batch: &Batch,
-        labels: &mut Vec<String>,
-    ) -> Option<(Vec<Detection>, FramePlan)> {
-        // The frames' own size (what the sender's pixels are in), once one has come.
-        let size = self.frame_size.load(Ordering::Relaxed);
-        let sensor = match ((size >> 32) as u32, size as u32) {
-            (0, _) | (_, 0) => (state.sensor.width, state.sensor.height),
-            wh => wh,
-        };
-        let lens = match self
-            .live
-            .lenses()
-            .for_frame(state.lens, sensor, state.sensor.roi())
-        {
-            Ok(lens) => lens,
-            Err(e) => {
-                warn!("detection: {e}");
-                return None;
-            }
-        };
-        let to_lens = crate::geometry::view::lens_from_world(
-            state.vehicle.attitude.euler(),
-            state.mount.euler(),
-        );
-        let to_world = |p: DVec2| lens.unproject(p).map(|r| to_lens.transpose() * r);
-        let mut found = vec![];
-        for b in &batch.boxes {
-            let bbox = match b.place {
-                Place::Angles {
-                    yaw,
-                    pitch,
-                    width,
-                    height,
-                } => AngularBox::new(yaw, pitch, width, height),
-                Place::Pixels { x0, y0, x1, y1 } => {
-                    let c = DVec2::new(x0 + x1, y0 + y1) / 2.0;
-                    let rays = [c, DVec2::new(x0, c.y), DVec2::new(x1, c.y)]
-                        .into_iter()
-                        .chain([DVec2::new(c.x, y0), DVec2::new(c.x, y1)])
-                        .map(to_world)
-                        .collect::<Option<Vec<_>>>();
-                    let Some(r) = rays else {
-                        continue;
-                    };
-                    AngularBox {
-                        centre: r[0],
-                        width: r[1].angle_between(r[2]),
-                        height: r[3].angle_between(r[4]),
-                    }
-                }
-            };
-            let class = match labels.iter().position(|l| *l == b.label) {
-                Some(i) => i,
-                None if labels.len() < u16::MAX as usize => {
-                    labels.push(b.label.clone());
-                    labels.len() - 1
-                }
-                None => continue,
-            };
-            found.push(Detection {
-                bbox,
-                confidence: b.confidence,
-                class: class as u16,
-            });
-        }
-        let (_, plan) = visible(&lens, to_lens, MOTION_VIEWS);
-        Some((found, plan))
     }
 
     /// The newest scan or the newest crops, the older first, waiting up to a tenth of a

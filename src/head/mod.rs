@@ -14,6 +14,7 @@ pub mod capture;
 pub mod config;
 mod detection;
 mod exposure;
+mod external;
 mod frame_loop;
 pub mod health;
 mod no_signal;
