@@ -185,6 +185,6 @@ pub fn crop_view(id: u32, yaw: f64, pitch: f64, size: f64) -> ScanView {
 /// A crop is this many times its object's size across.
 const CROP_MARGIN: f64 = 3.0;
 /// A crop's narrowest and widest field.
-pub const CROP_FOV: (f64, f64) = (8.0 * DEG, 80.0 * DEG);
+const CROP_FOV: (f64, f64) = (8.0 * DEG, 80.0 * DEG);
 /// Crops' view indices start here, past the scan views'.
 const CROPS: usize = 1 << 20;
