@@ -40,6 +40,8 @@ const MIN_SIDE: f64 = 2.0;
 const JOIN: usize = 3;
 /// How wide a ring around a blob its surroundings are read from, pixels.
 const RING: usize = 3;
+/// How many pixels a thing grows by into pixels the edge slack left out.
+const GROW: usize = 2;
 /// The least share of a blob's pixels that changed since the last scan for it to be moving.
 const MOVED_SHARE: f64 = 0.1;
 /// The class motion detections carry.
@@ -123,6 +125,7 @@ impl MotionDetector {
             let moved = resample(&bg.luma, w, h, &from);
             let before = resample(&bg.last, w, h, &from);
             let mut mask = vec![false; w * h];
+            let mut weak = vec![false; w * h];
             let mut diff = vec![0f32; w * h];
             let lit = |i: usize| current[i] > DARK && moved[i].is_some_and(|b| b > DARK);
             for y in EDGE..h.saturating_sub(EDGE) {
@@ -141,11 +144,22 @@ impl MotionDetector {
                     // Outside the lens's circle the views are black, and the circle's rim
                     // moves with the vehicle's attitude: only pixels inside in both, with
                     // their neighbours, count.
-                    mask[i] = d > THRESHOLD + EDGE_SLACK * edge
+                    weak[i] = d > THRESHOLD
                         && [i, i - EDGE, i + EDGE, i - EDGE * w, i + EDGE * w]
                             .into_iter()
                             .all(lit);
+                    mask[i] = weak[i] && d > THRESHOLD + EDGE_SLACK * edge;
                 }
+            }
+            // The pixels of a blob that look like its surroundings now where the background
+            // did not are a stain: what stood there when the background was taken, joined to
+            // the thing that moved away from it. They leave the blob before it is judged.
+            let mut stained = vec![];
+            for blob in blobs(&mask, w, h) {
+                stained.extend(stain(&blob, &current, &moved, &mask, w, h));
+            }
+            for &i in &stained {
+                mask[i] = false;
             }
             // A blob that looks like its surroundings now, or where nothing changed since the
             // last scan, is not a thing moving but a stain in the background (what stood
@@ -158,6 +172,17 @@ impl MotionDetector {
             for i in stains.iter().flat_map(|b| &b.pixels) {
                 mask[*i] = false;
             }
+            // Where a thing crosses a background's edges, the edge slack drops its pixels
+            // there: a thing takes back the pixels beside it that differ by the plain
+            // threshold, a few pixels out at most (a line of the background a fraction of a
+            // pixel off would otherwise lead it along).
+            for &i in &stained {
+                weak[i] = false;
+            }
+            let things: Vec<Blob> = things
+                .into_iter()
+                .map(|b| grow(b, &weak, &mut mask, w, h))
+                .collect();
             let settled = bg.scans >= WARM_UP;
             for i in 0..w * h {
                 bg.luma[i] = match moved[i] {
@@ -169,8 +194,8 @@ impl MotionDetector {
                     _ => current[i],
                 };
             }
-            for i in stains.iter().flat_map(|b| &b.pixels) {
-                bg.luma[*i] = current[*i];
+            for &i in stains.iter().flat_map(|b| &b.pixels).chain(&stained) {
+                bg.luma[i] = current[i];
             }
             bg.eye = eye;
             bg.scans += 1;
@@ -307,6 +332,57 @@ struct Blob {
 /// (by at least [`THRESHOLD`] on average).
 fn stands_out(blob: &Blob, current: &[f32], mask: &[bool], w: usize, h: usize) -> bool {
     let inside = blob.pixels.iter().map(|&i| current[i]).sum::<f32>() / blob.pixels.len() as f32;
+    let (mut sum, mut n) = (0f32, 0usize);
+    for i in ring(blob, w, h) {
+        if !mask[i] && current[i] > DARK {
+            sum += current[i];
+            n += 1;
+        }
+    }
+    n == 0 || (inside - sum / n as f32).abs() >= THRESHOLD
+}
+
+/// The pixels of `blob` that are a stain: the picture now is within [`THRESHOLD`] of the
+/// ring of background pixels around the blob (their median), and the background is not.
+fn stain(
+    blob: &Blob,
+    current: &[f32],
+    background: &[Option<f32>],
+    mask: &[bool],
+    w: usize,
+    h: usize,
+) -> Vec<usize> {
+    let (mut now, mut then) = (vec![], vec![]);
+    for i in ring(blob, w, h) {
+        if let Some(b) = background[i].filter(|_| !mask[i] && current[i] > DARK) {
+            now.push(current[i]);
+            then.push(b);
+        }
+    }
+    let (Some(now), Some(then)) = (median(&mut now), median(&mut then)) else {
+        return vec![];
+    };
+    blob.pixels
+        .iter()
+        .copied()
+        .filter(|&i| {
+            (current[i] - now).abs() < THRESHOLD
+                && background[i].is_some_and(|b| (b - then).abs() >= THRESHOLD)
+        })
+        .collect()
+}
+
+fn median(values: &mut [f32]) -> Option<f32> {
+    if values.is_empty() {
+        return None;
+    }
+    let k = values.len() / 2;
+    Some(*values.select_nth_unstable_by(k, f32::total_cmp).1)
+}
+
+/// The pixels of the box [`RING`] pixels wider than `blob`'s on each side (the blob's own
+/// among them).
+fn ring(blob: &Blob, w: usize, h: usize) -> impl Iterator<Item = usize> {
     let (x0, y0) = (
         (blob.low.x as usize).saturating_sub(RING),
         (blob.low.y as usize).saturating_sub(RING),
@@ -315,17 +391,7 @@ fn stands_out(blob: &Blob, current: &[f32], mask: &[bool], w: usize, h: usize) -
         (blob.high.x as usize + RING).min(w - 1),
         (blob.high.y as usize + RING).min(h - 1),
     );
-    let (mut sum, mut n) = (0f32, 0usize);
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            let i = y * w + x;
-            if !mask[i] && current[i] > DARK {
-                sum += current[i];
-                n += 1;
-            }
-        }
-    }
-    n == 0 || (inside - sum / n as f32).abs() >= THRESHOLD
+    (y0..=y1).flat_map(move |y| (x0..=x1).map(move |x| y * w + x))
 }
 
 /// Whether enough of a blob's pixels changed since the last scan (`before`, moved to where
@@ -337,6 +403,48 @@ fn changed(blob: &Blob, current: &[f32], before: &[Option<f32>]) -> bool {
         .filter(|&&i| before[i].is_none_or(|b| (current[i] - b).abs() > THRESHOLD))
         .count();
     moving as f64 >= MOVED_SHARE * blob.pixels.len() as f64
+}
+
+/// `blob` grown by up to [`GROW`] pixels into the `weak` pixels around it, which join `mask`.
+fn grow(mut blob: Blob, weak: &[bool], mask: &mut [bool], w: usize, h: usize) -> Blob {
+    let mut edge = blob.pixels.clone();
+    for _ in 0..GROW {
+        let mut next = vec![];
+        for i in edge {
+            for n in neighbours(i, w, h) {
+                if weak[n] && !mask[n] {
+                    mask[n] = true;
+                    next.push(n);
+                }
+            }
+        }
+        for &n in &next {
+            let p = DVec2::new((n % w) as f64, (n / w) as f64);
+            (blob.low, blob.high) = (blob.low.min(p), blob.high.max(p));
+        }
+        blob.pixels.extend(&next);
+        edge = next;
+    }
+    blob
+}
+
+/// The 8 pixels around pixel `i` of a w × h picture, those inside it.
+fn neighbours(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = ((i % w) as i64, (i / w) as i64);
+    [
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+        (-1, 0),
+        (1, 0),
+        (-1, 1),
+        (0, 1),
+        (1, 1),
+    ]
+    .into_iter()
+    .map(move |(dx, dy)| (x + dx, y + dy))
+    .filter(move |&(x, y)| x >= 0 && y >= 0 && x < w as i64 && y < h as i64)
+    .map(move |(x, y)| y as usize * w + x as usize)
 }
 
 /// The 8-connected blobs of `mask` with at least [`MIN_PIXELS`] pixels.
@@ -356,24 +464,9 @@ fn blobs(mask: &[bool], w: usize, h: usize) -> Vec<Blob> {
         };
         while let Some(i) = stack.pop() {
             blob.pixels.push(i);
-            let (x, y) = (i % w, i / w);
-            let p = DVec2::new(x as f64, y as f64);
+            let p = DVec2::new((i % w) as f64, (i / w) as f64);
             (blob.low, blob.high) = (blob.low.min(p), blob.high.max(p));
-            for (dx, dy) in [
-                (-1, -1),
-                (0, -1),
-                (1, -1),
-                (-1, 0),
-                (1, 0),
-                (-1, 1),
-                (0, 1),
-                (1, 1),
-            ] {
-                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                    continue;
-                }
-                let n = ny as usize * w + nx as usize;
+            for n in neighbours(i, w, h) {
                 if mask[n] && !seen[n] {
                     seen[n] = true;
                     stack.push(n);
@@ -382,7 +475,9 @@ fn blobs(mask: &[bool], w: usize, h: usize) -> Vec<Blob> {
         }
         out.push(blob);
     }
-    // Pieces of one thing (cut by the lines it crosses) within a few pixels join.
+    // Pieces of one thing (cut by the lines it crosses) within a few pixels join; stray
+    // pixels (a line's edge a fraction of a pixel off) do not.
+    out.retain(|b| b.pixels.len() >= MIN_PIXELS);
     let near = |a: &Blob, b: &Blob| {
         let gap = (a.low - b.high).max(b.low - a.high);
         gap.x <= JOIN as f64 && gap.y <= JOIN as f64
