@@ -5,7 +5,7 @@
 //! foreground; their connected blobs are the detections.
 
 use super::angular::Detection;
-use super::scan::{ScanView, owner, to_world};
+use super::scan::{ScanView, clear_of_edges, to_world};
 use crate::geometry::Projection;
 use crate::render::FramePlan;
 use crate::render::plan::ViewMap;
@@ -92,7 +92,7 @@ impl MotionDetector {
         // Views no longer seen lose their background.
         self.backgrounds
             .retain(|i, _| views.iter().any(|v| v.index == *i));
-        let mut found: Vec<Detection> = vec![];
+        let mut found: Vec<Sighting> = vec![];
         // JOIN pixels, as an angle.
         let mut join = 0f64;
         for (view, planned) in views.iter().zip(&plan.views) {
@@ -151,12 +151,19 @@ impl MotionDetector {
                     mask[i] = weak[i] && d > THRESHOLD + EDGE_SLACK * edge;
                 }
             }
+            // A blob's surroundings are read where the picture matches the background.
+            let known = |mask: &[bool]| -> Vec<bool> {
+                (0..w * h)
+                    .map(|i| !mask[i] && lit(i) && diff[i] <= THRESHOLD)
+                    .collect()
+            };
             // The pixels of a blob that look like its surroundings now where the background
             // did not are a stain: what stood there when the background was taken, joined to
             // the thing that moved away from it. They leave the blob before it is judged.
             let mut stained = vec![];
+            let surroundings = known(&mask);
             for blob in blobs(&mask, w, h) {
-                stained.extend(stain(&blob, &current, &moved, &mask, w, h));
+                stained.extend(stain(&blob, &current, &moved, &surroundings, w, h));
             }
             for &i in &stained {
                 mask[i] = false;
@@ -165,9 +172,10 @@ impl MotionDetector {
             // last scan, is not a thing moving but a stain in the background (what stood
             // there when the view was first seen, or the wake of something that passed) or a
             // thing that stopped: the background takes the picture there at once.
+            let surroundings = known(&mask);
             let (things, stains): (Vec<Blob>, Vec<Blob>) =
                 blobs(&mask, w, h).into_iter().partition(|b| {
-                    stands_out(b, &current, &mask, w, h) && changed(b, &current, &before)
+                    stands_out(b, &current, &surroundings, w, h) && changed(b, &current, &before)
                 });
             for i in stains.iter().flat_map(|b| &b.pixels) {
                 mask[*i] = false;
@@ -209,44 +217,74 @@ impl MotionDetector {
                 let Some(bbox) = to_world(view, planned, blob.low, blob.high + DVec2::ONE) else {
                     continue;
                 };
-                // Views overlap: a thing is reported once, by the view whose centre is
-                // nearest of those that show it clear of their edges. Thin slivers are the
-                // edges of lines a fraction of a pixel off, not things.
+                // Thin slivers are the edges of lines a fraction of a pixel off, not things.
                 let extent = blob.high - blob.low + DVec2::ONE;
-                let margin = (EDGE + RING) as f64;
-                if extent.min_element() < MIN_SIDE
-                    || owner(views, plan, bbox.centre, bbox.size(), margin) != Some(view.index)
-                {
+                if extent.min_element() < MIN_SIDE {
                     continue;
                 }
-                found.push(Detection {
-                    bbox,
-                    confidence: (mean / FULL_CONFIDENCE).min(0.99) as f64,
-                    class: MOVING,
+                let margin = (EDGE + RING) as f64;
+                found.push(Sighting {
+                    view: view.index,
+                    clear: clear_of_edges(view, planned, bbox.centre, bbox.size(), margin),
+                    detection: Detection {
+                        bbox,
+                        confidence: (mean / FULL_CONFIDENCE).min(0.99) as f64,
+                        class: MOVING,
+                    },
                 });
             }
         }
-        join_across_views(found, join)
+        one_per_thing(found, join)
     }
 }
 
-/// Pieces of one thing reported by neighbouring views (each view judges by its own piece
-/// which view owns it, and near the line between two views' centres both may) become one, as
-/// pieces within a view do: boxes `join` radians apart or less are joined.
-fn join_across_views(found: Vec<Detection>, join: f64) -> Vec<Detection> {
-    let mut joined: Vec<Detection> = vec![];
-    for mut d in found {
-        while let Some(k) = joined.iter().position(|j| j.bbox.gap(&d.bbox) <= join) {
-            let other = joined.swap_remove(k);
-            d = Detection {
-                bbox: d.bbox.union(&other.bbox),
-                confidence: d.confidence.max(other.confidence),
-                class: MOVING,
-            };
+/// A thing as one scan view saw it.
+struct Sighting {
+    view: usize,
+    /// Whether the view shows it clear of its edges.
+    clear: bool,
+    detection: Detection,
+}
+
+/// Views overlap, so one thing is seen by several: sightings `join` radians apart or less
+/// are one thing, reported as the view that saw most of it saw it (of the views showing it
+/// clear of their edges, the largest box), its pieces in that view joined. Each view loses
+/// some of a thing's pixels (where the rim of the lens's circle has just uncovered them, where
+/// it crosses a line of the background as bright as itself, or where the view samples it
+/// coarsest), and rarely gains any once stains are taken out.
+fn one_per_thing(found: Vec<Sighting>, join: f64) -> Vec<Detection> {
+    let mut groups: Vec<Vec<Sighting>> = vec![];
+    for s in found {
+        let mut group = vec![s];
+        while let Some(k) = groups.iter().position(|g| {
+            g.iter()
+                .any(|a| group.iter().any(|b| a.detection.bbox.gap(&b.detection.bbox) <= join))
+        }) {
+            group.extend(groups.swap_remove(k));
         }
-        joined.push(d);
+        groups.push(group);
     }
-    joined
+    groups
+        .into_iter()
+        .filter_map(|group| {
+            let best = group
+                .iter()
+                .min_by(|a, b| {
+                    let area = |s: &Sighting| s.detection.bbox.width * s.detection.bbox.height;
+                    b.clear.cmp(&a.clear).then(area(b).total_cmp(&area(a)))
+                })?
+                .view;
+            group
+                .into_iter()
+                .filter(|s| s.view == best)
+                .map(|s| s.detection)
+                .reduce(|a, b| Detection {
+                    bbox: a.bbox.union(&b.bbox),
+                    confidence: a.confidence.max(b.confidence),
+                    class: MOVING,
+                })
+        })
+        .collect()
 }
 
 /// For each pixel of a view seen from `to` (world NED), where the view seen from `from`
@@ -328,13 +366,13 @@ struct Blob {
     high: DVec2,
 }
 
-/// Whether a blob differs from the ring of background pixels around it in the picture now
+/// Whether a blob differs from the ring of `known` pixels around it in the picture now
 /// (by at least [`THRESHOLD`] on average).
-fn stands_out(blob: &Blob, current: &[f32], mask: &[bool], w: usize, h: usize) -> bool {
+fn stands_out(blob: &Blob, current: &[f32], known: &[bool], w: usize, h: usize) -> bool {
     let inside = blob.pixels.iter().map(|&i| current[i]).sum::<f32>() / blob.pixels.len() as f32;
     let (mut sum, mut n) = (0f32, 0usize);
     for i in ring(blob, w, h) {
-        if !mask[i] && current[i] > DARK {
+        if known[i] {
             sum += current[i];
             n += 1;
         }
@@ -343,18 +381,18 @@ fn stands_out(blob: &Blob, current: &[f32], mask: &[bool], w: usize, h: usize) -
 }
 
 /// The pixels of `blob` that are a stain: the picture now is within [`THRESHOLD`] of the
-/// ring of background pixels around the blob (their median), and the background is not.
+/// ring of `known` pixels around the blob (their median), and the background is not.
 fn stain(
     blob: &Blob,
     current: &[f32],
     background: &[Option<f32>],
-    mask: &[bool],
+    known: &[bool],
     w: usize,
     h: usize,
 ) -> Vec<usize> {
     let (mut now, mut then) = (vec![], vec![]);
     for i in ring(blob, w, h) {
-        if let Some(b) = background[i].filter(|_| !mask[i] && current[i] > DARK) {
+        if let Some(b) = background[i].filter(|_| known[i]) {
             now.push(current[i]);
             then.push(b);
         }

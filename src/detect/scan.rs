@@ -134,6 +134,29 @@ pub fn to_world(
     })
 }
 
+/// Whether `view` (rendered as `planned`) shows a thing `size` radians across at `ray` at
+/// least `margin` pixels clear of its edges.
+pub fn clear_of_edges(
+    view: &ScanView,
+    planned: &PlannedView,
+    ray: DVec3,
+    size: f64,
+    margin: f64,
+) -> bool {
+    let ViewMap::Rays {
+        projection,
+        world_from_view,
+    } = planned.map
+    else {
+        return false;
+    };
+    let (w, h) = (planned.rect.w as f64, planned.rect.h as f64);
+    let margin = size * Projection::focal(w, view.fov) / 2.0 + margin;
+    projection
+        .point(world_from_view.transpose() * ray)
+        .is_some_and(|p| p.min_element() > margin && p.x < w - margin && p.y < h - margin)
+}
+
 /// The scan view that reports a thing `size` radians across at `ray`, views overlapping: of
 /// the views showing it at least `margin` pixels clear of their edges (or, if none does, of
 /// all), the one whose centre is nearest.
@@ -144,25 +167,11 @@ pub fn owner(
     size: f64,
     margin: f64,
 ) -> Option<usize> {
-    let clear = |v: &ScanView, planned: &PlannedView| {
-        let ViewMap::Rays {
-            projection,
-            world_from_view,
-        } = planned.map
-        else {
-            return false;
-        };
-        let (w, h) = (planned.rect.w as f64, planned.rect.h as f64);
-        let margin = size * Projection::focal(w, v.fov) / 2.0 + margin;
-        projection
-            .point(world_from_view.transpose() * ray)
-            .is_some_and(|p| p.min_element() > margin && p.x < w - margin && p.y < h - margin)
-    };
     let nearest = |whole: bool| {
         views
             .iter()
             .zip(&plan.views)
-            .filter(|(v, planned)| !whole || clear(v, planned))
+            .filter(|(v, planned)| !whole || clear_of_edges(v, planned, ray, size, margin))
             .map(|(v, _)| (v.index, direction(v.yaw, v.pitch).angle_between(ray)))
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(i, _)| i)
