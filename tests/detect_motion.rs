@@ -51,6 +51,7 @@ fn tracks_every_mover(world: GridWorld, speed: f64) -> Tracker {
             &out.data,
             out.layout.stride as usize,
             eye(&state),
+            t,
         );
         let covered = |b: &digiview::detect::AngularBox| {
             plan.views
@@ -229,11 +230,12 @@ fn serve_tracks_the_demos_movers_and_reports_where_they_are_on_the_ground() {
 /// A minute over the demo's world at the scan rate serve uses (3 Hz), each scan late by up
 /// to 0.13 s as a busy detector's are, with the camera looking ahead and the vehicle yawing
 /// 12°/s (swaying ±6°), so that the movers leave the lens's field behind it and come back in
-/// at its rim. No track is ever in the field where no mover is (one track a mover); the
-/// movers coming in are tracked within a second at the median and 1.5 s at worst (one to
-/// two scans after entering: a background is learnt first where the rim uncovers the
-/// ground); and where each frame aims a tracked object's tile (its last place moved on as
-/// it was moving) is within a tenth of the tile's field of the mover at the median.
+/// at its rim. No track is ever in the field where no mover is (one track a mover); every
+/// mover coming in is tracked within a second (one to three scans after entering: a
+/// background is learnt first where the rim uncovers the ground); and where each frame aims
+/// a tracked object's tile (its last place moved on as it was moving) is within a tenth of
+/// the tile's field of the mover in 9 frames of 10 or more (0.03 at the median; the rest are
+/// mostly movers just in from the rim, part of them not yet seen against a background).
 #[test]
 fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_them() {
     let world = GridWorld::default();
@@ -275,6 +277,9 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
     let (mut entered, mut was_in) = (vec![None; n], vec![true; n]);
     let (mut delays, mut off_centre) = (vec![], vec![]);
     let (mut matched, mut astray) = (BTreeSet::new(), BTreeSet::new());
+    // Per track born on a mover: how far its first velocity is from the mover's, as a share
+    // of the mover's speed across the sky.
+    let mut first_velocity = vec![];
     let mut lateness = 0x2545_f491_u32;
     let mut t = 0.0;
     while t < 60.0 {
@@ -285,7 +290,7 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
         let (views, plan) = visible(&lens, to_lens, MOTION_VIEWS);
         let out = gpu.render(&data, &layout, &plan).unwrap();
         let stride = out.layout.stride as usize;
-        let found = detector.detect(&views, &plan, &out.data, stride, eye(&state));
+        let found = detector.detect(&views, &plan, &out.data, stride, eye(&state), t);
         let covered = |b: &digiview::detect::AngularBox| {
             plan.views
                 .iter()
@@ -310,6 +315,15 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
             if !on.iter().any(|&(i, _)| i == id) && !tracked[m] {
                 on.push((id, m));
                 tracked[m] = true;
+            }
+        }
+        for &(id, m) in &on {
+            let o = tracker.get(id).unwrap();
+            if o.born == t {
+                let mut later = state.clone();
+                attitude(&mut later, t + 0.05);
+                let truth = (movers(&later)[m].0 - now[m].0) / 0.05;
+                first_velocity.push((o.velocity - truth).length() / truth.length());
             }
         }
         // Tracks in the lens's field on no mover: false if they never were on one.
@@ -379,18 +393,27 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
     delays.sort_by(f64::total_cmp);
     off_centre.sort_by(f64::total_cmp);
     let share = |q: f64| off_centre[((off_centre.len() - 1) as f64 * q) as usize];
+    let within = off_centre.iter().filter(|&&e| e <= 0.1).count() as f64 / off_centre.len() as f64;
     println!(
         "{} entries, tracked after {delays:.2?} s; false tracks {false_ids:?}; tiles off \
-         centre by {:.3} (median), {:.3} (95%), {:.3} (worst) of their field, {} frames",
+         centre by {:.3} (median), {:.3} (95%), {:.3} (worst) of their field, within a tenth \
+         in {:.1}% of {} frames",
         delays.len(),
         share(0.5),
         share(0.95),
         share(1.0),
+        100.0 * within,
         off_centre.len()
     );
+    println!("a new track's velocity off its mover's by {first_velocity:.2?} of the speed");
     assert!(delays.len() >= 4, "the field should sweep over the movers");
-    assert!(delays[delays.len() / 2] <= 1.0, "{delays:.2?}");
-    assert!(delays.iter().all(|&d| d <= 1.5), "{delays:.2?}");
+    // The motion detector measures how far a thing moved since its last scan, so a new
+    // track's tile follows its object from the first scan.
+    assert!(
+        first_velocity.len() >= 4 && first_velocity.iter().all(|&e| e < 0.4),
+        "{first_velocity:.2?}"
+    );
+    assert!(delays.iter().all(|&d| d <= 1.0), "{delays:.2?}");
     assert!(
         waiting.is_empty(),
         "movers in view and never tracked: {waiting:?}"
@@ -402,7 +425,12 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
         share(0.5)
     );
     assert!(
-        share(0.95) < 0.3,
+        within >= 0.9,
+        "tiles within a tenth of their field in only {:.1}% of frames",
+        100.0 * within
+    );
+    assert!(
+        share(0.95) < 0.2,
         "tiles {:.3} of their field off",
         share(0.95)
     );

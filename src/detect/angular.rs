@@ -21,6 +21,10 @@ pub struct Detection {
     pub bbox: AngularBox,
     pub confidence: f64,
     pub class: u16,
+    /// How fast its centre moves across the sky (world NED, per second), where the detector
+    /// measures it (the motion detector does, against its last scan): a new object is looked
+    /// for where this takes it.
+    pub velocity: Option<DVec3>,
 }
 
 impl AngularBox {

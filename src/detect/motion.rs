@@ -40,6 +40,9 @@ const MIN_SIDE: f64 = 2.0;
 const JOIN: usize = 3;
 /// How wide a ring around a blob its surroundings are read from, pixels.
 const RING: usize = 3;
+/// The least and most pixels a thing's shift since the last scan is looked for over.
+const MIN_SHIFT: i64 = 4;
+const MAX_SHIFT: i64 = 24;
 /// How many pixels a thing grows by into pixels the edge slack left out.
 const GROW: usize = 2;
 /// The least share of a blob's pixels that changed since the last scan for it to be moving.
@@ -51,8 +54,10 @@ struct Background {
     luma: Vec<f32>,
     /// The picture the last scan showed.
     last: Vec<f32>,
-    /// Where the vehicle was (world NED, ground at z = 0) when it was last brought up to date.
+    /// Where the vehicle was (world NED, ground at z = 0) when it was last brought up to date,
+    /// and when (seconds).
     eye: DVec3,
+    time: f64,
     scans: u32,
 }
 
@@ -63,11 +68,12 @@ pub struct MotionDetector {
 }
 
 impl Background {
-    fn new(luma: Vec<f32>, eye: DVec3) -> Background {
+    fn new(luma: Vec<f32>, eye: DVec3, time: f64) -> Background {
         Background {
             last: luma.clone(),
             luma,
             eye,
+            time,
             scans: 1,
         }
     }
@@ -80,7 +86,9 @@ impl MotionDetector {
 
     /// Compares one scan with the backgrounds and brings them up to date. `plan` is the
     /// mosaic `views` were rendered with, `luma` its picture (`stride` bytes a row), `eye`
-    /// the vehicle's position in a world frame whose ground is z = 0 (NED, metres).
+    /// the vehicle's position in a world frame whose ground is z = 0 (NED, metres) and `time`
+    /// when the picture was taken (seconds). Each thing found carries its velocity, measured
+    /// against where it stood in the last scan.
     pub fn detect(
         &mut self,
         views: &[ScanView],
@@ -88,6 +96,7 @@ impl MotionDetector {
         luma: &[u8],
         stride: usize,
         eye: DVec3,
+        time: f64,
     ) -> Vec<Detection> {
         // Views no longer seen lose their background.
         self.backgrounds
@@ -114,11 +123,11 @@ impl MotionDetector {
                 .collect();
             let Some(bg) = self.backgrounds.get_mut(&view.index) else {
                 self.backgrounds
-                    .insert(view.index, Background::new(current, eye));
+                    .insert(view.index, Background::new(current, eye, time));
                 continue;
             };
             if bg.luma.len() != current.len() {
-                *bg = Background::new(current, eye);
+                *bg = Background::new(current, eye, time);
                 continue;
             }
             let from = sources(w, h, projection, world_from_view, bg.eye, eye);
@@ -205,13 +214,19 @@ impl MotionDetector {
             for &i in stains.iter().flat_map(|b| &b.pixels).chain(&stained) {
                 bg.luma[i] = current[i];
             }
-            bg.eye = eye;
+            let since = time - bg.time;
+            (bg.eye, bg.time) = (eye, time);
             bg.scans += 1;
+            // How far each thing moved since the last scan, in this view's pixels.
+            let shifts: Vec<Option<DVec2>> = things
+                .iter()
+                .map(|b| shift(b, &current, &before, w, h))
+                .collect();
             bg.last = current;
             if !settled {
                 continue;
             }
-            for blob in things {
+            for (blob, shift) in things.into_iter().zip(shifts) {
                 let mean =
                     blob.pixels.iter().map(|&i| diff[i]).sum::<f32>() / blob.pixels.len() as f32;
                 let Some(bbox) = to_world(view, planned, blob.low, blob.high + DVec2::ONE) else {
@@ -222,6 +237,9 @@ impl MotionDetector {
                 if extent.min_element() < MIN_SIDE {
                     continue;
                 }
+                let was = shift.filter(|_| since > 1e-3).and_then(|m| {
+                    to_world(view, planned, blob.low - m, blob.high + DVec2::ONE - m)
+                });
                 let margin = (EDGE + RING) as f64;
                 found.push(Sighting {
                     view: view.index,
@@ -230,6 +248,7 @@ impl MotionDetector {
                         bbox,
                         confidence: (mean / FULL_CONFIDENCE).min(0.99) as f64,
                         class: MOVING,
+                        velocity: was.map(|was| (bbox.centre - was.centre) / since),
                     },
                 });
             }
@@ -257,8 +276,11 @@ fn one_per_thing(found: Vec<Sighting>, join: f64) -> Vec<Detection> {
     for s in found {
         let mut group = vec![s];
         while let Some(k) = groups.iter().position(|g| {
-            g.iter()
-                .any(|a| group.iter().any(|b| a.detection.bbox.gap(&b.detection.bbox) <= join))
+            g.iter().any(|a| {
+                group
+                    .iter()
+                    .any(|b| a.detection.bbox.gap(&b.detection.bbox) <= join)
+            })
         }) {
             group.extend(groups.swap_remove(k));
         }
@@ -282,6 +304,7 @@ fn one_per_thing(found: Vec<Sighting>, join: f64) -> Vec<Detection> {
                     bbox: a.bbox.union(&b.bbox),
                     confidence: a.confidence.max(b.confidence),
                     class: MOVING,
+                    velocity: a.velocity.or(b.velocity),
                 })
         })
         .collect()
@@ -441,6 +464,63 @@ fn changed(blob: &Blob, current: &[f32], before: &[Option<f32>]) -> bool {
         .filter(|&&i| before[i].is_none_or(|b| (current[i] - b).abs() > THRESHOLD))
         .count();
     moving as f64 >= MOVED_SHARE * blob.pixels.len() as f64
+}
+
+/// How far `blob` moved since the last scan (`before`, moved to where the vehicle is now),
+/// in pixels: the shift that best lays its pixels now over the picture then, looked for up to
+/// the blob's own size (at least [`MIN_SHIFT`] pixels) each way, to a tenth of a pixel. None
+/// when no shift lays it well (within [`THRESHOLD`] on average) or too little of it was seen.
+fn shift(
+    blob: &Blob,
+    current: &[f32],
+    before: &[Option<f32>],
+    w: usize,
+    h: usize,
+) -> Option<DVec2> {
+    let reach = ((blob.high - blob.low).max_element() as i64 + 1).clamp(MIN_SHIFT, MAX_SHIFT);
+    let cost = |dx: i64, dy: i64| -> Option<f32> {
+        let (mut sum, mut n) = (0f32, 0usize);
+        for &i in &blob.pixels {
+            let (x, y) = ((i % w) as i64 - dx, (i / w) as i64 - dy);
+            if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
+                continue;
+            }
+            if let Some(b) = before[y as usize * w + x as usize].filter(|&b| b > DARK) {
+                sum += (current[i] - b).abs();
+                n += 1;
+            }
+        }
+        (2 * n >= blob.pixels.len()).then(|| sum / n as f32)
+    };
+    let side = 2 * reach + 1;
+    let costs: Vec<Option<f32>> = (0..side * side)
+        .map(|k| cost(k % side - reach, k / side - reach))
+        .collect();
+    let (best, &least) = costs
+        .iter()
+        .enumerate()
+        .filter_map(|(k, c)| c.as_ref().map(|c| (k as i64, c)))
+        .min_by(|a, b| a.1.total_cmp(b.1))?;
+    if least > THRESHOLD {
+        return None;
+    }
+    let (bx, by) = (best % side, best / side);
+    let at = |x: i64, y: i64| -> Option<f32> {
+        (x >= 0 && y >= 0 && x < side && y < side).then(|| costs[(y * side + x) as usize])?
+    };
+    // A parabola through the least cost and its neighbours puts the shift between pixels.
+    let refine = |low: Option<f32>, high: Option<f32>| match (low, high) {
+        (Some(l), Some(h)) if l + h > 2.0 * least => {
+            (0.5 * (l - h) / (l + h - 2.0 * least)).clamp(-0.5, 0.5) as f64
+        }
+        _ => 0.0,
+    };
+    let fx = refine(at(bx - 1, by), at(bx + 1, by));
+    let fy = refine(at(bx, by - 1), at(bx, by + 1));
+    Some(DVec2::new(
+        (bx - reach) as f64 + fx,
+        (by - reach) as f64 + fy,
+    ))
 }
 
 /// `blob` grown by up to [`GROW`] pixels into the `weak` pixels around it, which join `mask`.

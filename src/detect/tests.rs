@@ -6,6 +6,7 @@
 use super::angular::{AngularBox, Detection, suppress};
 use super::tracker::{Change, MAX_SCORE, Tracker, Why};
 use crate::control::detection::set_detection;
+use crate::geometry::rotation::direction;
 use crate::protocol::params::Detection as DetectionParams;
 use crate::state::{DetectionSettings, State};
 
@@ -17,6 +18,7 @@ fn det(yaw: f64, pitch: f64, size: f64, confidence: f64) -> Detection {
         bbox: AngularBox::new(yaw * DEG, pitch * DEG, size * DEG, size * DEG),
         confidence,
         class: 0,
+        velocity: None,
     }
 }
 
@@ -260,6 +262,28 @@ fn a_moving_object_is_looked_for_where_it_is_going() {
         "{}",
         yaw / DEG
     );
+}
+
+/// A detector that measures a thing's velocity gives a new object its motion at once: the
+/// frames after its first scan look for it where it is going, not where it was.
+#[test]
+fn a_new_object_moves_on_at_the_velocity_its_detector_measured() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    let first = det(10.0, -30.0, 4.0, 0.8);
+    let velocity = direction(12.0 * DEG, -30.0 * DEG) - first.bbox.centre;
+    let moving = Detection {
+        velocity: Some(velocity),
+        ..first
+    };
+    t.scan(&s, 0.0, vec![moving], everywhere);
+    let (yaw, _) = t.get(0).unwrap().at(0.5).yaw_pitch();
+    assert!((yaw / DEG - 11.0).abs() < 0.1, "{}", yaw / DEG);
+    // Without one it waits for a second sighting.
+    let mut t = Tracker::new();
+    t.scan(&s, 0.0, vec![first], everywhere);
+    let (yaw, _) = t.get(0).unwrap().at(0.5).yaw_pitch();
+    assert!((yaw / DEG - 10.0).abs() < 1e-9, "{}", yaw / DEG);
 }
 
 /// An object lost for two scans (two things crossing) and found again 9° on, further than

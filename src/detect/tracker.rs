@@ -197,7 +197,7 @@ impl Tracker {
                 score,
                 born: t,
                 seen: t,
-                velocity: DVec3::ZERO,
+                velocity: d.velocity.unwrap_or(DVec3::ZERO),
                 trail: vec![(t, d.bbox.centre)],
             });
             changes.push(Change {

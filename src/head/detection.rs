@@ -333,7 +333,7 @@ impl Head {
                     }
                     None => {
                         let (v, p) = (&scan.views, &scan.plan);
-                        detector.detect(v, p, &scan.picture, scan.stride, eye)
+                        detector.detect(v, p, &scan.picture, scan.stride, eye, scan.t)
                     }
                 };
                 (scan.t, found, scan.plan, t0)

@@ -82,6 +82,7 @@ impl Head {
                 bbox,
                 confidence: b.confidence,
                 class: class as u16,
+                velocity: None,
             });
         }
         let (_, plan) = visible(&lens, to_lens, MOTION_VIEWS);

@@ -390,6 +390,7 @@ impl OnnxDetector {
                 bbox,
                 confidence: b.confidence as f64,
                 class: b.class,
+                velocity: None,
             };
             found.push((d, whole));
         }
