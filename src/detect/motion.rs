@@ -161,16 +161,12 @@ impl MotionDetector {
                 }
             }
             // A blob's surroundings are read where the picture matches the background.
-            let known = |mask: &[bool]| -> Vec<bool> {
-                (0..w * h)
-                    .map(|i| !mask[i] && lit(i) && diff[i] <= THRESHOLD)
-                    .collect()
-            };
+            let surroundings: Vec<bool> =
+                (0..w * h).map(|i| lit(i) && diff[i] <= THRESHOLD).collect();
             // The pixels of a blob that look like its surroundings now where the background
             // did not are a stain: what stood there when the background was taken, joined to
             // the thing that moved away from it. They leave the blob before it is judged.
             let mut stained = vec![];
-            let surroundings = known(&mask);
             for blob in blobs(&mask, w, h) {
                 stained.extend(stain(&blob, &current, &moved, &surroundings, w, h));
             }
@@ -181,7 +177,6 @@ impl MotionDetector {
             // last scan, is not a thing moving but a stain in the background (what stood
             // there when the view was first seen, or the wake of something that passed) or a
             // thing that stopped: the background takes the picture there at once.
-            let surroundings = known(&mask);
             let (things, stains): (Vec<Blob>, Vec<Blob>) =
                 blobs(&mask, w, h).into_iter().partition(|b| {
                     stands_out(b, &current, &surroundings, w, h) && changed(b, &current, &before)
@@ -492,35 +487,32 @@ fn shift(
         }
         (2 * n >= blob.pixels.len()).then(|| sum / n as f32)
     };
-    let side = 2 * reach + 1;
-    let costs: Vec<Option<f32>> = (0..side * side)
-        .map(|k| cost(k % side - reach, k / side - reach))
-        .collect();
-    let (best, &least) = costs
-        .iter()
-        .enumerate()
-        .filter_map(|(k, c)| c.as_ref().map(|c| (k as i64, c)))
-        .min_by(|a, b| a.1.total_cmp(b.1))?;
-    if least > THRESHOLD {
+    // Every second shift first, then the shifts around the best of those.
+    let least = |shifts: &mut dyn Iterator<Item = (i64, i64)>| {
+        shifts
+            .filter_map(|(x, y)| cost(x, y).map(|c| (x, y, c)))
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+    };
+    let coarse = (-reach..=reach).step_by(2);
+    let (cx, cy, _) = least(
+        &mut coarse
+            .clone()
+            .flat_map(|y| coarse.clone().map(move |x| (x, y))),
+    )?;
+    let (x, y, c) = least(&mut (-1..=1).flat_map(|j| (-1..=1).map(move |i| (cx + i, cy + j))))?;
+    if c > THRESHOLD {
         return None;
     }
-    let (bx, by) = (best % side, best / side);
-    let at = |x: i64, y: i64| -> Option<f32> {
-        (x >= 0 && y >= 0 && x < side && y < side).then(|| costs[(y * side + x) as usize])?
-    };
     // A parabola through the least cost and its neighbours puts the shift between pixels.
     let refine = |low: Option<f32>, high: Option<f32>| match (low, high) {
-        (Some(l), Some(h)) if l + h > 2.0 * least => {
-            (0.5 * (l - h) / (l + h - 2.0 * least)).clamp(-0.5, 0.5) as f64
+        (Some(l), Some(h)) if l + h > 2.0 * c => {
+            (0.5 * (l - h) / (l + h - 2.0 * c)).clamp(-0.5, 0.5) as f64
         }
         _ => 0.0,
     };
-    let fx = refine(at(bx - 1, by), at(bx + 1, by));
-    let fy = refine(at(bx, by - 1), at(bx, by + 1));
-    Some(DVec2::new(
-        (bx - reach) as f64 + fx,
-        (by - reach) as f64 + fy,
-    ))
+    let fx = refine(cost(x - 1, y), cost(x + 1, y));
+    let fy = refine(cost(x, y - 1), cost(x, y + 1));
+    Some(DVec2::new(x as f64 + fx, y as f64 + fy))
 }
 
 /// `blob` grown by up to [`GROW`] pixels into the `weak` pixels around it, which join `mask`.
