@@ -178,7 +178,7 @@ impl MotionDetector {
             // there: a thing takes back the pixels beside it that differ by the plain
             // threshold, a few pixels out at most (a line of the background a fraction of a
             // pixel off would otherwise lead it along).
-            for &i in &stained {
+            for &i in stains.iter().flat_map(|b| &b.pixels).chain(&stained) {
                 weak[i] = false;
             }
             let things: Vec<Blob> = things
@@ -202,15 +202,16 @@ impl MotionDetector {
             let since = time - bg.time;
             (bg.eye, bg.time) = (eye, time);
             bg.scans += 1;
+            if !settled {
+                bg.last = current;
+                continue;
+            }
             // How far each thing moved since the last scan, in this view's pixels.
             let shifts: Vec<Option<DVec2>> = things
                 .iter()
                 .map(|b| shift(b, &current, &before, w, h))
                 .collect();
             bg.last = current;
-            if !settled {
-                continue;
-            }
             for (blob, shift) in things.into_iter().zip(shifts) {
                 let mean =
                     blob.pixels.iter().map(|&i| diff[i]).sum::<f32>() / blob.pixels.len() as f32;
