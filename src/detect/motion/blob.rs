@@ -26,6 +26,15 @@ pub(super) struct Blob {
     pub(super) high: DVec2,
 }
 
+impl Blob {
+    /// Pixel `i` (of a picture `w` wide) joins the blob and its box.
+    fn add(&mut self, i: usize, w: usize) {
+        let p = DVec2::new((i % w) as f64, (i / w) as f64);
+        (self.low, self.high) = (self.low.min(p), self.high.max(p));
+        self.pixels.push(i);
+    }
+}
+
 /// Whether a blob differs from the ring of `known` pixels around it in the picture now
 /// (by at least [`THRESHOLD`] on average).
 pub(super) fn stands_out(blob: &Blob, current: &[f32], known: &[bool], w: usize, h: usize) -> bool {
@@ -171,10 +180,8 @@ pub(super) fn grow(mut blob: Blob, weak: &[bool], mask: &mut [bool], w: usize, h
             }
         }
         for &n in &next {
-            let p = DVec2::new((n % w) as f64, (n / w) as f64);
-            (blob.low, blob.high) = (blob.low.min(p), blob.high.max(p));
+            blob.add(n, w);
         }
-        blob.pixels.extend(&next);
         edge = next;
     }
     blob
@@ -215,9 +222,7 @@ pub(super) fn blobs(mask: &[bool], w: usize, h: usize) -> Vec<Blob> {
             high: DVec2::splat(f64::MIN),
         };
         while let Some(i) = stack.pop() {
-            blob.pixels.push(i);
-            let p = DVec2::new((i % w) as f64, (i / w) as f64);
-            (blob.low, blob.high) = (blob.low.min(p), blob.high.max(p));
+            blob.add(i, w);
             for n in neighbours(i, w, h) {
                 if mask[n] && !seen[n] {
                     seen[n] = true;
@@ -244,6 +249,5 @@ pub(super) fn blobs(mask: &[bool], w: usize, h: usize) -> Vec<Blob> {
         }
         joined.push(blob);
     }
-    joined.retain(|b| b.pixels.len() >= MIN_PIXELS);
     joined
 }
