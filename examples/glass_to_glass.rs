@@ -9,9 +9,9 @@
 //!
 //!     cargo run --release --example glass_to_glass -- [--size 1280x720] [--frames 300] [--page|--mse]
 
+use digiview::clock::clock_us;
 use digiview::lens::LensCal;
 use digiview::render::FramePlan;
-use digiview::source::clock_us;
 use digiview::source::demo::stamp;
 use digiview::state::State;
 use glam::DVec2;

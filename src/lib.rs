@@ -1,25 +1,37 @@
 //! DigiView: an onboard fisheye "virtual camera" video head.
 //!
-//! The modules follow the data's path. Shared below everything: `units` (angles and sizes as
-//! people write them), `geometry` (frames, attitudes, view orientation, the ground), `lens`
-//! (the lens models, lens.cal, importers), `layout` (where views sit in the output frame),
-//! `frame` (frames as bytes: pixel formats, plane layouts, YUV) and `image_ops` (sampling and
-//! image metrics). `state` is everything an operator can set and the live handle the frame
-//! loop snapshots once per frame. Then the path itself: `source` brings camera frames in
-//! (`exposure` sets the camera's exposure and gain, and runs the auto exposure),
-//! `render` turns a fisheye frame into the output frame (`gpu`, and the CPU reference),
-//! `stream` encodes and serves it, and `head` runs the frame loop between them; `gst` is the
-//! GStreamer plumbing the sources and the stream share, and `scene` synthesises fisheye input
-//! and ground truth from a known world. Beside the path, changing the live state: `protocol`
-//! (the control protocol's codec) and `control` (its request handling, server and client),
-//! `autopilot` (the MAVLink link the vehicle's attitude and position come in on) and `cameras`
-//! (each view a MAVLink camera and gimbal on that link); `http` is the head's HTTP server;
-//! `detect` finds and tracks objects in crops of the frames, for the detection tiles.
-//! `cli` is the command line.
+//! The modules stand in layers; each imports only from layers below it (or beside it, where
+//! named here).
+//!
+//! - **Shared data, at the bottom.** `units` (angles and sizes as people write them),
+//!   `geometry` (frames, attitudes, view orientation, the ground), `lens` (the lens models,
+//!   lens.cal, importers, calibration), `layout` (where views sit in the output frame),
+//!   `frame` (frames as bytes: pixel formats, plane layouts, YUV), `image_ops` (sampling and
+//!   image metrics), `gst` (the GStreamer plumbing sources and streams share), `clock` (the one
+//!   time base), `protocol` (the control protocol's codec). On them: `state`, everything an
+//!   operator can set, the live handle every service changes and the frame loop snapshots
+//!   once per frame, and the capture hooks (`state::capture`); `telemetry`, the vehicle's
+//!   attitude history and position, which the autopilot link writes and the frame loop reads.
+//! - **The data's path.** `source` brings camera frames in (`exposure` sets the camera's
+//!   exposure and gain, and runs the auto exposure; `scene` synthesises worlds for the demo
+//!   and ground truth), `render` turns a fisheye frame into the output frame (`gpu`, and the
+//!   CPU reference), `stream` encodes, serves, records and publishes it.
+//! - **The services, beside each other.** `head`, the frame loop along the path (with its
+//!   detection stage, which runs `detect`'s detectors and tracker); `control`, the DigiView
+//!   protocol's request handling, server and client; `autopilot`, the MAVLink link the
+//!   vehicle's attitude and position come in on; `cameras`, each view a MAVLink camera and
+//!   gimbal, speaking on the link through the trait and outbox `autopilot` owns; `http`, the
+//!   tuning page and its JSON API, through `control`'s request handling. Each owns its section
+//!   of the serve configuration, and reaches no other service but as named here: what it
+//!   needs of another is a small trait or hook of its own that the assembly fills.
+//! - **On top.** `app`, the serve assembly: the configuration file, every service built and
+//!   wired; `cli`, the command line.
 
+pub mod app;
 pub mod autopilot;
 pub mod cameras;
 pub mod cli;
+pub mod clock;
 pub mod control;
 pub mod detect;
 pub mod exposure;
@@ -37,4 +49,5 @@ pub mod scene;
 pub mod source;
 pub mod state;
 pub mod stream;
+pub mod telemetry;
 pub mod units;

@@ -1,5 +1,5 @@
 //! The autopilot's boot clock mapped onto the local monotonic clock that frames' capture times
-//! use ([`crate::source::clock_us`]), so an attitude stamped by the autopilot lands at the
+//! use ([`crate::clock::clock_us`]), so an attitude stamped by the autopilot lands at the
 //! right place among the frames.
 //!
 //! Every message stamped `remote` by the autopilot and received at `local` gives an offset

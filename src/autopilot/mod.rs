@@ -1,26 +1,30 @@
-//! The autopilot link, beside the frame path: MAVLink 2 (MAVLink 1 read too, common dialect)
-//! from ArduPilot or PX4 over UDP, TCP or a serial port. It feeds the vehicle's attitude, on
-//! the frame's own clock (`clock`), into the telemetry the frame loop renders each frame
-//! with, and the attitude and position into the live state the control protocol reads
+//! The autopilot link, a service beside the frame path: MAVLink 2 (MAVLink 1 read too,
+//! common dialect) from ArduPilot or PX4 over UDP, TCP or a serial port. It feeds the
+//! vehicle's attitude, on the frame's own clock (`clock`), into the shared telemetry the frame
+//! loop renders each frame with, and the attitude and position into the live state the
+//! control protocol reads
 //! (`vehicle` makes sense of the messages). Its threads never touch the frame loop: a
 //! receiving thread reopens the link with back-off whenever it fails, a sending thread
 //! (`outgoing`) says DigiView is there (HEARTBEAT), asks the autopilot for the rates it needs
 //! and for its time (TIMESYNC), and watches for the attitude going stale. Other components
-//! of DigiView (the views as cameras and gimbals, `crate::cameras`) speak on the same link:
-//! they see every message that arrives and send through an [`Outbox`], on a thread of theirs.
+//! of DigiView (the views as MAVLink cameras and gimbals) speak on the same link as
+//! [`Components`]: they see every message that arrives and send through an [`Outbox`], on a
+//! thread of theirs.
 
 pub mod clock;
+mod config;
 mod outgoing;
 mod port;
 pub mod probe;
 pub mod sim;
 pub mod vehicle;
 
-use crate::head::config::MavlinkConfig;
-use crate::head::telemetry::Telemetry;
+pub use config::{Endpoint, EndpointError, MavlinkConfig, signing_key};
+
+use crate::clock::clock_us;
 use crate::protocol::params::Autopilot;
-use crate::source::clock_us;
 use crate::state::{Invalid, Live};
+use crate::telemetry::Telemetry;
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkMessageRaw, MavHeader, Message, SigningConfig, SigningData};
 use std::collections::VecDeque;
@@ -42,93 +46,7 @@ const OWN_COMPONENT: u8 = 191;
 /// attitude from the telemetry at every sample).
 const LIVE_EVERY: Duration = Duration::from_millis(20);
 
-/// Where the link goes: `off`, or an address the `mavlink` crate opens.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Endpoint {
-    Off,
-    Address(String),
-}
-
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum EndpointError {
-    #[error(
-        "mavlink endpoint {0:?}: use udpin:ADDR:PORT, udpout:HOST:PORT, tcpin:ADDR:PORT, \\
-         tcpout:HOST:PORT, serial:DEVICE:BAUD or off"
-    )]
-    Form(String),
-    #[error("mavlink endpoint {0:?}: {1}")]
-    Part(String, &'static str),
-}
-
-impl std::str::FromStr for Endpoint {
-    type Err = EndpointError;
-    fn from_str(s: &str) -> Result<Endpoint, EndpointError> {
-        if s.eq_ignore_ascii_case("off") {
-            return Ok(Endpoint::Off);
-        }
-        let form = || EndpointError::Form(s.to_string());
-        let (kind, rest) = s.split_once(':').ok_or_else(form)?;
-        let (head, tail) = rest.rsplit_once(':').ok_or_else(form)?;
-        match kind {
-            "udpin" | "udpout" | "tcpin" | "tcpout" => {
-                if head.is_empty() {
-                    return Err(EndpointError::Part(s.into(), "no address"));
-                }
-                tail.parse::<u16>()
-                    .map_err(|_| EndpointError::Part(s.into(), "the port is not 0..=65535"))?;
-            }
-            "serial" => {
-                if head.is_empty() {
-                    return Err(EndpointError::Part(s.into(), "no device"));
-                }
-                match tail.parse::<u32>() {
-                    Ok(b) if b > 0 => {}
-                    _ => {
-                        return Err(EndpointError::Part(
-                            s.into(),
-                            "the baud rate is not a number",
-                        ));
-                    }
-                }
-            }
-            _ => return Err(form()),
-        }
-        mavlink::ConnectionAddress::parse_address(s).map_err(|_| form())?;
-        Ok(Endpoint::Address(s.to_string()))
-    }
-}
-
-impl Endpoint {
-    /// Where a peer on this machine sends to be heard by this endpoint: its own port on
-    /// loopback when it listens (udpin, tcpin); None when it is off or goes elsewhere.
-    pub fn loopback_peer(&self) -> Option<String> {
-        let Endpoint::Address(a) = self else {
-            return None;
-        };
-        let (kind, rest) = a.split_once(':')?;
-        let (_, port) = rest.rsplit_once(':')?;
-        match kind {
-            "udpin" => Some(format!("udpout:127.0.0.1:{port}")),
-            "tcpin" => Some(format!("tcpout:127.0.0.1:{port}")),
-            _ => None,
-        }
-    }
-}
-
 type Connection = Arc<port::Port>;
-
-/// The 32-byte signing key of `signing_key`: 64 hex digits as they are, anything else a
-/// passphrase hashed with SHA-256 (as MAVProxy's `signing setup` and Mission Planner do).
-pub fn signing_key(text: &str) -> [u8; 32] {
-    let hex = |i: usize| u8::from_str_radix(text.get(2 * i..2 * i + 2)?, 16).ok();
-    if text.len() == 64
-        && let Some(bytes) = (0..32).map(hex).collect::<Option<Vec<u8>>>()
-    {
-        return bytes.try_into().expect("32 bytes");
-    }
-    use sha2::Digest;
-    sha2::Sha256::digest(text.as_bytes()).into()
-}
 
 /// What the link knows now, for the health line and the docs' `ctl`.
 #[derive(Default)]
@@ -481,56 +399,6 @@ fn apply(
             if let Err(e) = written {
                 tracing::warn!("mavlink: the position was refused: {e}");
             }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_signing_key_is_64_hex_digits_or_a_passphrase() {
-        let hex = "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff";
-        assert_eq!(signing_key(hex)[..4], [0x00, 0x11, 0x22, 0x33]);
-        // SHA-256("abc"), the standard's own test vector.
-        assert_eq!(signing_key("abc")[..4], [0xba, 0x78, 0x16, 0xbf]);
-    }
-
-    #[test]
-    fn endpoints_are_checked() {
-        for ok in [
-            "udpin:0.0.0.0:14550",
-            "udpout:192.168.1.10:14550",
-            "tcpin:0.0.0.0:5760",
-            "tcpout:127.0.0.1:5760",
-            "serial:/dev/ttyAMA0:921600",
-        ] {
-            assert_eq!(ok.parse(), Ok(Endpoint::Address(ok.into())), "{ok}");
-        }
-        assert_eq!("off".parse(), Ok(Endpoint::Off));
-        let peer = |e: &str| e.parse::<Endpoint>().unwrap().loopback_peer();
-        assert_eq!(
-            peer("udpin:0.0.0.0:14550").as_deref(),
-            Some("udpout:127.0.0.1:14550")
-        );
-        assert_eq!(
-            peer("tcpin:0.0.0.0:5760").as_deref(),
-            Some("tcpout:127.0.0.1:5760")
-        );
-        assert_eq!(peer("udpout:10.0.0.2:14550"), None);
-        assert_eq!(peer("off"), None);
-        for bad in [
-            "udp:1.2.3.4:5",
-            "udpin:0.0.0.0",
-            "udpin:0.0.0.0:99999",
-            "tcpout::5760",
-            "serial:/dev/ttyS0:fast",
-            "serial:/dev/ttyS0",
-            "file:log.tlog",
-            "",
-        ] {
-            assert!(bad.parse::<Endpoint>().is_err(), "{bad}");
         }
     }
 }

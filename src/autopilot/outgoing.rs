@@ -4,7 +4,7 @@
 //! Everything sent is signed when signing is on.
 
 use super::{Connection, FIRST_REPORT, LinkStatus, OWN_COMPONENT, REPORT_EVERY, STALE, Shared};
-use crate::source::clock_us;
+use crate::clock::clock_us;
 use mavlink::dialects::common::{
     COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavState,
     MavType, TIMESYNC_DATA,

@@ -20,10 +20,23 @@ pub struct Heard {
     pub what: String,
 }
 
+/// Why no HEARTBEAT came.
+#[derive(Debug, thiserror::Error)]
+pub enum Unheard {
+    #[error("cannot open it: {0}")]
+    Open(std::io::Error),
+    #[error("the link failed: {0}")]
+    Failed(std::io::Error),
+    #[error("no HEARTBEAT within {0:.0} s")]
+    Silent(f64),
+    #[error("the link closed")]
+    Closed,
+}
+
 /// Opens `endpoint` (as [`super::Endpoint`] checked it) and waits up to `wait` for a
 /// HEARTBEAT; the error says why none came.
-pub fn heartbeat(endpoint: &str, wait: Duration) -> Result<Heard, String> {
-    let port = Arc::new(Port::open(endpoint).map_err(|e| format!("cannot open it: {e}"))?);
+pub fn heartbeat(endpoint: &str, wait: Duration) -> Result<Heard, Unheard> {
+    let port = Arc::new(Port::open(endpoint).map_err(Unheard::Open)?);
     let done = Arc::new(AtomicBool::new(false));
     let (tx, rx) = mpsc::channel();
     {
@@ -40,7 +53,7 @@ pub fn heartbeat(endpoint: &str, wait: Duration) -> Result<Heard, String> {
                         continue;
                     }
                     Err(MessageReadError::Io(e)) => {
-                        let _ = tx.send(Err(format!("the link failed: {e}")));
+                        let _ = tx.send(Err(Unheard::Failed(e)));
                         return;
                     }
                     Err(_) => continue,
@@ -71,12 +84,12 @@ pub fn heartbeat(endpoint: &str, wait: Duration) -> Result<Heard, String> {
         let _ = port.send(header, &outgoing::heartbeat());
         let left = deadline.saturating_duration_since(Instant::now());
         if left.is_zero() {
-            break Err(format!("no HEARTBEAT within {:.0} s", wait.as_secs_f64()));
+            break Err(Unheard::Silent(wait.as_secs_f64()));
         }
         match rx.recv_timeout(left.min(Duration::from_secs(1))) {
             Ok(answer) => break answer,
             Err(mpsc::RecvTimeoutError::Timeout) => continue,
-            Err(mpsc::RecvTimeoutError::Disconnected) => break Err("the link closed".into()),
+            Err(mpsc::RecvTimeoutError::Disconnected) => break Err(Unheard::Closed),
         }
     };
     done.store(true, Ordering::Relaxed);

@@ -334,30 +334,6 @@ impl Cameras {
         }
         Answer::accepted(vec![self.storage()])
     }
-
-    /// Continuous zoom and gimbal rates, advanced by `dt` seconds.
-    pub(super) fn apply_motion(&self, n: usize, dt: f64) {
-        type Motion = (usize, f64, Option<(f64, f64)>);
-        let moving: Vec<Motion> = {
-            let p = self.periodic();
-            (0..n)
-                .map(|i| (i, p.cameras[i].zooming, p.cameras[i].rates))
-                .filter(|(_, z, r)| *z != 0.0 || r.is_some())
-                .collect()
-        };
-        for (i, zooming, rates) in moving {
-            let _ = self.live.update(|s| {
-                let c = &mut s.cameras[i];
-                if zooming != 0.0 {
-                    c.fov = clamp_fov(c.fov * 2f64.powf(-zooming * dt), c.crop);
-                }
-                if let Some((yaw_rate, pitch_rate)) = rates {
-                    super::gimbal::turn(c, yaw_rate * dt, pitch_rate * dt);
-                }
-                Ok::<_, Invalid>(())
-            });
-        }
-    }
 }
 
 /// Removes the files DigiView names `digiview-*` from `dir`; how many.

@@ -36,6 +36,21 @@ impl Control {
     }
 }
 
+/// Why a gimbal command is refused (DENIED, and the log says why).
+#[derive(Debug, thiserror::Error)]
+pub enum Refused {
+    #[error("an angle or rate that is infinite")]
+    Infinite,
+    #[error("{}/{} is not in control of gimbal {gimbal}", who.0, who.1)]
+    NotInControl { who: (u8, u8), gimbal: usize },
+    #[error("gimbal controller {0}/{1}")]
+    Controller(f32, f32),
+    #[error("{}, {}, {} m is not a place", .0.lat, .0.lon, .0.alt)]
+    NotAPlace(GeoPoint),
+    #[error(transparent)]
+    State(#[from] Invalid),
+}
+
 /// Whether a gimbal device id names this camera's gimbal (0: all of them).
 pub fn for_this_gimbal(id: u8) -> bool {
     id == 0 || id == GIMBAL_DEVICE_ID
@@ -131,49 +146,42 @@ impl Cameras {
         i: usize,
         flags: GimbalManagerFlags,
         aim: Aim,
-    ) -> Result<(), String> {
+    ) -> Result<(), Refused> {
         if aim.bad {
-            return Err("an angle or rate that is infinite".into());
+            return Err(Refused::Infinite);
         }
-        if !self.periodic().cameras[i].control.allows(from) {
-            return Err(format!(
-                "{}/{} is not in control of gimbal {i}",
-                from.system_id, from.component_id
-            ));
-        }
+        self.in_control(from, i)?;
         let earth = flags.intersects(
             GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME
                 | GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK,
         );
         let locks = LockFlags(locks_of(flags));
-        self.live
-            .update(|s| {
-                let vehicle = s.vehicle.attitude.euler();
-                let position = s.vehicle.position;
-                let c = &mut s.cameras[i];
-                let now = Euler::from_matrix(&c.steering().world_from_view(vehicle, &position));
-                let yaw = aim
-                    .yaw
-                    .map_or(now.yaw, |y| y + if earth { 0.0 } else { vehicle.yaw });
-                let pitch = aim
-                    .pitch
-                    .map_or(now.pitch, |p| p.clamp(-FRAC_PI_2, FRAC_PI_2));
-                let roll = aim
-                    .roll
-                    .map_or(now.roll, |r| r.clamp(-FRAC_PI_2, FRAC_PI_2));
-                let (yaw, pitch) = locks.decompose(yaw, pitch, vehicle);
-                c.lock = locks.0;
-                c.yaw = yaw;
-                // Within ±90° as CAM_EULER keeps it, also once the vehicle's own pitch is
-                // taken off an unlocked camera's (90° down from a vehicle pitched 4° down).
-                c.pitch = pitch.clamp(-FRAC_PI_2, FRAC_PI_2);
-                // Roll within ±90°, as CAM_EULER keeps it.
-                let roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
-                c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
-                steer_by_hand(c);
-                Ok::<_, Invalid>(())
-            })
-            .map_err(|e| e.to_string())?;
+        self.live.update(|s| {
+            let vehicle = s.vehicle.attitude.euler();
+            let position = s.vehicle.position;
+            let c = &mut s.cameras[i];
+            let now = Euler::from_matrix(&c.steering().world_from_view(vehicle, &position));
+            let yaw = aim
+                .yaw
+                .map_or(now.yaw, |y| y + if earth { 0.0 } else { vehicle.yaw });
+            let pitch = aim
+                .pitch
+                .map_or(now.pitch, |p| p.clamp(-FRAC_PI_2, FRAC_PI_2));
+            let roll = aim
+                .roll
+                .map_or(now.roll, |r| r.clamp(-FRAC_PI_2, FRAC_PI_2));
+            let (yaw, pitch) = locks.decompose(yaw, pitch, vehicle);
+            c.lock = locks.0;
+            c.yaw = yaw;
+            // Within ±90° as CAM_EULER keeps it, also once the vehicle's own pitch is
+            // taken off an unlocked camera's (90° down from a vehicle pitched 4° down).
+            c.pitch = pitch.clamp(-FRAC_PI_2, FRAC_PI_2);
+            // Roll within ±90°, as CAM_EULER keeps it.
+            let roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
+            c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
+            steer_by_hand(c);
+            Ok::<_, Invalid>(())
+        })?;
         let rates = match (aim.yaw_rate, aim.pitch_rate) {
             (None, None) => None,
             (y, p) => Some((
@@ -210,7 +218,7 @@ impl Cameras {
         if !(device.is_nan() || named) {
             return Some(Answer::denied(format!("no gimbal device {device}")));
         }
-        let done = |r: Result<(), String>| match r {
+        let done = |r: Result<(), Refused>| match r {
             Ok(()) => Answer {
                 result: MavResult::MAV_RESULT_ACCEPTED,
                 then: vec![],
@@ -248,11 +256,11 @@ impl Cameras {
 
     /// DO_GIMBAL_MANAGER_CONFIGURE: -1 leaves a controller, -2 makes it the sender, -3
     /// releases it, other values name it.
-    fn configure(&self, from: &MavHeader, i: usize, p: &[f32; 7]) -> Result<(), String> {
+    fn configure(&self, from: &MavHeader, i: usize, p: &[f32; 7]) -> Result<(), Refused> {
         let sender = (from.system_id as u8, from.component_id);
         let mut periodic = self.periodic();
         let control = &mut periodic.cameras[i].control;
-        let pick = |sys: f32, comp: f32, now: (u8, u8)| -> Result<(u8, u8), String> {
+        let pick = |sys: f32, comp: f32, now: (u8, u8)| -> Result<(u8, u8), Refused> {
             match (sys, comp) {
                 (-1.0, _) => Ok(now),
                 (-2.0, _) => Ok(sender),
@@ -260,7 +268,7 @@ impl Cameras {
                 (s, c) if (0.0..=255.0).contains(&s) && (0.0..=255.0).contains(&c) => {
                     Ok((s as u8, c as u8))
                 }
-                (s, c) => Err(format!("gimbal controller {s}/{c}")),
+                (s, c) => Err(Refused::Controller(s, c)),
             }
         };
         let primary = pick(p[0], p[1], control.primary)?;
@@ -271,42 +279,46 @@ impl Cameras {
 
     /// Aims camera `i` at a place and follows it (coordinate control), or (None) leaves it
     /// pointing where it points now, steered by its angles again.
-    fn roi(&self, from: &MavHeader, i: usize, place: Option<GeoPoint>) -> Result<(), String> {
-        if !self.periodic().cameras[i].control.allows(from) {
-            return Err(format!(
-                "{}/{} is not in control of gimbal {i}",
-                from.system_id, from.component_id
-            ));
-        }
+    fn roi(&self, from: &MavHeader, i: usize, place: Option<GeoPoint>) -> Result<(), Refused> {
+        self.in_control(from, i)?;
         if let Some(g) = place {
             let ok = (-90.0..=90.0).contains(&g.lat) && (-180.0..=180.0).contains(&g.lon);
             if !ok || !g.alt.is_finite() {
-                return Err(format!("{}, {}, {} m is not a place", g.lat, g.lon, g.alt));
+                return Err(Refused::NotAPlace(g));
             }
         }
-        self.live
-            .update(|s| {
-                let vehicle = s.vehicle.attitude.euler();
-                let position = s.vehicle.position;
-                let c = &mut s.cameras[i];
-                match place {
-                    Some(g) => {
-                        c.target = Some(g);
-                        c.control = control::COORDINATE;
-                    }
-                    None if c.control == control::COORDINATE => {
-                        let m = c.steering().world_from_view(vehicle, &position);
-                        let e = aim(m * DVec3::X, c.euler(), c.locks(), vehicle);
-                        (c.yaw, c.pitch) = (e.yaw, e.pitch);
-                        c.control = control::DIRECTIONAL;
-                    }
-                    None => {}
+        self.live.update(|s| {
+            let vehicle = s.vehicle.attitude.euler();
+            let position = s.vehicle.position;
+            let c = &mut s.cameras[i];
+            match place {
+                Some(g) => {
+                    c.target = Some(g);
+                    c.control = control::COORDINATE;
                 }
-                Ok::<_, Invalid>(())
-            })
-            .map_err(|e| e.to_string())?;
+                None if c.control == control::COORDINATE => {
+                    let m = c.steering().world_from_view(vehicle, &position);
+                    let e = aim(m * DVec3::X, c.euler(), c.locks(), vehicle);
+                    (c.yaw, c.pitch) = (e.yaw, e.pitch);
+                    c.control = control::DIRECTIONAL;
+                }
+                None => {}
+            }
+            Ok::<_, Invalid>(())
+        })?;
         self.periodic().cameras[i].rates = None;
         Ok(())
+    }
+
+    /// Whether `from` may point gimbal `i` now.
+    fn in_control(&self, from: &MavHeader, i: usize) -> Result<(), Refused> {
+        match self.periodic().cameras[i].control.allows(from) {
+            true => Ok(()),
+            false => Err(Refused::NotInControl {
+                who: (from.system_id as u8, from.component_id),
+                gimbal: i,
+            }),
+        }
     }
 
     pub(super) fn manager_information(&self) -> MavMessage {

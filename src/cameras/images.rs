@@ -70,11 +70,10 @@ impl Cameras {
         for shot in shots {
             let i = shot.camera;
             let t = shot.taken;
-            let http = self.streams().http;
-            let (url, ok) = match (&shot.file, http) {
-                (Ok(path), Some(http)) => {
+            let (url, ok) = match (&shot.file, self.streams().captures) {
+                (Ok(path), Some(captures)) => {
                     let name = path.file_name().unwrap_or_default().to_string_lossy();
-                    (format!("{http}{}{name}", crate::http::CAPTURES_PATH), true)
+                    (format!("{captures}{name}"), true)
                 }
                 (Ok(path), None) => (format!("file://{}", path.display()), true),
                 (Err(e), _) => {

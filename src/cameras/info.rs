@@ -16,8 +16,6 @@ use std::path::Path;
 /// Stream 1 is the view's own stream, stream 2 the composed frame.
 pub const VIEW_STREAM: u8 = 1;
 pub const COMPOSED_STREAM: u8 = 2;
-/// Where the head's HTTP server serves the camera definition file.
-pub const DEFINITION_PATH: &str = "/camera.xml";
 /// The gimbal of each camera: the camera component is its own gimbal manager and device.
 pub const GIMBAL_DEVICE_ID: u8 = 1;
 
@@ -51,8 +49,8 @@ impl Cameras {
     pub(super) fn information(&self, state: &State, i: usize) -> MavMessage {
         let cam = &state.cameras[i];
         let (w, h) = (self.cfg.width, self.cfg.height);
-        let (uri, version) = match self.streams().http {
-            Some(base) => (format!("{base}{DEFINITION_PATH}"), self.definition().1),
+        let (uri, version) = match self.streams().definition {
+            Some(url) => (url, self.definition().1),
             None => (String::new(), 0),
         };
         MavMessage::CAMERA_INFORMATION(CAMERA_INFORMATION_DATA {

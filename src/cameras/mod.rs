@@ -14,20 +14,21 @@ mod images;
 mod info;
 mod settings;
 
-pub use info::DEFINITION_PATH;
 pub mod zoom;
 
 use crate::autopilot::{Components, Outbox};
+use crate::clock::clock_us;
+use crate::geometry::view::clamp_fov;
 use crate::layout::{Slot, layout};
-use crate::source::clock_us;
-use crate::state::{Live, MAX_CAMERAS, State};
+use crate::state::capture::{CaptureError, ViewShooter};
+use crate::state::{Invalid, Live, MAX_CAMERAS, State};
 use mavlink::dialects::common::{
     CAMERA_IMAGE_CAPTURED_DATA, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState,
     MavType,
 };
 use mavlink::{MavHeader, Message};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -69,25 +70,16 @@ impl Default for CamerasConfig {
     }
 }
 
-/// Stills and video of one view alone.
-pub trait ViewShooter: Send + Sync {
-    /// Takes a still of the next frame; `done` gets the file written, or why not.
-    fn shoot(&self, view: usize, done: crate::head::capture::StillDone) -> Result<(), String>;
-    /// Starts (`on`) or ends the recording of the view's own stream.
-    fn record(&self, view: usize, on: bool) -> Result<(), String>;
-    fn recording(&self, view: usize) -> bool;
-    /// The directory stills and recordings go to (STORAGE_INFORMATION measures it).
-    fn dir(&self) -> &Path;
-}
-
 /// Where the streams are served, once the RTSP server runs.
 #[derive(Clone, Debug, Default)]
 pub struct Streams {
     /// `rtsp://HOST:PORT/PATH` of the composed frame; a view's is this plus `/camN`.
     pub base: String,
     pub bitrate_kbps: u32,
-    /// `http://HOST:PORT` of the head's HTTP server (the camera definition file's home).
-    pub http: Option<String>,
+    /// Where the HTTP server serves the camera definition file, and the captures (a
+    /// capture's URL is this plus its file name), once it serves.
+    pub definition: Option<String>,
+    pub captures: Option<String>,
 }
 
 /// The views as cameras: the link's [`Components`].
@@ -106,7 +98,7 @@ pub struct Cameras {
 struct Shot {
     camera: usize,
     taken: Taken,
-    file: Result<PathBuf, String>,
+    file: Result<PathBuf, CaptureError>,
 }
 
 /// The view and vehicle when a still was asked for (what CAMERA_IMAGE_CAPTURED reports).
@@ -176,9 +168,11 @@ impl Cameras {
         (s.base, s.bitrate_kbps) = (base, bitrate_kbps);
     }
 
-    /// Where the HTTP server is (`http://HOST:PORT`), once it serves.
-    pub fn set_http(&self, base: String) {
-        self.streams.lock().unwrap_or_else(|e| e.into_inner()).http = Some(base);
+    /// Where the HTTP server serves the camera definition file and the captures (a
+    /// capture's URL is `captures` plus its file name), once it serves.
+    pub fn set_http(&self, definition: String, captures: String) {
+        let mut s = self.streams.lock().unwrap_or_else(|e| e.into_inner());
+        (s.definition, s.captures) = (Some(definition), Some(captures));
     }
 
     fn streams(&self) -> Streams {
@@ -195,6 +189,30 @@ impl Cameras {
 
     fn periodic(&self) -> std::sync::MutexGuard<'_, Periodic> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Continuous zoom and gimbal rates, advanced by `dt` seconds.
+    fn apply_motion(&self, n: usize, dt: f64) {
+        type Motion = (usize, f64, Option<(f64, f64)>);
+        let moving: Vec<Motion> = {
+            let p = self.periodic();
+            (0..n)
+                .map(|i| (i, p.cameras[i].zooming, p.cameras[i].rates))
+                .filter(|(_, z, r)| *z != 0.0 || r.is_some())
+                .collect()
+        };
+        for (i, zooming, rates) in moving {
+            let _ = self.live.update(|s| {
+                let c = &mut s.cameras[i];
+                if zooming != 0.0 {
+                    c.fov = clamp_fov(c.fov * 2f64.powf(-zooming * dt), c.crop);
+                }
+                if let Some((yaw_rate, pitch_rate)) = rates {
+                    gimbal::turn(c, yaw_rate * dt, pitch_rate * dt);
+                }
+                Ok::<_, Invalid>(())
+            });
+        }
     }
 
     /// The cameras a ground station sees now: the user cameras of the current layout.

@@ -4,7 +4,7 @@
 //! the frames a lens would capture of the board at known poses.
 
 use super::calibrate_frames::Pictures;
-use super::lens_cmd::{EntryArgs, output_entry, parse_board};
+use super::lens_entry::{EntryArgs, output_entry};
 use crate::lens::Model;
 use crate::lens::calibrate::fit::{FitModel, Frame, fit};
 use crate::lens::calibrate::{Board, Finder, RINGS, SECTORS, coverage, entry, select};
@@ -25,7 +25,7 @@ pub struct CalibrateArgs {
     every: Option<u64>,
     /// The board as printed: cols=N,rows=N,tag=LENGTH[,spacing=RATIO], with the tag size
     /// measured on the print.
-    #[arg(long, value_parser = parse_board)]
+    #[arg(long, value_parser = Board::parse)]
     board: Board,
     /// The lens model to fit: kannala_brandt (OpenCV's fisheye, Kalibr's equidistant) or
     /// double_sphere (Kalibr's ds).
@@ -258,7 +258,7 @@ pub fn synth_boards(
         Some(n) => BoardPose::sweep(board, n, lens.half_fov),
         None => poses
             .iter()
-            .map(|p| BoardPose::parse(board, p).map_err(anyhow::Error::msg))
+            .map(|p| BoardPose::parse(board, p).map_err(anyhow::Error::from))
             .collect::<Result<_>>()?,
     };
     let pattern = out.to_string_lossy().into_owned();

@@ -1,13 +1,14 @@
 //! `digiview lens list|show|check|import|board` (`calibrate` is in calibrate_cmd.rs).
 
+use super::lens_entry::{EntryArgs, output_entry};
 use super::locate;
+use crate::lens::LensEntry;
 use crate::lens::calibrate::Board;
 use crate::lens::check::check;
 use crate::lens::import::{Format, ImportOptions, import};
-use crate::lens::{LensCal, LensEntry};
-use crate::units::{deg, parse_angle};
+use crate::units::deg;
 use anyhow::{Result, anyhow, bail};
-use clap::{Args, Subcommand};
+use clap::Subcommand;
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand, Debug)]
@@ -37,7 +38,7 @@ pub enum LensCommand {
     Board {
         /// The board: cols=N,rows=N,tag=LENGTH[,spacing=RATIO] (tag measured across its black
         /// border; spacing, the gap between tags over the tag's side, 0.3 by default).
-        #[arg(long, value_parser = parse_board)]
+        #[arg(long, value_parser = Board::parse)]
         board: Board,
         /// The PNG to write.
         #[arg(long)]
@@ -46,28 +47,6 @@ pub enum LensCommand {
         #[arg(long, default_value_t = 300.0)]
         dpi: f64,
     },
-}
-
-/// What names a new lens.cal entry and where it goes: `import`'s and `calibrate`'s.
-#[derive(Args, Debug)]
-pub struct EntryArgs {
-    #[arg(long)]
-    pub name: String,
-    #[arg(long)]
-    pub id: u8,
-    /// The valid field of view (e.g. 190deg); by default the widest the frame shows.
-    #[arg(long, value_parser = parse_fov)]
-    pub fov: Option<f64>,
-    /// Append the entry to lens.cal.
-    #[arg(long)]
-    pub write: bool,
-    /// With --write: replace the entry of the same name or id.
-    #[arg(long, requires = "write")]
-    pub replace: bool,
-}
-
-pub(super) fn parse_board(text: &str) -> Result<Board, String> {
-    Board::parse(text).map_err(|e| e.to_string())
 }
 
 /// Writes the board's picture and says how to print it and what to tell other tools.
@@ -211,180 +190,4 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
         LensCommand::Calibrate(args) => super::calibrate_cmd::run(flag, args)?,
     }
     Ok(())
-}
-
-/// Prints a new entry, or with `write` adds it to the lens.cal in use; in place of the
-/// built-in one, to a new file in the user's config directory that starts as its copy.
-pub(super) fn output_entry(flag: Option<&Path>, entry: &LensEntry, args: &EntryArgs) -> Result<()> {
-    let text = entry.to_toml();
-    if !args.write {
-        print!("{text}");
-        return Ok(());
-    }
-    let origin = locate::lens_cal_origin(flag)?;
-    let (path, old) = match origin.path() {
-        Some(p) => (p.to_path_buf(), std::fs::read_to_string(p)?),
-        None => {
-            let dir = locate::user_config_dir()
-                .ok_or_else(|| anyhow!("no lens.cal to add to, and no home directory"))?
-                .join("digiview");
-            std::fs::create_dir_all(&dir)?;
-            let text = locate::built_in_lens_cal_text().to_string();
-            (dir.join("lens.cal"), text)
-        }
-    };
-    let replaced = append(&path, &old, entry, &text, args.replace)?;
-    let (what, place) = match replaced {
-        Some(r) => (format!("replaced {r} with"), "in"),
-        None => ("added".to_string(), "to"),
-    };
-    eprintln!(
-        "{what} {} (lens_id {}) {place} {}",
-        entry.name,
-        entry.lens_id,
-        path.display()
-    );
-    Ok(())
-}
-
-/// `--fov`: an angle in (0, 360°].
-fn parse_fov(text: &str) -> Result<f64, String> {
-    let v = parse_angle(text).map_err(|e| e.to_string())?;
-    if v > 0.0 && v <= std::f64::consts::TAU {
-        return Ok(v);
-    }
-    let hint = if text.trim().parse::<f64>().is_ok() {
-        format!(
-            " (a bare number is radians; for degrees write {}deg)",
-            text.trim()
-        )
-    } else {
-        String::new()
-    };
-    Err(format!(
-        "{text} is {:.1}°, outside (0, 360deg]{hint}",
-        v.to_degrees()
-    ))
-}
-
-/// Adds an entry to lens.cal: at the end, or in place of the clashing one with `replace`
-/// (the comments around it stay). Only a file that parses is written. Returns
-/// the replaced entry's name and line.
-fn append(
-    path: &Path,
-    old: &str,
-    entry: &LensEntry,
-    text: &str,
-    replace: bool,
-) -> Result<Option<String>> {
-    let entries = if old.contains("[[lens]]") {
-        LensCal::parse(path, old)?.entries
-    } else {
-        Vec::new()
-    };
-    let clash = entries
-        .iter()
-        .find(|e| e.name.eq_ignore_ascii_case(&entry.name) || e.lens_id == entry.lens_id);
-    let (body, replaced) = match clash {
-        Some(c) if !replace => bail!(
-            "{} already has {} (lens_id {}) on line {}; use --replace",
-            path.display(),
-            c.name,
-            c.lens_id,
-            c.line
-        ),
-        Some(c) => (
-            replace_table(old, c.line, text),
-            Some(format!(
-                "{} (lens_id {}, line {})",
-                c.name, c.lens_id, c.line
-            )),
-        ),
-        None => {
-            let mut body = old.to_string();
-            if !body.ends_with('\n') && !body.is_empty() {
-                body.push('\n');
-            }
-            body.push('\n');
-            body.push_str(text);
-            (body, None)
-        }
-    };
-    LensCal::parse(path, &body)?;
-    let tmp = path.with_extension("cal.tmp");
-    std::fs::write(&tmp, &body)?;
-    std::fs::rename(&tmp, path)?;
-    Ok(replaced)
-}
-
-/// The text with the `[[lens]]` table that starts on 1-based `line` replaced by `table`: its
-/// keys go, its comments stay above the new table (marked as the replaced entry's notes), and
-/// the comments above it and before the next table stay where they are.
-fn replace_table(text: &str, line: usize, table: &str) -> String {
-    let lines: Vec<&str> = text.lines().collect();
-    let start = line - 1;
-    let mut end = (start + 1..lines.len())
-        .find(|&i| lines[i].trim_start().starts_with("[[lens]]"))
-        .unwrap_or(lines.len());
-    while end > start + 1 && {
-        let l = lines[end - 1].trim_start();
-        l.is_empty() || l.starts_with('#')
-    } {
-        end -= 1;
-    }
-    let mut out = lines[..start].join("\n");
-    if !out.is_empty() {
-        out.push('\n');
-    }
-    // The replaced entry's own notes are kept above the new one, marked as its.
-    let notes: Vec<&str> = lines[start + 1..end]
-        .iter()
-        .copied()
-        .filter(|l| l.trim_start().starts_with('#'))
-        .collect();
-    if !notes.is_empty() {
-        out.push_str("# Notes of the entry this one replaced:\n");
-        for n in notes {
-            out.push_str(n.trim_start());
-            out.push('\n');
-        }
-    }
-    out.push_str(table.trim_end());
-    out.push('\n');
-    if end < lines.len() {
-        out.push('\n');
-        out.push_str(&lines[end..].join("\n"));
-        out.push('\n');
-    }
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_replaced_entry_keeps_its_place_and_every_comment() {
-        let text = "# lenses of drone 2\n\n# the old one\n[[lens]]\nname = \"A\"\n\
-                    # measured 2025\nlens_id = 0\n# inside A\n\n# about B\n[[lens]]\n\
-                    name = \"B\"\n";
-        let out = replace_table(text, 4, "[[lens]]\nname = \"A2\"\n");
-        assert_eq!(
-            out,
-            "# lenses of drone 2\n\n# the old one\n# Notes of the entry this one \
-             replaced:\n# measured 2025\n[[lens]]\nname = \"A2\"\n\n# inside A\n\n\
-             # about B\n[[lens]]\nname = \"B\"\n"
-        );
-        let last = replace_table(text, 11, "[[lens]]\nname = \"B2\"\n");
-        assert!(
-            last.ends_with("# about B\n[[lens]]\nname = \"B2\"\n"),
-            "{last}"
-        );
-        assert!(
-            parse_fov("7")
-                .unwrap_err()
-                .contains("for degrees write 7deg")
-        );
-        assert!((parse_fov("190deg").unwrap() - 190f64.to_radians()).abs() < 1e-12);
-    }
 }

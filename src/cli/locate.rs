@@ -6,7 +6,7 @@
 //! or the variable must exist; a file found must parse (a broken file is an error, never
 //! passed over for the next). Start-up logs which one was used.
 
-use crate::head::config::Config;
+use crate::app::Config;
 use crate::lens::LensCal;
 use anyhow::{Result, bail};
 use std::fmt;

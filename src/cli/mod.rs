@@ -8,6 +8,7 @@ mod ctl_cmd;
 mod detect_cmd;
 mod doctor;
 mod lens_cmd;
+mod lens_entry;
 pub mod locate;
 mod output;
 mod render_cmd;

@@ -60,7 +60,7 @@ pub struct SynthArgs {
     sensor: Option<(u32, u32)>,
     /// Draw a calibration board (cols=N,rows=N,tag=LENGTH[,spacing=RATIO]) before the lens
     /// instead of a world, at each --board-pose or at --board-sweep's poses, one frame each.
-    #[arg(long, value_parser = super::lens_cmd::parse_board, conflicts_with_all = ["truth", "equirect"])]
+    #[arg(long, value_parser = Board::parse, conflicts_with_all = ["truth", "equirect"])]
     board: Option<Board>,
     /// Where the board is: off=ANGLE,azimuth=ANGLE,distance=LENGTH[,tilt=ANGLE][,turn=ANGLE]
     /// [,spin=ANGLE] (off the lens axis, azimuth 0 the frame's right and 90deg down; repeat
@@ -87,12 +87,12 @@ fn save(img: &RgbImage, out: output::Output) -> Result<()> {
 }
 
 /// `--bitrate-kbps`, in the range the serve config takes too.
-fn bitrate(text: &str) -> Result<u32, String> {
+fn bitrate(text: &str) -> Result<u32> {
     let (lo, hi) = crate::stream::encoder::BITRATE_KBPS;
     text.parse::<u32>()
         .ok()
         .filter(|b| (lo..=hi).contains(b))
-        .ok_or_else(|| format!("{text} is not a bitrate in {lo}..={hi} kbit/s"))
+        .ok_or_else(|| anyhow::anyhow!("{text} is not a bitrate in {lo}..={hi} kbit/s"))
 }
 
 /// The widest panorama `synth --equirect` draws.

@@ -1,82 +1,21 @@
-//! GET and SET of DETECTION (how detections are kept and shown) and GET of DETECTED_ROI (the
-//! tracked objects, one reply each for index 254 and 255).
+//! GET of DETECTED_ROI (the tracked objects, one reply each for index 254 and 255). DETECTION
+//! itself (how detections are kept and shown) is read and set by the state's own rules.
 
 use super::Refusal;
 use crate::geometry::ground::ground_point;
 use crate::geometry::rotation::direction;
 use crate::geometry::view::lens_from_world;
 use crate::layout::layout;
-use crate::protocol::params::{DetectedRoi, Detection};
+use crate::protocol::params::DetectedRoi;
 use crate::render::FramePlan;
-use crate::state::{Live, RATIO_RANGE, State, Tracked};
+use crate::state::{Live, State, Tracked};
 use glam::DVec2;
 use serde::Serialize;
 
-/// A score field of 255 means "keep the current value".
-pub const KEEP: u8 = 255;
 /// DETECTED_ROI index: every detection shown in the overlay.
 pub const SHOWN: u8 = 254;
 /// DETECTED_ROI index: every known detection.
 pub const KNOWN: u8 = 255;
-
-pub fn detection(state: &State) -> Detection {
-    let d = &state.detection;
-    Detection {
-        mode: d.mode,
-        sorting_mode: d.sorting_mode,
-        crop_confidence_threshold: d.crop_confidence_threshold,
-        var_confidence_threshold: d.var_confidence_threshold,
-        crop_box_limit: d.crop_box_limit,
-        var_box_limit: d.var_box_limit,
-        crop_box_overlap: d.crop_box_overlap,
-        var_box_overlap: d.var_box_overlap,
-        creation_score_scale: d.creation_score_scale,
-        bonus_detection_scale: d.bonus_detection_scale,
-        bonus_redetection_scale: d.bonus_redetection_scale,
-        missed_detection_penalty: d.missed_detection_penalty,
-        missed_redetection_penalty: d.missed_redetection_penalty,
-    }
-}
-
-/// The seed's rules: mode is ignored; a sorting mode above 2 is ignored; thresholds and
-/// overlaps outside [0, 0.99) keep their value; box limits are clamped to 10..=500; a score
-/// field of 255 keeps its value.
-pub fn set_detection(s: &mut State, p: &Detection) -> Result<(), Refusal> {
-    let d = &mut s.detection;
-    if p.sorting_mode <= 2 {
-        d.sorting_mode = p.sorting_mode;
-    }
-    for (field, v) in [
-        (
-            &mut d.crop_confidence_threshold,
-            p.crop_confidence_threshold,
-        ),
-        (&mut d.var_confidence_threshold, p.var_confidence_threshold),
-        (&mut d.crop_box_overlap, p.crop_box_overlap),
-        (&mut d.var_box_overlap, p.var_box_overlap),
-    ] {
-        if RATIO_RANGE.contains(&v) {
-            *field = v;
-        }
-    }
-    d.crop_box_limit = p.crop_box_limit.clamp(10, 500);
-    d.var_box_limit = p.var_box_limit.clamp(10, 500);
-    for (field, v) in [
-        (&mut d.creation_score_scale, p.creation_score_scale),
-        (&mut d.bonus_detection_scale, p.bonus_detection_scale),
-        (&mut d.bonus_redetection_scale, p.bonus_redetection_scale),
-        (&mut d.missed_detection_penalty, p.missed_detection_penalty),
-        (
-            &mut d.missed_redetection_penalty,
-            p.missed_redetection_penalty,
-        ),
-    ] {
-        if v != KEEP {
-            *field = v;
-        }
-    }
-    Ok(())
-}
 
 /// Index 0..=253 is one known detection; 254 every one the overlay shows; 255 every known
 /// one. Each reply's index is its position in the list it belongs to, and total_detections

@@ -16,13 +16,37 @@ pub mod refusals;
 pub mod server;
 pub mod system;
 
-use crate::autopilot::LinkStatus;
+use crate::protocol::params::Autopilot;
 use crate::protocol::{Body, Message, Param, TextValue, Verdict, split_text};
 use crate::state::{Invalid, Live, MAX_CAMERAS};
 use permissions::Permissions;
 use refusals::Refusals;
+use serde::{Deserialize, Serialize};
 use std::net::IpAddr;
 use std::sync::Arc;
+
+/// `[control]` in the serve configuration: where the control protocol listens, and who may
+/// SET and QUIT.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ControlConfig {
+    /// Where the control protocol listens, TCP and UDP.
+    pub listen: String,
+    /// Who may SET: any, none, loopback, or addresses and CIDR ranges, comma-separated.
+    pub allow_set: String,
+    /// Who may QUIT.
+    pub allow_quit: String,
+}
+
+impl Default for ControlConfig {
+    fn default() -> Self {
+        ControlConfig {
+            listen: "0.0.0.0:5010".into(),
+            allow_set: "any".into(),
+            allow_quit: "loopback".into(),
+        }
+    }
+}
 
 /// Why a request was refused; the text goes to the server's log.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -72,11 +96,16 @@ impl Outcome {
     }
 }
 
+/// The autopilot link as AUTOPILOT reports it (the assembly hands over the running link's).
+pub trait AutopilotStatus: Send + Sync {
+    fn param(&self) -> Autopilot;
+}
+
 pub struct Controller {
     pub live: Arc<Live>,
     pub permissions: Permissions,
     /// The autopilot link's state, for AUTOPILOT (None: the link is off).
-    pub autopilot: Option<Arc<LinkStatus>>,
+    pub autopilot: Option<Arc<dyn AutopilotStatus>>,
     /// Why requests were refused: logged, and the last per address kept for REFUSAL.
     pub refusals: Refusals,
 }
@@ -191,7 +220,7 @@ impl Controller {
             Param::SystemStatus(_) => one(Param::SystemStatus(system::system_status(live))),
             Param::VideoOutput(_) => one(Param::VideoOutput(system::video_output(&s)?)),
             Param::Capture(_) => one(Param::Capture(system::capture(live))),
-            Param::Detection(_) => one(Param::Detection(detection::detection(&s))),
+            Param::Detection(_) => one(Param::Detection(s.detection.param())),
             Param::DetectedRoi(q) => Ok(detection::detected_roi(&s, q.index)?
                 .into_iter()
                 .map(Param::DetectedRoi)
@@ -234,7 +263,10 @@ impl Controller {
         }
         live.update(|s| match param {
             Param::VideoOutput(p) => system::set_video_output(s, p),
-            Param::Detection(p) => detection::set_detection(s, p),
+            Param::Detection(p) => {
+                s.detection.set(p);
+                Ok(())
+            }
             Param::Lens(p) => system::set_lens(live, s, p),
             Param::CamEuler(p) => camera::set_euler(&mut s.cameras[cam], p),
             Param::CamZoom(p) => camera::set_zoom(&mut s.cameras[cam], p),

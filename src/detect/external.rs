@@ -77,30 +77,59 @@ struct WireBox {
     class: Option<serde_json::Value>,
 }
 
+/// What is wrong with a line: it is answered with this.
+#[derive(Debug, thiserror::Error)]
+pub enum LineError {
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    #[error("t is not a number of seconds")]
+    Time,
+    #[error("{0} boxes; at most {MAX_BOXES} a line")]
+    TooMany(usize),
+    #[error("box {0}: {1}")]
+    Box(usize, BoxError),
+}
+
+/// What is wrong with one box of a line.
+#[derive(Debug, thiserror::Error)]
+pub enum BoxError {
+    #[error("confidence {0} is outside 0..=1")]
+    Confidence(f64),
+    #[error("class {0} is not a name (64 characters at most) or a number")]
+    Class(serde_json::Value),
+    #[error("{0} is not a number")]
+    NotANumber(&'static str),
+    #[error("x1, y1 must be right of and below x0, y0")]
+    Corners,
+    #[error("pitch {0} is outside -90..=90 degrees")]
+    Pitch(f64),
+    #[error("width and height must be in (0, 180] degrees")]
+    Size,
+    #[error("give x0, y0, x1, y1 (fisheye pixels) or yaw, pitch, width, height (degrees)")]
+    Place,
+}
+
 /// Reads one line; the error says what is wrong with it.
-pub fn parse(line: &str) -> Result<Batch, String> {
-    let wire: WireBatch = serde_json::from_str(line).map_err(|e| e.to_string())?;
+pub fn parse(line: &str) -> Result<Batch, LineError> {
+    let wire: WireBatch = serde_json::from_str(line)?;
     if wire.t.is_some_and(|t| !t.is_finite()) {
-        return Err("t is not a number of seconds".into());
+        return Err(LineError::Time);
     }
     if wire.boxes.len() > MAX_BOXES {
-        return Err(format!(
-            "{} boxes; at most {MAX_BOXES} a line",
-            wire.boxes.len()
-        ));
+        return Err(LineError::TooMany(wire.boxes.len()));
     }
     let boxes = wire
         .boxes
         .into_iter()
         .enumerate()
-        .map(|(i, b)| to_box(b).map_err(|e| format!("box {i}: {e}")))
+        .map(|(i, b)| to_box(b).map_err(|e| LineError::Box(i, e)))
         .collect::<Result<_, _>>()?;
     Ok(Batch { t: wire.t, boxes })
 }
 
-fn to_box(b: WireBox) -> Result<ExternalBox, String> {
+fn to_box(b: WireBox) -> Result<ExternalBox, BoxError> {
     if !(0.0..=1.0).contains(&b.confidence) {
-        return Err(format!("confidence {} is outside 0..=1", b.confidence));
+        return Err(BoxError::Confidence(b.confidence));
     }
     let label = match b.class {
         None => String::new(),
@@ -108,17 +137,13 @@ fn to_box(b: WireBox) -> Result<ExternalBox, String> {
         Some(serde_json::Value::Number(n)) if n.as_u64().is_some_and(|n| n < 65536) => {
             n.to_string()
         }
-        Some(other) => {
-            return Err(format!(
-                "class {other} is not a name (64 characters at most) or a number"
-            ));
-        }
+        Some(other) => return Err(BoxError::Class(other)),
     };
-    let finite = |v: f64, name: &str| {
+    let finite = |v: f64, name: &'static str| {
         if v.is_finite() {
             Ok(v)
         } else {
-            Err(format!("{name} is not a number"))
+            Err(BoxError::NotANumber(name))
         }
     };
     let place = match (b.x0, b.y0, b.x1, b.y1, b.yaw, b.pitch, b.width, b.height) {
@@ -130,7 +155,7 @@ fn to_box(b: WireBox) -> Result<ExternalBox, String> {
                 finite(y1, "y1")?,
             );
             if x1 <= x0 || y1 <= y0 {
-                return Err("x1, y1 must be right of and below x0, y0".into());
+                return Err(BoxError::Corners);
             }
             Place::Pixels { x0, y0, x1, y1 }
         }
@@ -138,10 +163,10 @@ fn to_box(b: WireBox) -> Result<ExternalBox, String> {
             let (yaw, pitch) = (finite(yaw, "yaw")?, finite(pitch, "pitch")?);
             let (width, height) = (finite(width, "width")?, finite(height, "height")?);
             if !(-90.0..=90.0).contains(&pitch) {
-                return Err(format!("pitch {pitch} is outside -90..=90 degrees"));
+                return Err(BoxError::Pitch(pitch));
             }
             if !(width > 0.0 && width <= 180.0 && height > 0.0 && height <= 180.0) {
-                return Err("width and height must be in (0, 180] degrees".into());
+                return Err(BoxError::Size);
             }
             Place::Angles {
                 yaw: yaw.to_radians(),
@@ -150,12 +175,7 @@ fn to_box(b: WireBox) -> Result<ExternalBox, String> {
                 height: height.to_radians(),
             }
         }
-        _ => {
-            return Err(
-                "give x0, y0, x1, y1 (fisheye pixels) or yaw, pitch, width, height (degrees)"
-                    .into(),
-            );
-        }
+        _ => return Err(BoxError::Place),
     };
     Ok(ExternalBox {
         place,
@@ -369,7 +389,7 @@ mod tests {
             ),
             (r#"{"boxes": [], "extra": 1}"#, "unknown field"),
         ] {
-            let e = parse(line).unwrap_err();
+            let e = parse(line).unwrap_err().to_string();
             assert!(e.contains(says), "{line}: {e}");
         }
         let many = format!(
@@ -380,7 +400,7 @@ mod tests {
             ]
             .join(",")
         );
-        assert!(parse(&many).unwrap_err().contains("at most"));
+        assert!(parse(&many).unwrap_err().to_string().contains("at most"));
     }
 
     proptest::proptest! {

@@ -6,6 +6,7 @@
 //! DETECTED_ROI.
 
 pub mod angular;
+mod config;
 pub mod external;
 pub mod motion;
 pub mod onnx;
@@ -16,6 +17,7 @@ pub mod tracker;
 mod tests;
 
 pub use angular::{AngularBox, Detection};
+pub use config::{DetectionConfig, Detector};
 pub use motion::MotionDetector;
 pub use onnx::{OnnxConfig, OnnxDetector, OnnxError};
 pub use tracker::{Change, Object, Tracker, Why};

@@ -5,10 +5,9 @@
 
 use super::angular::{AngularBox, Detection, suppress};
 use super::tracker::{Change, MAX_SCORE, Tracker, Why};
-use crate::control::detection::set_detection;
 use crate::geometry::rotation::direction;
 use crate::protocol::params::Detection as DetectionParams;
-use crate::state::{DetectionSettings, State};
+use crate::state::DetectionSettings;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
@@ -32,11 +31,11 @@ fn change(id: u32, why: Why, from: u8, to: u8) -> Change {
 
 /// DETECTION's SET applied to the default settings, as the protocol applies it.
 fn settings(edit: impl FnOnce(&mut DetectionParams)) -> DetectionSettings {
-    let mut state = State::default();
-    let mut p = crate::control::detection::detection(&state);
+    let mut settings = DetectionSettings::default();
+    let mut p = settings.param();
     edit(&mut p);
-    set_detection(&mut state, &p).unwrap();
-    state.detection
+    settings.set(&p);
+    settings
 }
 
 #[test]

@@ -9,11 +9,30 @@ pub mod v4l2;
 
 use crate::frame::{Frame, PixelFormat};
 use glam::DVec2;
+use serde::{Deserialize, Serialize};
 
 /// CAM_SENSOR's gain for a gain of one (its unit is a thousandth).
 pub const UNITY_GAIN: u32 = 1000;
 /// The exposure at which the demo camera shows the world's own colours at unity gain.
 pub const REFERENCE_EXPOSURE_US: u32 = 10_000;
+
+/// `[exposure]` in the serve configuration.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExposureConfig {
+    /// With CAM_SENSOR's ae on: `camera` (the camera's own auto exposure, where it has one;
+    /// target_brightness is then the camera's to ignore) or `software` (DigiView's, towards
+    /// target_brightness, on any camera).
+    pub auto: AutoExposureMode,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AutoExposureMode {
+    #[default]
+    Camera,
+    Software,
+}
 
 /// Exposure time and gain, in CAM_SENSOR's units.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -68,7 +68,7 @@ pub struct Frame {
     pub data: Vec<u8>,
     pub layout: PlaneLayout,
     /// Microseconds on the monotonic clock the sources stamp frames with
-    /// (`crate::source::clock_us`).
+    /// (`crate::clock::clock_us`).
     pub captured_us: u64,
 }
 

@@ -2,23 +2,68 @@
 //! PNG, and recordings of the encoded stream to fragmented MP4. Files are named by local time
 //! and a running index; free disk space is checked before anything starts, so a full disk is
 //! an error reply rather than a truncated file. A MAVLink camera's stills and video are of
-//! its view alone (`crate::cameras`): a still is asked for here, rendered by the frame loop,
+//! its view alone ([`ViewShooter`]): a still is asked for here, rendered by the frame loop,
 //! written and reported back; a view's recording takes its own stream's access units.
 
-use super::config::{CaptureConfig, StillFormat};
 use crate::frame::PlaneLayout;
 use crate::state::MAX_CAMERAS;
-use crate::state::capture::{CaptureError, CaptureStatus, Capturer};
+use crate::state::capture::{CaptureError, CaptureStatus, Capturer, StillDone, ViewShooter};
 use crate::stream::Recorder;
 use crate::stream::encoder::AccessUnit;
 use gstreamer::glib;
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use tracing::{error, info, warn};
 
-/// Called with the file a view's still was written to, or why it was not.
-pub type StillDone = Box<dyn FnOnce(Result<PathBuf, String>) + Send>;
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StillFormat {
+    Jpeg,
+    Png,
+}
+
+impl StillFormat {
+    pub fn extension(self) -> &'static str {
+        match self {
+            StillFormat::Jpeg => "jpg",
+            StillFormat::Png => "png",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CaptureConfig {
+    /// Where stills and recordings go (made if missing).
+    pub dir: PathBuf,
+    pub still_format: StillFormat,
+    /// Also save the raw fisheye frame beside each still.
+    pub raw: bool,
+    /// A capture is refused while the disk has less free space than this.
+    pub min_free_mb: u64,
+}
+
+impl Default for CaptureConfig {
+    fn default() -> Self {
+        CaptureConfig {
+            dir: "captures".into(),
+            still_format: StillFormat::Jpeg,
+            raw: false,
+            min_free_mb: 200,
+        }
+    }
+}
+
+/// Why a still was not written.
+#[derive(Debug, thiserror::Error)]
+enum StillError {
+    #[error(transparent)]
+    Decode(#[from] crate::frame::FrameError),
+    #[error(transparent)]
+    Encode(#[from] image::ImageError),
+}
 
 pub struct Capture {
     cfg: CaptureConfig,
@@ -121,7 +166,10 @@ impl Capture {
                 }
                 Err(e) => error!("still {}: {e}", path.display()),
             }
-            done(written.map(|()| std::fs::canonicalize(&path).unwrap_or(path)));
+            done(match written {
+                Ok(()) => Ok(std::fs::canonicalize(&path).unwrap_or(path)),
+                Err(e) => Err(CaptureError::Still(Box::new(e))),
+            });
         });
     }
 
@@ -131,14 +179,13 @@ impl Capture {
         path: &std::path::Path,
         data: &[u8],
         layout: &PlaneLayout,
-    ) -> Result<(), String> {
-        let img = crate::frame::yuv::decode(data, layout).map_err(|e| e.to_string())?;
+    ) -> Result<(), StillError> {
+        let img = crate::frame::yuv::decode(data, layout)?;
         let format = match self.cfg.still_format {
             StillFormat::Jpeg => image::ImageFormat::Jpeg,
             StillFormat::Png => image::ImageFormat::Png,
         };
-        img.save_with_format(path, format)
-            .map_err(|e| e.to_string())
+        Ok(img.save_with_format(path, format)?)
     }
 
     /// Whether the encoder should send a key frame now (clears the ask).
@@ -184,7 +231,7 @@ impl Capture {
 
     /// Ends the running recordings cleanly (shutdown).
     pub fn finish(&self) {
-        let _ = self.record(false);
+        let _ = Capturer::record(self, false);
         for i in 0..MAX_CAMERAS {
             let _ = self.record_view(i, false);
         }
@@ -243,17 +290,17 @@ impl Capture {
     }
 }
 
-impl crate::cameras::ViewShooter for Capture {
-    fn record(&self, view: usize, on: bool) -> Result<(), String> {
-        self.record_view(view, on).map_err(|e| e.to_string())
+impl ViewShooter for Capture {
+    fn record(&self, view: usize, on: bool) -> Result<(), CaptureError> {
+        self.record_view(view, on)
     }
 
     fn recording(&self, view: usize) -> bool {
         self.view_recording(view)
     }
 
-    fn shoot(&self, view: usize, done: StillDone) -> Result<(), String> {
-        self.ready().map_err(|e| e.to_string())?;
+    fn shoot(&self, view: usize, done: StillDone) -> Result<(), CaptureError> {
+        self.ready()?;
         self.view_stills
             .lock()
             .unwrap_or_else(|e| e.into_inner())

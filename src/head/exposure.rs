@@ -4,12 +4,12 @@
 //! frames, and for a V4L2 camera a thread that keeps its controls as the live state says.
 
 use super::Head;
-use super::config::AutoExposureMode;
+use crate::clock::clock_us;
 use crate::exposure::auto::AutoExposure;
 use crate::exposure::v4l2::{Device, Mapping};
-use crate::exposure::{Limits, Setting, UNITY_GAIN, circle_luma};
+use crate::exposure::{AutoExposureMode, Limits, Setting, UNITY_GAIN, circle_luma};
 use crate::frame::Frame;
-use crate::source::{SourceSpec, clock_us};
+use crate::source::SourceSpec;
 use crate::state::{Invalid, MAX_GAIN, State};
 use std::path::PathBuf;
 use std::sync::Mutex;

@@ -1,5 +1,7 @@
 //! The video head: source → upload → GPU render → readback → H.264 → RTSP (and recording),
-//! frame after frame. A source thread (`source_thread`: a camera, file or image through
+//! frame after frame. One service among the others: it reads the live state and the
+//! vehicle's telemetry, and knows nothing of who writes them; the serve assembly (`crate::app`)
+//! builds it with its parts of the configuration ([`HeadConfig`]) and the outputs it feeds. A source thread (`source_thread`: a camera, file or image through
 //! GStreamer, or the demo) puts frames in a newest-wins slot; the frame loop (`frame_loop`,
 //! paced by `pacing`) takes the newest, renders it with the live state and the attitude at its
 //! capture time (`telemetry`), and feeds the encoder, whose access units go to the RTSP
@@ -11,7 +13,6 @@
 //! their own, whose objects the detection tiles follow.
 
 pub mod capture;
-pub mod config;
 mod detection;
 mod exposure;
 mod external;
@@ -21,26 +22,50 @@ mod no_signal;
 pub mod pacing;
 mod source_thread;
 mod supervise;
-pub mod telemetry;
 mod views;
 
+pub use detection::DetectorError;
+
+use crate::detect::DetectionConfig;
+use crate::exposure::ExposureConfig;
 use crate::frame::FrameError;
 use crate::lens::LensError;
 use crate::render::gpu::GpuError;
-use crate::source::{FrameSlot, SourceSpec, SpecError};
+use crate::source::demo::{DemoConfig, Flight};
+use crate::source::{FrameSlot, SourceSpec};
 use crate::state::Live;
-use crate::stream::{Preview, Publisher, Rtsp, StreamError};
+use crate::stream::{EncoderConfig, Preview, Publisher, Rtsp, StreamError};
+use crate::telemetry::Telemetry;
 use capture::Capture;
-use config::Config;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use telemetry::Telemetry;
+use std::time::Instant;
+
+/// The head's parts of `digiview serve`'s configuration.
+#[derive(Clone, Debug)]
+pub struct HeadConfig {
+    pub source: SourceSpec,
+    /// Frame rate of image and sequence sources.
+    pub source_fps: u32,
+    /// Replay files and sequences from the start when they end.
+    pub source_loop: bool,
+    pub demo: DemoConfig,
+    pub exposure: ExposureConfig,
+    pub encoder: EncoderConfig,
+    /// A view's own stream and stills: its picture's size (`[cameras] width`, `height`).
+    pub view_size: (u32, u32),
+    pub detection: DetectionConfig,
+    /// Seconds between the one-line health summaries in the log (0: none).
+    pub health_interval_s: f64,
+}
+
+/// Sends the demo's flight on as an autopilot would, from its start: what it returns runs
+/// until dropped. The assembly gives one where the autopilot link listens on this machine.
+pub type DemoAutopilot = Box<dyn Fn(&Flight, Instant) -> Box<dyn Send> + Send + Sync>;
 
 /// Why the video head stopped, or could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum HeadError {
-    #[error(transparent)]
-    Source(#[from] SpecError),
     #[error("starting the {0} thread: {1}")]
     Thread(&'static str, std::io::Error),
     #[error(transparent)]
@@ -57,7 +82,7 @@ pub enum HeadError {
 
 /// Shared by the head's threads.
 pub struct Head {
-    pub cfg: Config,
+    pub cfg: HeadConfig,
     pub live: Arc<Live>,
     pub capture: Arc<Capture>,
     pub telemetry: Arc<Telemetry>,
@@ -84,6 +109,22 @@ pub struct Head {
     external: std::sync::OnceLock<Arc<crate::detect::external::Inbox>>,
     /// The newest frame's width and height (high and low 32 bits; 0 before the first).
     frame_size: AtomicU64,
+    /// Where the demo's flight goes as an autopilot's would (None: straight into the
+    /// telemetry).
+    demo_autopilot: Option<DemoAutopilot>,
+}
+
+/// What the head reads, writes and feeds, built by the assembly.
+pub struct HeadParts {
+    pub live: Arc<Live>,
+    pub capture: Arc<Capture>,
+    pub rtsp: Arc<Rtsp>,
+    /// The relays the stream is published to.
+    pub publishers: Vec<Publisher>,
+    pub telemetry: Arc<Telemetry>,
+    /// Set by the RTSP server and the relays when a client joins: a key frame is owed.
+    pub key_wanted: Arc<AtomicBool>,
+    pub demo_autopilot: Option<DemoAutopilot>,
 }
 
 /// Counters the frame loop keeps and the health log reads.
@@ -108,17 +149,17 @@ struct Stats {
 }
 
 impl Head {
-    pub fn new(
-        cfg: Config,
-        live: Arc<Live>,
-        capture: Arc<Capture>,
-        rtsp: Arc<Rtsp>,
-        publishers: Vec<Publisher>,
-        telemetry: Arc<Telemetry>,
-        key_wanted: Arc<AtomicBool>,
-    ) -> Arc<Head> {
-        let spec = cfg.source.parse().unwrap_or(SourceSpec::Demo);
-        let exposure = exposure::ExposureStage::new(&spec, cfg.exposure.auto);
+    pub fn new(cfg: HeadConfig, parts: HeadParts) -> Arc<Head> {
+        let HeadParts {
+            live,
+            capture,
+            rtsp,
+            publishers,
+            telemetry,
+            key_wanted,
+            demo_autopilot,
+        } = parts;
+        let exposure = exposure::ExposureStage::new(&cfg.source, cfg.exposure.auto);
         Arc::new(Head {
             cfg,
             live,
@@ -138,12 +179,13 @@ impl Head {
             model: std::sync::OnceLock::new(),
             external: std::sync::OnceLock::new(),
             frame_size: AtomicU64::new(0),
+            demo_autopilot,
         })
     }
 
     /// Runs the source thread, the health log and the frame loop until `stop` is set.
     pub fn run(self: &Arc<Head>) -> Result<(), HeadError> {
-        let spec: SourceSpec = self.cfg.source.parse()?;
+        let spec = self.cfg.source.clone();
         let source = {
             let head = self.clone();
             thread("source", move || {

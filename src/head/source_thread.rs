@@ -3,13 +3,12 @@
 //! fails. Frames go to the head's newest-wins slot.
 
 use super::{Head, HeadError};
-use crate::autopilot::Endpoint;
-use crate::autopilot::sim::SimAutopilot;
+use crate::clock::clock_us;
 use crate::exposure::{SensorModel, Setting};
 use crate::frame::{Frame, PlaneLayout};
 use crate::geometry::Euler;
 use crate::source::demo::{DemoCamera, Flight};
-use crate::source::{Ended, SourceSpec, backoff, clock_us};
+use crate::source::{Ended, SourceSpec, backoff};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use tracing::{error, info};
@@ -105,25 +104,10 @@ impl Head {
         let start = Instant::now();
         // The flight goes to the frames through the MAVLink link, as a real autopilot's would,
         // where the link listens on this machine; else straight into the telemetry.
-        let link = (!d.spin)
-            .then(|| {
-                self.cfg
-                    .mavlink
-                    .endpoint
-                    .parse::<Endpoint>()
-                    .ok()?
-                    .loopback_peer()
-            })
-            .flatten();
-        let _autopilot = link.map(|to| {
-            info!("source: the demo's flight is a simulated autopilot sending to {to}");
-            SimAutopilot::start(
-                &to,
-                flight.clone(),
-                start,
-                self.cfg.mavlink.attitude_hz.max(100.0),
-            )
-        });
+        let _autopilot = match (&self.demo_autopilot, d.spin) {
+            (Some(send), false) => Some(send(&flight, start)),
+            _ => None,
+        };
         let mut next = start;
         let mut number = 0u64;
         while !self.stop.load(Ordering::Relaxed) {

@@ -9,8 +9,9 @@ use super::{Head, no_signal};
 use crate::frame::Frame;
 use crate::lens::Lens;
 use crate::render::FramePlan;
-use crate::render::gpu::{Gpu, Renderer};
+use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::state::State;
+use crate::state::capture::CaptureError;
 use crate::stream::Encoder;
 use crate::stream::rtsp::VIEW_MOUNTS;
 use std::sync::Arc;
@@ -20,6 +21,15 @@ use tracing::{error, info};
 
 /// After an encoder for a view would not start, the next try waits this long.
 const RETRY: Duration = Duration::from_secs(1);
+
+/// Why a view alone has no picture this frame: every still asked for of it is told.
+#[derive(Clone, Debug, thiserror::Error)]
+enum NoPicture {
+    #[error("no signal from the source")]
+    NoSignal,
+    #[error(transparent)]
+    Gpu(Arc<GpuError>),
+}
 
 /// What the views' outputs keep from frame to frame.
 #[derive(Default)]
@@ -51,7 +61,7 @@ impl Head {
         fps: u32,
     ) {
         let mut stills = self.capture.take_view_stills();
-        let (w, h) = (self.cfg.cameras.width, self.cfg.cameras.height);
+        let (w, h) = self.cfg.view_size;
         for i in 0..VIEW_MOUNTS {
             // Watched, or recorded by its camera: its stream is encoded.
             let watched = self.rtsp.view_watched(i) || self.capture.view_recording(i);
@@ -74,14 +84,14 @@ impl Head {
                     self.stats.views.fetch_add(1, Ordering::Relaxed);
                     r
                 }
-                None => Err("no signal from the source".to_string()),
+                None => Err(NoPicture::NoSignal),
             };
             for (_, done) in asked {
                 match &picture {
                     Ok((data, layout)) => {
                         self.capture.save_view_still(data.clone(), *layout, i, done)
                     }
-                    Err(e) => done(Err(e.clone())),
+                    Err(e) => done(Err(CaptureError::Still(Box::new(e.clone())))),
                 }
             }
             if watched {
@@ -102,15 +112,16 @@ impl Head {
         i: usize,
         w: u32,
         h: u32,
-    ) -> Result<(Vec<u8>, crate::frame::PlaneLayout), String> {
+    ) -> Result<(Vec<u8>, crate::frame::PlaneLayout), NoPicture> {
+        let gpu_error = |e| NoPicture::Gpu(Arc::new(e));
         if outs.renderer.is_none() {
-            outs.renderer = Some(self.renderer(gpu).map_err(|e| e.to_string())?);
+            outs.renderer = Some(self.renderer(gpu).map_err(gpu_error)?);
         }
         let renderer = outs.renderer.as_mut().expect("made above");
         let plan = FramePlan::single_view(state, lens, i, w, h);
         let out = renderer
             .render(&frame.data, &frame.layout, &plan)
-            .map_err(|e| e.to_string())?;
+            .map_err(gpu_error)?;
         Ok((out.data, out.layout))
     }
 

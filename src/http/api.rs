@@ -217,7 +217,7 @@ pub(crate) fn status_value(web: &Web) -> Value {
     json!({
         "status": s.status() as u8,
         "failure": s.failure(),
-        "video": web.head.as_ref().map(|h| h.health()),
+        "video": web.video.as_ref().map(|v| v.status()),
         "autopilot": web.controller.autopilot.as_ref().map(|a| a.param()),
         "version": env!("CARGO_PKG_VERSION"),
     })

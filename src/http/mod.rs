@@ -15,9 +15,8 @@ mod events;
 mod page;
 mod preview;
 
-use crate::cameras::{Cameras, DEFINITION_PATH};
 use crate::control::Controller;
-use crate::head::Head;
+use crate::stream::Preview;
 use axum::Router;
 use axum::extract::{Request, State};
 use axum::http::{HeaderMap, Method, StatusCode, header};
@@ -33,6 +32,8 @@ use tokio::net::TcpListener;
 
 /// Where the captures are served.
 pub const CAPTURES_PATH: &str = "/captures/";
+/// Where the MAVLink cameras' definition file is served.
+pub const DEFINITION_PATH: &str = "/camera.xml";
 
 /// `[http]` in the config.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
@@ -50,26 +51,40 @@ impl Default for HttpConfig {
     }
 }
 
+/// An `[http] listen` that is neither an address nor `off`.
+#[derive(Debug, thiserror::Error)]
+#[error("http listen {0:?}: use ADDR:PORT or off")]
+pub struct ListenError(String);
+
 impl HttpConfig {
     /// Where to listen; None when off.
-    pub fn address(&self) -> Result<Option<SocketAddr>, String> {
+    pub fn address(&self) -> Result<Option<SocketAddr>, ListenError> {
         if self.listen.eq_ignore_ascii_case("off") {
             return Ok(None);
         }
         self.listen
             .parse()
             .map(Some)
-            .map_err(|_| format!("http listen {:?}: use ADDR:PORT or off", self.listen))
+            .map_err(|_| ListenError(self.listen.clone()))
     }
+}
+
+/// The video pipeline as the HTTP server sees it: its figures and the encoder's H.264.
+pub trait Video: Send + Sync {
+    /// The figures over the last second, as `/api/status` gives them under `video`.
+    fn status(&self) -> serde_json::Value;
+    /// The page's viewers of the stream.
+    fn preview(&self) -> Arc<Preview>;
 }
 
 /// What the handlers reach.
 #[derive(Clone)]
 pub struct Web {
     pub controller: Arc<Controller>,
-    pub cameras: Option<Arc<Cameras>>,
-    /// The video head (None with `--no-video`): its figures and its preview.
-    pub head: Option<Arc<Head>>,
+    /// The MAVLink cameras' definition file (None with the cameras off).
+    pub camera_definition: Option<Arc<dyn Fn() -> String + Send + Sync>>,
+    /// The video pipeline (None with `--no-video`).
+    pub video: Option<Arc<dyn Video>>,
     /// The capture directory (None without video).
     pub captures: Option<PathBuf>,
     /// `user:password` for basic authentication (the RTSP server's), or open.
@@ -172,11 +187,11 @@ async fn same_site(request: Request, next: Next) -> Response {
 
 /// The camera definition file (application/xml), or 404 with the cameras off.
 async fn definition(State(web): State<Web>) -> Response {
-    match &web.cameras {
-        Some(c) => (
+    match &web.camera_definition {
+        Some(definition) => (
             StatusCode::OK,
             [(header::CONTENT_TYPE, "application/xml")],
-            c.definition().0,
+            definition(),
         )
             .into_response(),
         None => text(

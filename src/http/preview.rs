@@ -12,13 +12,13 @@ use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 
 pub(super) async fn upgrade(ws: WebSocketUpgrade, State(web): State<Web>) -> Response {
-    let Some(head) = web.head.clone() else {
+    let Some(video) = web.video.clone() else {
         return text(
             StatusCode::NOT_FOUND,
             "no video: serve runs with --no-video",
         );
     };
-    let viewer = head.preview.watch();
+    let viewer = video.preview().watch();
     ws.on_upgrade(move |socket| send_units(socket, viewer))
         .into_response()
 }

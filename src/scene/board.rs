@@ -12,6 +12,17 @@ use std::f64::consts::TAU;
 /// The background's shade behind and around the board (0..=1).
 const BACKGROUND: f64 = 0.45;
 
+/// A board pose that does not parse: the pose and what is wrong with it.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "board pose `{spec}`: {why} (a pose is off=ANGLE,azimuth=ANGLE,distance=LENGTH\
+     [,tilt=ANGLE][,turn=ANGLE][,spin=ANGLE], e.g. off=60deg,azimuth=90deg,distance=80cm)"
+)]
+pub struct PoseError {
+    spec: String,
+    why: String,
+}
+
 /// Where the board is, in the lens frame (x right, y down, z along the axis; metres).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoardPose {
@@ -58,12 +69,10 @@ impl BoardPose {
     /// [,spin=ANGLE]`: the board's centre `off` from the lens axis at `azimuth` (0 the frame's
     /// right, 90° down), `distance` away, facing the lens, then tilted about its own x axis,
     /// turned about its y axis and spun about its normal. Angles in radians or with `deg`.
-    pub fn parse(board: &Board, spec: &str) -> Result<BoardPose, String> {
-        let fail = |why: String| {
-            format!(
-                "board pose `{spec}`: {why} (a pose is off=ANGLE,azimuth=ANGLE,distance=LENGTH\
-                 [,tilt=ANGLE][,turn=ANGLE][,spin=ANGLE], e.g. off=60deg,azimuth=90deg,distance=80cm)"
-            )
+    pub fn parse(board: &Board, spec: &str) -> Result<BoardPose, PoseError> {
+        let fail = |why: String| PoseError {
+            spec: spec.to_string(),
+            why,
         };
         let (mut off, mut azimuth, mut distance) = (None, None, None);
         let (mut tilt, mut turn, mut spin) = (0.0, 0.0, 0.0);

@@ -16,7 +16,42 @@ use crate::scene::synth::{eye_at, world_origin};
 use crate::scene::{GridWorld, World};
 use glam::{DMat3, DVec2, DVec3, Vec3};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
+
+/// `[demo]` in the serve configuration: the demo camera and its flight.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DemoConfig {
+    /// The demo camera's frame size (the lens is scaled to it) and rate.
+    pub width: u32,
+    pub height: u32,
+    pub fps: u32,
+    /// Fly a circle (true) or hover at the state's attitude and position (false).
+    pub motion: bool,
+    /// Hover yawing 90°/s and rolling ±20° at 1 Hz, by the monotonic clock (for tests with a
+    /// simulated autopilot that reports the same; the demo then sends no flight of its own).
+    pub spin: bool,
+    /// The layout frames arrive in, as a camera's would.
+    pub format: PixelFormat,
+    /// Draw each frame's capture time (ms) as a barcode at the image centre, for
+    /// glass-to-glass latency (scripts/latency.sh; 4:2:0 formats only).
+    pub stamp: bool,
+}
+
+impl Default for DemoConfig {
+    fn default() -> Self {
+        DemoConfig {
+            width: 1280,
+            height: 720,
+            fps: 30,
+            motion: true,
+            spin: false,
+            format: PixelFormat::Nv12,
+            stamp: false,
+        }
+    }
+}
 
 /// The simulated flight: a circle about the world origin, nose along the track, banked into
 /// the turn, with a slow pitch sway.
@@ -36,7 +71,7 @@ pub struct Flight {
 
 impl Flight {
     /// The vehicle's attitude and position at `t` seconds from the flight's start, which is
-    /// `clock_s` on the monotonic clock ([`crate::source::clock_us`] in seconds).
+    /// `clock_s` on the monotonic clock ([`crate::clock::clock_us`] in seconds).
     pub fn pose_at(&self, t: f64, clock_s: f64) -> (Euler, GeoPosition) {
         if self.spin {
             return (spin(self.attitude, clock_s), self.hover);

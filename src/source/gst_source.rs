@@ -2,7 +2,8 @@
 //! or an image sequence, decoded and converted (only where the camera's own layout is not
 //! one the GPU ingests) to NV12, I420 or RGBA, delivered by an appsink to a [`FrameSlot`].
 
-use super::{FrameSlot, SourceError, SourceSpec, clock_us};
+use super::{FrameSlot, SourceError, SourceSpec};
+use crate::clock::clock_us;
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
 use crate::gst::{GstError, bus_error, element, element_error, set_state};
 use gstreamer as gst;

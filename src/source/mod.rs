@@ -55,12 +55,6 @@ pub enum SourceError {
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-/// Microseconds on the monotonic clock GStreamer stamps buffers with (CLOCK_MONOTONIC):
-/// the one time base of capture times and telemetry.
-pub fn clock_us() -> u64 {
-    gstreamer::get_timestamp().useconds()
-}
-
 /// What to read frames from, written as one string (`--source`, or `source` in the config).
 #[derive(Clone, Debug, PartialEq)]
 pub enum SourceSpec {

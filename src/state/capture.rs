@@ -1,8 +1,9 @@
-//! The capture hook of the live state: where CAPTURE requests go. The video pipeline takes
-//! stills and records; without one (`serve --no-video`) there is nothing to capture and the
-//! request is refused, saying why.
+//! The capture hooks, shared below the services: where CAPTURE requests go ([`Capturer`], the
+//! live state's), and where the MAVLink cameras ask for stills and recordings of one view
+//! ([`ViewShooter`]). The video pipeline takes stills and records; without one (`serve
+//! --no-video`) there is nothing to capture and the request is refused, saying why.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// What CAPTURE's GET reports.
@@ -36,6 +37,24 @@ pub enum CaptureError {
     /// The recorder would not start (the stream's own error).
     #[error(transparent)]
     Recorder(Box<dyn std::error::Error + Send + Sync>),
+    /// A still was not made: no picture (no signal, a renderer that failed), or it could
+    /// not be written.
+    #[error(transparent)]
+    Still(Box<dyn std::error::Error + Send + Sync>),
+}
+
+/// Called with the file a view's still was written to, or why it was not.
+pub type StillDone = Box<dyn FnOnce(Result<PathBuf, CaptureError>) + Send>;
+
+/// Stills and video of one view alone: what the MAVLink cameras take.
+pub trait ViewShooter: Send + Sync {
+    /// Takes a still of the next frame; `done` gets the file written, or why not.
+    fn shoot(&self, view: usize, done: StillDone) -> Result<(), CaptureError>;
+    /// Starts (`on`) or ends the recording of the view's own stream.
+    fn record(&self, view: usize, on: bool) -> Result<(), CaptureError>;
+    fn recording(&self, view: usize) -> bool;
+    /// The directory stills and recordings go to (STORAGE_INFORMATION measures it).
+    fn dir(&self) -> &Path;
 }
 
 pub trait Capturer: Send + Sync {

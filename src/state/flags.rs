@@ -188,7 +188,9 @@ mod tests {
 
     #[test]
     fn sensor_flags_set_cam_sensors_fields_and_the_state_refuses_what_it_cannot_take() {
-        let lenses = crate::lens::Lenses::new(&crate::cli::locate::built_in_lens_cal());
+        let cal = include_str!("../../lens-cal/lens.cal");
+        let cal = crate::lens::LensCal::parse(std::path::Path::new("lens.cal"), cal).unwrap();
+        let lenses = crate::lens::Lenses::new(&cal);
         let mut s = State::default();
         s.apply_sensor("ae=0,target=100,exposure=5000,gain=2000")
             .unwrap();

@@ -9,6 +9,7 @@
 //! writers change it whole, the frame loop snapshots it once per frame.
 
 pub mod capture;
+mod detection;
 pub mod file;
 pub mod flags;
 pub mod live;
@@ -23,6 +24,8 @@ use crate::geometry::{Euler, GeoPoint, GeoPosition};
 use crate::lens::Roi;
 use crate::units::de_angle;
 use serde::{Deserialize, Serialize};
+
+pub use detection::{DetectionSettings, KEEP};
 
 pub const MAX_CAMERAS: usize = 4;
 /// The output sizes and frame rates VIDEO_OUTPUT allows (the seed's ranges).
@@ -226,7 +229,7 @@ pub struct Tracked {
     /// What it is, as its detector names it ("moving", a model's class); empty if not said.
     pub label: String,
     /// How fast its centre moves across the sky (world NED, per second) and when it was
-    /// last seen (`crate::source::clock_us`): each frame shows it where it has got to by the
+    /// last seen (`crate::clock::clock_us`): each frame shows it where it has got to by the
     /// time that frame was captured. The tracker's alone; not in state files.
     #[serde(skip)]
     pub velocity: [f64; 3],
@@ -247,7 +250,7 @@ pub fn moved_on(centre: glam::DVec3, velocity: glam::DVec3, seconds: f64) -> gla
 }
 
 impl Tracked {
-    /// The object where it should be at `t_us` (`crate::source::clock_us`), moving as it did.
+    /// The object where it should be at `t_us` (`crate::clock::clock_us`), moving as it did.
     pub fn at(&self, t_us: u64) -> Tracked {
         let since = t_us.saturating_sub(self.seen_us) as f64 * 1e-6;
         if since <= 0.0 || self.velocity == [0.0; 3] {
@@ -275,50 +278,6 @@ impl Default for Tracked {
             label: String::new(),
             velocity: [0.0; 3],
             seen_us: 0,
-        }
-    }
-}
-
-/// How detections are kept and shown (DETECTION, and GENERAL_SETTINGS' run_ai). Field names
-/// are the seed's; ratios are in [0, 1).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct DetectionSettings {
-    pub run_ai: bool,
-    /// Unused by the seed; kept for GET.
-    pub mode: u8,
-    /// 0 by score, 1 by age, 2 by score with tiles locked to their object.
-    pub sorting_mode: u8,
-    pub crop_confidence_threshold: f64,
-    pub var_confidence_threshold: f64,
-    pub crop_box_limit: u16,
-    pub var_box_limit: u16,
-    pub crop_box_overlap: f64,
-    pub var_box_overlap: f64,
-    pub creation_score_scale: u8,
-    pub bonus_detection_scale: u8,
-    pub bonus_redetection_scale: u8,
-    pub missed_detection_penalty: u8,
-    pub missed_redetection_penalty: u8,
-}
-
-impl Default for DetectionSettings {
-    fn default() -> Self {
-        DetectionSettings {
-            run_ai: true,
-            mode: 0,
-            sorting_mode: 0,
-            crop_confidence_threshold: 0.5,
-            var_confidence_threshold: 0.3,
-            crop_box_limit: 100,
-            var_box_limit: 100,
-            crop_box_overlap: 0.5,
-            var_box_overlap: 0.5,
-            creation_score_scale: 50,
-            bonus_detection_scale: 10,
-            bonus_redetection_scale: 5,
-            missed_detection_penalty: 10,
-            missed_redetection_penalty: 5,
         }
     }
 }

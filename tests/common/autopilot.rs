@@ -22,7 +22,7 @@ pub type Flight = fn(f64) -> DVec3;
 
 /// The monotonic clock of frames' capture times, in seconds.
 pub fn clock_s() -> f64 {
-    digiview::source::clock_us() as f64 / 1e6
+    digiview::clock::clock_us() as f64 / 1e6
 }
 
 pub struct SimAutopilot {

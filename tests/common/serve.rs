@@ -30,29 +30,24 @@ impl Serve {
     /// As [`Serve::start`], logging at info level into a pipe whose reader is gone (as under
     /// `digiview serve 2>&1 | head -1`).
     pub fn start_unread(extra: &[&str]) -> Serve {
-        let mut serve = Serve::launch(&["--no-video"], extra, Some("info"));
+        let mut serve = Serve::launch(&["--no-video"], extra, Some("info"), None);
         drop(serve.child.stderr.take());
         serve
     }
 
     fn spawn(mode: &[&str], extra: &[&str]) -> Serve {
-        Serve::launch(mode, extra, None)
+        Serve::launch(mode, extra, None, None)
     }
 
     /// As [`Serve::start_video`] with `DIGIVIEW_FAULT=fault` and errors logged into a pipe
     /// ([`Serve::log`]).
     pub fn start_video_faulty(fault: &str, extra: &[&str]) -> Serve {
-        // SAFETY: the tests that set it run one at a time, and the variable is only read by
-        // the child started here.
-        unsafe { std::env::set_var("DIGIVIEW_FAULT", fault) };
-        let serve = Serve::launch(&["--rtsp-port", "0"], extra, Some("error"));
-        unsafe { std::env::remove_var("DIGIVIEW_FAULT") };
-        serve
+        Serve::launch(&["--rtsp-port", "0"], extra, Some("error"), Some(fault))
     }
 
     /// As [`Serve::start_video`], logging at `level` into a pipe ([`Serve::log`]).
     pub fn start_video_logging(level: &str, extra: &[&str]) -> Serve {
-        Serve::launch(&["--rtsp-port", "0"], extra, Some(level))
+        Serve::launch(&["--rtsp-port", "0"], extra, Some(level), None)
     }
 
     /// What the server logged (with a piped log), once it has ended.
@@ -64,8 +59,9 @@ impl Serve {
         log
     }
 
-    /// `log`: a RUST_LOG level for a piped stderr, else the test's choice (see below).
-    fn launch(mode: &[&str], extra: &[&str], log: Option<&str>) -> Serve {
+    /// `log`: a RUST_LOG level for a piped stderr, else the test's choice (see below);
+    /// `fault`: DIGIVIEW_FAULT for this server alone.
+    fn launch(mode: &[&str], extra: &[&str], log: Option<&str>, fault: Option<&str>) -> Serve {
         let cal = super::lens_cal_path();
         // No autopilot link unless the test asks for one (the default port is one per host).
         let link: &[&str] = if extra.contains(&"--mavlink") {
@@ -93,7 +89,11 @@ impl Serve {
         } else {
             &["--detector", "off"]
         };
-        let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        let mut command = Command::new(env!("CARGO_BIN_EXE_digiview"));
+        if let Some(fault) = fault {
+            command.env("DIGIVIEW_FAULT", fault);
+        }
+        let mut child = command
             .args(["serve", "--control", "127.0.0.1:0"])
             .args(mode)
             .args(link)

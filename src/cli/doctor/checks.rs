@@ -2,9 +2,9 @@
 //! source (opened, one frame read) and the disk captures go to.
 
 use super::Outcome;
+use crate::app::Config;
 use crate::cli::locate;
 use crate::exposure::v4l2::{Device, Mapping};
-use crate::head::config::Config;
 use crate::source::demo::DemoCamera;
 use crate::source::{FrameSlot, SourceSpec};
 use gstreamer as gst;

@@ -2,8 +2,8 @@
 //! MAVLink endpoint hears an autopilot.
 
 use super::Outcome;
+use crate::app::Config;
 use crate::autopilot::Endpoint;
-use crate::head::config::Config;
 use std::net::{SocketAddr, TcpListener, UdpSocket};
 use std::time::Duration;
 

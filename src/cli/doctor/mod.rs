@@ -8,7 +8,7 @@ mod checks;
 mod links;
 
 use super::serve_cmd::SetupArgs;
-use crate::head::config::Config;
+use crate::app::Config;
 use anyhow::{Result, bail};
 use clap::Args;
 use std::path::Path;

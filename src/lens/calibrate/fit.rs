@@ -21,16 +21,19 @@ pub enum FitModel {
     DoubleSphere,
 }
 
-impl std::str::FromStr for FitModel {
-    type Err = String;
+/// A model name the fit does not know.
+#[derive(Debug, thiserror::Error)]
+#[error("`{0}`: the fit knows kannala_brandt and double_sphere")]
+pub struct UnknownModel(String);
 
-    fn from_str(text: &str) -> Result<FitModel, String> {
+impl std::str::FromStr for FitModel {
+    type Err = UnknownModel;
+
+    fn from_str(text: &str) -> Result<FitModel, UnknownModel> {
         match text.trim().replace('-', "_").as_str() {
             "kannala_brandt" => Ok(FitModel::KannalaBrandt),
             "double_sphere" => Ok(FitModel::DoubleSphere),
-            _ => Err(format!(
-                "`{text}`: the fit knows kannala_brandt and double_sphere"
-            )),
+            _ => Err(UnknownModel(text.to_string())),
         }
     }
 }

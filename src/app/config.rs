@@ -1,0 +1,284 @@
+//! `digiview serve`'s configuration file (TOML), the assembly's: one section per service,
+//! each section's type owned by the service it configures. Every key has a default, so an
+//! empty file (or none) runs the demo source with the stream at rtsp://HOST:8554/digiview;
+//! docs/serve.md lists them all. Unknown keys are errors that name the key.
+
+use crate::autopilot::{EndpointError, MavlinkConfig};
+use crate::cameras::CamerasConfig;
+use crate::control::ControlConfig;
+use crate::detect::DetectionConfig;
+use crate::exposure::ExposureConfig;
+use crate::head::HeadConfig;
+use crate::head::capture::CaptureConfig;
+use crate::http::HttpConfig;
+use crate::source::demo::DemoConfig;
+use crate::source::{SourceSpec, SpecError};
+use crate::stream::PublishTarget;
+use crate::stream::publish::PublishError;
+use crate::stream::rtsp::RtspConfigError;
+use crate::stream::{EncoderConfig, RtspConfig};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// demo, v4l2:DEVICE, gst:DESCRIPTION, file:PATH, image:PATH or sequence:PATTERN.
+    pub source: String,
+    /// Frame rate of image and sequence sources.
+    pub source_fps: u32,
+    /// Replay files and sequences from the start when they end.
+    pub source_loop: bool,
+    /// Lens by name or lens_id in lens.cal (default: the state's, lens_id 0).
+    pub lens: Option<String>,
+    /// The initial state (a state file as `digiview render --state` takes).
+    pub state: Option<PathBuf>,
+    pub demo: DemoConfig,
+    /// Who runs the auto exposure of a V4L2 camera.
+    pub exposure: ExposureConfig,
+    pub control: ControlConfig,
+    pub rtsp: RtspConfig,
+    pub encoder: EncoderConfig,
+    pub capture: CaptureConfig,
+    pub mavlink: MavlinkConfig,
+    /// The views as MAVLink cameras, and their own streams.
+    pub cameras: CamerasConfig,
+    /// The head's HTTP server (the cameras' definition file).
+    pub http: HttpConfig,
+    /// Finding and tracking objects for the detection tiles.
+    pub detection: DetectionConfig,
+    /// Relays to publish the stream to: `rtsp://HOST:PORT/PATH` (RTSP RECORD) or
+    /// `srt://HOST:PORT` (MPEG-TS over SRT).
+    pub publish: Vec<String>,
+    /// Seconds between the one-line health summaries in the log (0: none).
+    pub health_interval_s: f64,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            source: "demo".into(),
+            source_fps: 30,
+            source_loop: true,
+            lens: None,
+            state: None,
+            demo: DemoConfig::default(),
+            exposure: ExposureConfig::default(),
+            control: ControlConfig::default(),
+            rtsp: RtspConfig::default(),
+            encoder: EncoderConfig::default(),
+            capture: CaptureConfig::default(),
+            mavlink: MavlinkConfig::default(),
+            cameras: CamerasConfig::default(),
+            http: HttpConfig::default(),
+            detection: DetectionConfig::default(),
+            publish: Vec::new(),
+            health_interval_s: 10.0,
+        }
+    }
+}
+
+/// Why a configuration is refused.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read {}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    In {
+        path: PathBuf,
+        source: Box<ConfigError>,
+    },
+    #[error(transparent)]
+    Toml(#[from] toml::de::Error),
+    #[error("source: {0}")]
+    Source(#[from] SpecError),
+    #[error(transparent)]
+    Rtsp(#[from] RtspConfigError),
+    #[error(transparent)]
+    Publish(#[from] PublishError),
+    #[error(transparent)]
+    Mavlink(#[from] EndpointError),
+    /// A value outside its range: the key, the value and the range.
+    #[error("{0}")]
+    Range(String),
+}
+
+fn out_of_range(message: String) -> Result<(), ConfigError> {
+    Err(ConfigError::Range(message))
+}
+
+impl Config {
+    /// The head's parts, from a checked configuration.
+    pub fn head(&self) -> Result<HeadConfig, ConfigError> {
+        Ok(HeadConfig {
+            source: self.source.parse()?,
+            source_fps: self.source_fps,
+            source_loop: self.source_loop,
+            demo: self.demo.clone(),
+            exposure: self.exposure.clone(),
+            encoder: self.encoder.clone(),
+            view_size: (self.cameras.width, self.cameras.height),
+            detection: self.detection.clone(),
+            health_interval_s: self.health_interval_s,
+        })
+    }
+
+    /// The relays of `publish`, checked.
+    pub fn publish_targets(&self) -> Result<Vec<PublishTarget>, PublishError> {
+        self.publish.iter().map(|u| u.parse()).collect()
+    }
+
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.into(),
+            source,
+        })?;
+        Config::parse(&text).map_err(|e| ConfigError::In {
+            path: path.into(),
+            source: Box::new(e),
+        })
+    }
+
+    pub fn parse(text: &str) -> Result<Config, ConfigError> {
+        let cfg: Config = toml::from_str(text)?;
+        cfg.check()?;
+        Ok(cfg)
+    }
+
+    /// Ranges and forms the types alone do not hold.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.source.parse::<SourceSpec>()?;
+        if !(1..=240).contains(&self.source_fps) {
+            return out_of_range(format!("source_fps {} is outside 1..=240", self.source_fps));
+        }
+        let d = &self.demo;
+        if d.width < 64 || d.height < 64 || d.width > 7680 || d.height > 4320 {
+            return out_of_range(format!(
+                "demo size {}x{} is outside 64x64..7680x4320",
+                d.width, d.height
+            ));
+        }
+        if d.format.is_yuv() && (d.width % 2 == 1 || d.height % 2 == 1) {
+            return out_of_range(format!(
+                "demo size {}x{} must be even for {}",
+                d.width, d.height, d.format
+            ));
+        }
+        if d.stamp && !d.format.is_yuv() {
+            return out_of_range("demo stamp needs a 4:2:0 format (nv12 or i420)".into());
+        }
+        if !(1..=120).contains(&d.fps) {
+            return out_of_range(format!("demo fps {} is outside 1..=120", d.fps));
+        }
+        if !(0.5..=30.0).contains(&self.detection.scan_hz) {
+            return out_of_range(format!(
+                "detection scan_hz {} is outside 0.5..=30",
+                self.detection.scan_hz
+            ));
+        }
+        if !(0.0..=30.0).contains(&self.detection.crop_hz) {
+            return out_of_range(format!(
+                "detection crop_hz {} is outside 0..=30",
+                self.detection.crop_hz
+            ));
+        }
+        if !(1..=16).contains(&self.detection.threads) {
+            return out_of_range(format!(
+                "detection threads {} is outside 1..=16",
+                self.detection.threads
+            ));
+        }
+        if let Err(e) = crate::detect::onnx::wanted(&self.detection.classes) {
+            return out_of_range(format!("detection classes: {e}"));
+        }
+        self.rtsp.check()?;
+        if let Err(e) = self.http.address() {
+            return out_of_range(e.to_string());
+        }
+        let c = &self.cameras;
+        let ((lo_w, lo_h), (hi_w, hi_h)) = (crate::state::MIN_OUTPUT, crate::state::MAX_OUTPUT);
+        if c.width < lo_w || c.height < lo_h || c.width > hi_w || c.height > hi_h {
+            return out_of_range(format!(
+                "cameras size {}x{} is outside {lo_w}x{lo_h}..{hi_w}x{hi_h}",
+                c.width, c.height
+            ));
+        }
+        if c.width % 2 == 1 || c.height % 2 == 1 {
+            return out_of_range(format!(
+                "cameras size {}x{} must be even",
+                c.width, c.height
+            ));
+        }
+        if let Some(h) = &c.public_host
+            && (h.is_empty() || h.contains(['/', ' ', '@']) || h == "0.0.0.0" || h == "::")
+        {
+            return out_of_range(format!(
+                "cameras public_host {h:?} must be a host name or address ground stations reach"
+            ));
+        }
+        self.publish_targets()?;
+        self.mavlink
+            .endpoint
+            .parse::<crate::autopilot::Endpoint>()?;
+        for (key, hz) in [
+            ("attitude_hz", self.mavlink.attitude_hz),
+            ("position_hz", self.mavlink.position_hz),
+        ] {
+            if !(0.1..=500.0).contains(&hz) {
+                return out_of_range(format!("mavlink {key} {hz} is outside 0.1..=500"));
+            }
+        }
+        let (lo, hi) = crate::stream::encoder::BITRATE_KBPS;
+        if !(lo..=hi).contains(&self.encoder.bitrate_kbps) {
+            return out_of_range(format!(
+                "encoder bitrate_kbps {} is outside {lo}..={hi}",
+                self.encoder.bitrate_kbps
+            ));
+        }
+        if !(0.1..=60.0).contains(&self.encoder.key_interval_s) {
+            return out_of_range(format!(
+                "encoder key_interval_s {} is outside 0.1..=60",
+                self.encoder.key_interval_s
+            ));
+        }
+        if !(0.0..=3600.0).contains(&self.health_interval_s) {
+            return out_of_range(format!(
+                "health_interval_s {} is outside 0..=3600",
+                self.health_interval_s
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_empty_file_is_the_documented_defaults() {
+        let cfg = Config::parse("").unwrap();
+        assert_eq!(cfg, Config::default());
+        assert_eq!(cfg.source, "demo");
+        assert_eq!((cfg.rtsp.port, cfg.rtsp.path.as_str()), (8554, "/digiview"));
+    }
+
+    #[test]
+    fn bad_values_are_errors_that_name_the_key() {
+        for (text, says) in [
+            ("sorce = \"demo\"", "sorce"),
+            ("source = \"cam\"", "source"),
+            ("[rtsp]\npath = \"x\"", "rtsp path"),
+            ("[rtsp]\nuser = \"a\"", "password"),
+            ("[demo]\nwidth = 641\nheight = 480", "even"),
+            ("[encoder]\nbitrate_kbps = 5", "bitrate_kbps"),
+            ("[capture]\nstill_format = \"gif\"", "still_format"),
+        ] {
+            let e = Config::parse(text).unwrap_err().to_string();
+            assert!(e.contains(says), "{text:?}: {e}");
+        }
+    }
+}

@@ -1,0 +1,266 @@
+//! The serve assembly, on top of everything: it takes `digiview serve`'s configuration
+//! (`config`, one section per service) and the initial state, builds each service on the
+//! shared live state and telemetry (the MAVLink link, the MAVLink cameras, the control
+//! server, the HTTP server, the video head with its RTSP server and relays), wires them
+//! together through the small traits each lower side owns (`wiring`), says where each one
+//! serves, and runs them until one of them stops the rest. Nothing below imports this module.
+
+pub mod config;
+mod wiring;
+
+pub use config::{Config, ConfigError};
+
+use crate::autopilot::{Components, EndpointError, Link};
+use crate::cameras::{self, Cameras};
+use crate::control::Controller;
+use crate::control::permissions::Permissions;
+use crate::control::server::{self, Shutdown};
+use crate::head::capture::Capture;
+use crate::head::{DetectorError, Head, HeadError, HeadParts};
+use crate::lens::LensCal;
+use crate::state::capture::{Capturer, NoVideo, ViewShooter};
+use crate::state::{Invalid, Live, State};
+use crate::stream::publish::PublishError;
+use crate::stream::{Publisher, Rtsp, StreamError};
+use crate::telemetry::Telemetry;
+use std::io::Write;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+use tracing::info;
+
+/// How `serve` runs, beyond its configuration file.
+pub struct Options {
+    /// Only the control server on the live state: no camera, renderer or encoder.
+    pub no_video: bool,
+    /// Who may SET and QUIT.
+    pub permissions: Permissions,
+}
+
+/// Why `serve` could not start, or stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Http(#[from] crate::http::ListenError),
+    #[error("control.listen {0:?}: {1}")]
+    ControlListen(String, std::net::AddrParseError),
+    #[error(transparent)]
+    State(#[from] Invalid),
+    #[error(transparent)]
+    Mavlink(#[from] EndpointError),
+    #[error("starting the control server's runtime")]
+    Runtime(#[source] std::io::Error),
+    #[error("cannot listen on {0} ({1})")]
+    Listen(SocketAddr, &'static str, #[source] std::io::Error),
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    #[error(transparent)]
+    Stream(#[from] StreamError),
+    #[error(transparent)]
+    Publish(#[from] PublishError),
+    #[error(transparent)]
+    Detector(#[from] DetectorError),
+    #[error(transparent)]
+    Head(#[from] HeadError),
+    #[error("the frame loop panicked")]
+    Panicked,
+    #[error("the video head stopped before its first frame")]
+    NoFirstFrame,
+    #[error("the video head put out no frame in 60 s")]
+    Silent,
+}
+
+/// Runs `digiview serve` with `cfg` (checked) from `state` until it is stopped (QUIT, a
+/// signal) or one of its services fails.
+pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Result<(), ServeError> {
+    let no_video = options.no_video;
+    let http_address = cfg.http.address()?;
+    let control: SocketAddr = cfg
+        .control
+        .listen
+        .parse()
+        .map_err(|e| ServeError::ControlListen(cfg.control.listen.clone(), e))?;
+
+    let capture = Arc::new(Capture::new(cfg.capture.clone()));
+    let hook: Box<dyn Capturer> = match no_video {
+        true => Box::new(NoVideo),
+        false => Box::new(capture.clone()),
+    };
+    let live = Arc::new(Live::new(state, cal, hook)?);
+    let telemetry = Arc::new(Telemetry::new(cfg.mavlink.attitude_sample));
+    let cameras = cfg.cameras.enabled.then(|| {
+        let shooter: Option<Arc<dyn ViewShooter>> = match no_video {
+            true => None,
+            false => Some(capture.clone()),
+        };
+        Arc::new(Cameras::new(live.clone(), cfg.cameras.clone(), shooter))
+    });
+    let components = cameras.clone().map(|c| c as Arc<dyn Components>);
+    let link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone(), components)?;
+    let controller = Arc::new(Controller {
+        autopilot: link
+            .as_ref()
+            .map(|l| wiring::autopilot_status(l.status.clone())),
+        ..Controller::new(live.clone(), options.permissions)
+    });
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .thread_name("control")
+        .enable_all()
+        .build()
+        .map_err(ServeError::Runtime)?;
+    let shutdown = Shutdown::default();
+    let (tcp, udp) = runtime
+        .block_on(server::bind(control))
+        .map_err(|e| ServeError::Listen(control, "tcp and udp", e))?;
+    // Lines on stdout that scripts (and the tests) read to find the ports: printed once every
+    // service serves, so a service that fails to start never announces itself.
+    let mut announce = vec![format!("control listening on {}", tcp.local_addr()?)];
+    let head = match no_video {
+        true => None,
+        false => {
+            let (head, line) = start_head(&cfg, &live, capture, &telemetry, &cameras)?;
+            announce.push(line);
+            let (running, stop_all) = (head.clone(), shutdown.clone());
+            let thread = std::thread::Builder::new()
+                .name("frames".into())
+                .spawn(move || {
+                    // The head ending on its own (an error, or even a panic outside its
+                    // supervised stages) ends the process too.
+                    let _stop_all = OnExit(move || stop_all.trigger());
+                    running.run()
+                })?;
+            let thread = wait_until_streaming(&head, thread)?;
+            Some((head, thread))
+        }
+    };
+    let http = match http_address {
+        Some(addr) => {
+            let listener = runtime
+                .block_on(tokio::net::TcpListener::bind(addr))
+                .map_err(|e| ServeError::Listen(addr, "http", e))?;
+            let port = listener.local_addr()?.port();
+            let public = cameras::public_host(&cfg.cameras, &addr.ip().to_string());
+            let base = format!("http://{public}:{port}");
+            if let Some(c) = &cameras {
+                c.set_http(
+                    format!("{base}{}", crate::http::DEFINITION_PATH),
+                    format!("{base}{}", crate::http::CAPTURES_PATH),
+                );
+            }
+            announce.push(format!("http serving {base}/"));
+            Some(listener)
+        }
+        None => None,
+    };
+    // A reader that went away after the lines it wanted (`serve | head -1`) must not end
+    // the service: what cannot be written is dropped.
+    let mut stdout = std::io::stdout().lock();
+    for line in announce {
+        let _ = writeln!(stdout, "{line}");
+    }
+    let _ = stdout.flush();
+    drop(stdout);
+    let web = crate::http::Web {
+        controller: controller.clone(),
+        camera_definition: cameras.clone().map(wiring::camera_definition),
+        video: head.as_ref().map(|(h, _)| wiring::video(h.clone())),
+        captures: (!no_video).then(|| cfg.capture.dir.clone()),
+        login: cfg.rtsp.user.clone().zip(cfg.rtsp.password.clone()),
+    };
+    runtime.block_on(async {
+        tokio::spawn(server::stop_on_signals(shutdown.clone()));
+        if let Some(listener) = http {
+            let stop = shutdown.clone();
+            tokio::spawn(async move {
+                let stopped = async move { stop.wait().await };
+                if let Err(e) = crate::http::serve(listener, web, stopped).await {
+                    tracing::error!("http: {e}");
+                }
+            });
+        }
+        server::run(tcp, udp, controller, shutdown).await
+    })?;
+    if let Some((head, thread)) = head {
+        head.stop.store(true, Ordering::Relaxed);
+        thread.join().map_err(|_| ServeError::Panicked)??;
+    }
+    Ok(())
+}
+
+/// The video head, not yet running: its RTSP server serves, its relays are started and its
+/// detector is loaded. With the line that says where the stream is.
+fn start_head(
+    cfg: &Config,
+    live: &Arc<Live>,
+    capture: Arc<Capture>,
+    telemetry: &Arc<Telemetry>,
+    cameras: &Option<Arc<Cameras>>,
+) -> Result<(Arc<Head>, String), ServeError> {
+    let key_wanted = Arc::new(AtomicBool::new(false));
+    let wanted = key_wanted.clone();
+    let rtsp = Rtsp::start(&cfg.rtsp, move || wanted.store(true, Ordering::Relaxed))?;
+    let host = match cfg.rtsp.address.as_str() {
+        "0.0.0.0" | "::" => "127.0.0.1",
+        a => a,
+    };
+    let line = format!("rtsp serving rtsp://{host}:{}{}", rtsp.port(), rtsp.path());
+    if let Some(c) = cameras {
+        let public = cameras::public_host(&cfg.cameras, &cfg.rtsp.address);
+        let base = format!("rtsp://{public}:{}{}", rtsp.port(), rtsp.path());
+        c.set_streams(base, cfg.encoder.bitrate_kbps);
+    }
+    let publishers = cfg
+        .publish_targets()?
+        .into_iter()
+        .map(|target| {
+            let wanted = key_wanted.clone();
+            info!("publishing to {}", target.url);
+            Publisher::start(target, move || wanted.store(true, Ordering::Relaxed))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let parts = HeadParts {
+        live: live.clone(),
+        capture,
+        rtsp: Arc::new(rtsp),
+        publishers,
+        telemetry: telemetry.clone(),
+        key_wanted,
+        demo_autopilot: wiring::demo_autopilot(&cfg.mavlink),
+    };
+    let head = Head::new(cfg.head()?, parts);
+    head.load_detector()?;
+    Ok((head, line))
+}
+
+/// Waits for the encoder's first picture. A head that ends first (its encoder or GPU would
+/// not start) returns its error; one that puts out nothing for a minute is an error too.
+fn wait_until_streaming(head: &Arc<Head>, thread: HeadThread) -> Result<HeadThread, ServeError> {
+    let limit = Instant::now() + Duration::from_secs(60);
+    while !head.streaming() {
+        if thread.is_finished() {
+            thread.join().map_err(|_| ServeError::Panicked)??;
+            return Err(ServeError::NoFirstFrame);
+        }
+        if Instant::now() > limit {
+            head.stop.store(true, Ordering::Relaxed);
+            return Err(ServeError::Silent);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Ok(thread)
+}
+
+type HeadThread = std::thread::JoinHandle<Result<(), HeadError>>;
+
+/// Runs its closure when dropped, unwinding included.
+struct OnExit<F: FnMut()>(F);
+
+impl<F: FnMut()> Drop for OnExit<F> {
+    fn drop(&mut self) {
+        (self.0)()
+    }
+}

@@ -1,0 +1,60 @@
+//! The assembly's adapters: each service reaches another only through a small trait or hook
+//! the reaching side owns, and these give it the other's. The control protocol's AUTOPILOT
+//! reads the MAVLink link's status; the HTTP server shows the video head's figures and preview
+//! and serves the MAVLink cameras' definition file; the demo's flight goes out as a simulated
+//! autopilot on the MAVLink link.
+
+use crate::autopilot::sim::SimAutopilot;
+use crate::autopilot::{Endpoint, LinkStatus, MavlinkConfig};
+use crate::cameras::Cameras;
+use crate::control::AutopilotStatus;
+use crate::head::{DemoAutopilot, Head};
+use crate::protocol::params::Autopilot;
+use crate::stream::Preview;
+use std::sync::Arc;
+use tracing::info;
+
+struct Link(Arc<LinkStatus>);
+
+impl AutopilotStatus for Link {
+    fn param(&self) -> Autopilot {
+        self.0.param()
+    }
+}
+
+/// The link's status as the control protocol's AUTOPILOT reads it.
+pub(super) fn autopilot_status(status: Arc<LinkStatus>) -> Arc<dyn AutopilotStatus> {
+    Arc::new(Link(status))
+}
+
+struct Video(Arc<Head>);
+
+impl crate::http::Video for Video {
+    fn status(&self) -> serde_json::Value {
+        serde_json::to_value(self.0.health()).unwrap_or_default()
+    }
+    fn preview(&self) -> Arc<Preview> {
+        self.0.preview.clone()
+    }
+}
+
+/// The video head as the HTTP server sees it.
+pub(super) fn video(head: Arc<Head>) -> Arc<dyn crate::http::Video> {
+    Arc::new(Video(head))
+}
+
+/// The cameras' definition file, as the HTTP server serves it.
+pub(super) fn camera_definition(cameras: Arc<Cameras>) -> Arc<dyn Fn() -> String + Send + Sync> {
+    Arc::new(move || cameras.definition().0)
+}
+
+/// Where the link listens on this machine, the demo's flight is sent to it as an autopilot's
+/// would be (at 100 Hz at least), so everything downstream of the link runs on the demo too.
+pub(super) fn demo_autopilot(cfg: &MavlinkConfig) -> Option<DemoAutopilot> {
+    let to = cfg.endpoint.parse::<Endpoint>().ok()?.loopback_peer()?;
+    let rate = cfg.attitude_hz.max(100.0);
+    Some(Box::new(move |flight, start| {
+        info!("source: the demo's flight is a simulated autopilot sending to {to}");
+        Box::new(SimAutopilot::start(&to, flight.clone(), start, rate))
+    }))
+}

@@ -1,0 +1,344 @@
+//! The detection stage, beside the frame loop. At the scan rate, the frame loop renders the
+//! scan views of the frame it has just rendered (same state, same lens, on a renderer of its
+//! own) into one mosaic and hands it over, newest wins, to the detection thread; it never
+//! waits for it. There the detector (the built-in motion detector on the scans' luma, or an
+//! ONNX model on their colours, each view drawn at the model's input size) and the seed's
+//! tracker run, and the tracked objects, those the tiles show first, go into the live state,
+//! where the detection tiles and DETECTED_ROI read them. Between scans, at the crop rate, the
+//! ONNX detector's track step looks again for each object in the tiles, in a crop the frame
+//! loop renders around where it should be (handed over the same way, the older first).
+//! GENERAL_SETTINGS' run_ai turns it on and off.
+
+mod handover;
+mod objects;
+
+pub(super) use handover::ScanSlot;
+
+use super::Head;
+use crate::detect::external::{Inbox, listen};
+use crate::detect::scan::{MOTION_VIEWS, model_views, visible};
+use crate::detect::{AngularBox, Detector, MotionDetector, OnnxDetector, OnnxError, Tracker};
+use crate::frame::{Frame, PixelFormat};
+use crate::geometry::GeoPoint;
+use crate::geometry::ground::to_ned;
+use crate::lens::Lens;
+use crate::render::Filter;
+use crate::render::gpu::{Gpu, GpuError, Renderer};
+use crate::state::State;
+use glam::DVec3;
+use handover::Scan;
+use objects::crop_plan;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tracing::{info, warn};
+
+/// What the frame loop keeps for the scans and crops.
+#[derive(Default)]
+pub(super) struct ScanRenderer {
+    renderer: Option<Renderer>,
+    last: Option<Instant>,
+    last_crops: Option<Instant>,
+}
+
+impl ScanRenderer {
+    /// Forgets the renderer (the GPU was rebuilt).
+    pub(super) fn reset_gpu(&mut self) {
+        self.renderer = None;
+    }
+}
+
+/// Why the configured detector cannot start.
+#[derive(Debug, thiserror::Error)]
+pub enum DetectorError {
+    #[error(transparent)]
+    Onnx(#[from] OnnxError),
+    #[error("detections socket {path}: {source}")]
+    Socket {
+        path: String,
+        source: std::io::Error,
+    },
+}
+
+/// The loaded ONNX model, and the side of the square pictures it takes (read by the frame
+/// loop without waiting for the model).
+pub(super) struct Model {
+    side: u32,
+    detector: Mutex<OnnxDetector>,
+}
+
+impl Head {
+    /// Loads the ONNX model when the configuration chooses it: a missing model or ONNX
+    /// Runtime is an error at start-up, not a silent stage.
+    pub fn load_detector(self: &Arc<Head>) -> Result<(), DetectorError> {
+        if self.cfg.detection.detector == Detector::External && self.external.get().is_none() {
+            let path = &self.cfg.detection.socket;
+            let inbox = Arc::new(Inbox::default());
+            listen(path, inbox.clone(), self.stop.clone()).map_err(|e| DetectorError::Socket {
+                path: path.display().to_string(),
+                source: e,
+            })?;
+            info!("detection: external, JSON lines on {}", path.display());
+            let _ = self.external.set(inbox);
+        }
+        if self.cfg.detection.detector != Detector::Onnx || self.model.get().is_some() {
+            return Ok(());
+        }
+        let cfg = self.cfg.detection.onnx();
+        let detector = OnnxDetector::load(&cfg)?;
+        info!(
+            "detection: {} ({:?}, {}x{} input)",
+            cfg.model.display(),
+            cfg.decoder,
+            detector.side(),
+            detector.side()
+        );
+        let _ = self.model.set(Model {
+            side: detector.side(),
+            detector: Mutex::new(detector),
+        });
+        Ok(())
+    }
+
+    /// Whether the detector runs now.
+    fn detecting(&self, state: &State) -> bool {
+        let ready = match self.cfg.detection.detector {
+            Detector::Motion => true,
+            Detector::Onnx => self.model.get().is_some(),
+            Detector::External => self.external.get().is_some(),
+            Detector::Off => false,
+        };
+        ready && state.detection.run_ai
+    }
+
+    /// The renderer for the scans: luma for the motion detector, colour for a model.
+    fn scan_renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
+        if self.cfg.detection.detector != Detector::Onnx {
+            return self.renderer(gpu);
+        }
+        let mut renderer = Renderer::new(gpu, PixelFormat::Rgba, Filter::Bilinear)?;
+        renderer.expect_lens_models(self.live.lenses().models());
+        Ok(renderer)
+    }
+
+    /// Renders the scan views of `frame` (rendered with `state` and `lens`) when a scan is
+    /// due, else the crops of a track step when one is, and hands them to the detection
+    /// thread.
+    pub(super) fn offer_scan(
+        &self,
+        scans: &mut ScanRenderer,
+        gpu: &Gpu,
+        frame: &Frame,
+        state: &State,
+        lens: &Lens,
+    ) {
+        let size = (frame.layout.width as u64) << 32 | frame.layout.height as u64;
+        self.frame_size.store(size, Ordering::Relaxed);
+        if !self.detecting(state) {
+            return;
+        }
+        // How many periods ago each was last offered; None if it has no rate.
+        let late = |last: Option<Instant>, hz: f64| {
+            (hz > 0.0).then(|| last.map_or(f64::INFINITY, |t| t.elapsed().as_secs_f64() * hz))
+        };
+        let cfg = &self.cfg.detection;
+        let to_lens = crate::geometry::view::lens_from_world(
+            state.vehicle.attitude.euler(),
+            state.mount.euler(),
+        );
+        // What the detection thread would not take within a period is not drawn yet (nor
+        // again while one waits): a model slower than the rate sets the pace, the frame loop's
+        // time goes to what is used, and what is used is at most a period old when taken.
+        let (scan_free, crops_free) = self.scans.free(cfg.scan_hz, cfg.crop_hz);
+        let scanned = matches!(cfg.detector, Detector::Motion | Detector::Onnx);
+        let model = self.model.get();
+        let scan_late = late(scans.last, cfg.scan_hz).filter(|&l| scanned && scan_free && l >= 1.0);
+        let crops_late = late(scans.last_crops, cfg.crop_hz)
+            .filter(|&l| model.is_some() && crops_free && !state.tracked.is_empty() && l >= 1.0);
+        // Of the two that are due, the later by its own period.
+        let take_scan = match (scan_late, crops_late) {
+            (Some(s), Some(c)) => s >= c,
+            (s, _) => s.is_some(),
+        };
+        let (views, crops, plan) = if take_scan {
+            scans.last = Some(Instant::now());
+            let shape = model.map_or(MOTION_VIEWS, |m| model_views(m.side));
+            let (views, plan) = visible(lens, to_lens, shape);
+            (views, vec![], plan)
+        } else if let Some(model) = model.filter(|_| crops_late.is_some()) {
+            scans.last_crops = Some(Instant::now());
+            crop_plan(state, lens, to_lens, model.side, frame.captured_us)
+        } else {
+            return;
+        };
+        if views.is_empty() {
+            return;
+        }
+        if scans.renderer.is_none() {
+            match self.scan_renderer(gpu) {
+                Ok(r) => scans.renderer = Some(r),
+                Err(e) => return warn!("detection: no renderer for the scan: {e}"),
+            }
+        }
+        let renderer = scans.renderer.as_mut().expect("made above");
+        let t0 = Instant::now();
+        let out = match renderer.render(&frame.data, &frame.layout, &plan) {
+            Ok(out) => out,
+            Err(e) => return warn!("detection: the scan did not render: {e}"),
+        };
+        if crops.is_empty() {
+            self.stats
+                .scan_us
+                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+        }
+        let scan = Scan {
+            views,
+            plan,
+            stride: out.layout.stride as usize,
+            picture: out.data,
+            position: state.vehicle.position,
+            t: frame.captured_us as f64 * 1e-6,
+            crops,
+        };
+        self.scans.put(scan);
+    }
+
+    /// The detection thread: takes each scan, detects, tracks, and publishes the objects.
+    pub(super) fn detection_thread(self: &Arc<Head>) {
+        if self.cfg.detection.detector == Detector::Off {
+            return;
+        }
+        yield_to_video();
+        let mut detector = MotionDetector::new();
+        let mut tracker = Tracker::new();
+        // The ground under the first position is the world's origin for the detector.
+        let mut origin: Option<GeoPoint> = None;
+        let mut owns_list = false;
+        // The external detector's class names, by the number the tracker knows them by; the
+        // time its last line gave (its lines are placed in time by their arrival).
+        let mut labels: Vec<String> = vec![];
+        let mut last_sent: Option<f64> = None;
+        while !self.stop.load(Ordering::Relaxed) {
+            let state = self.live.snapshot();
+            if !self.detecting(&state) {
+                if owns_list {
+                    // Turning run_ai off emptied the list in the same change.
+                    info!("detection: off (run_ai); its objects are dropped");
+                    (detector, tracker, owns_list) = (MotionDetector::new(), Tracker::new(), false);
+                }
+                std::thread::sleep(Duration::from_millis(100));
+                continue;
+            }
+            let (t, found, plan, t0) = if let Some(inbox) = self.external.get() {
+                let Some((batch, arrived)) = inbox.take(Duration::from_millis(100)) else {
+                    continue;
+                };
+                if batch
+                    .t
+                    .is_some_and(|t| last_sent.is_some_and(|last| t <= last))
+                {
+                    continue;
+                }
+                last_sent = batch.t.or(last_sent);
+                let t0 = Instant::now();
+                let Some((found, plan)) = self.external_boxes(&state, &batch, &mut labels) else {
+                    continue;
+                };
+                // On the sources' clock, as a scan's frames are.
+                let t = crate::clock::clock_us() as f64 * 1e-6 - arrived.elapsed().as_secs_f64();
+                (t, found, plan, t0)
+            } else {
+                let Some(scan) = self.scans.take() else {
+                    continue;
+                };
+                if !scan.crops.is_empty() {
+                    let t0 = Instant::now();
+                    self.track_step(&mut tracker, &state, &scan);
+                    self.show(&mut tracker, &state, &labels);
+                    owns_list = true;
+                    self.scans.took(true, t0);
+                    continue;
+                }
+                let t0 = Instant::now();
+                let home = *origin.get_or_insert(GeoPoint {
+                    alt: scan.position.home_alt(),
+                    ..scan.position.point()
+                });
+                let eye: DVec3 = to_ned(home, scan.position.point());
+                let found = match self.model.get() {
+                    Some(model) => {
+                        let threshold = state.detection.var_confidence_threshold as f32;
+                        let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
+                        let (v, p) = (&scan.views, &scan.plan);
+                        match model.scan(v, p, &scan.picture, scan.stride, threshold) {
+                            Ok(found) => found,
+                            Err(e) => {
+                                warn!("detection: {e}");
+                                continue;
+                            }
+                        }
+                    }
+                    None => {
+                        let (v, p) = (&scan.views, &scan.plan);
+                        detector.detect(v, p, &scan.picture, scan.stride, eye, scan.t)
+                    }
+                };
+                (scan.t, found, scan.plan, t0)
+            };
+            let covered = |b: &AngularBox| {
+                plan.views
+                    .iter()
+                    .any(|v| plan.view_point(v, b.centre).is_some())
+            };
+            tracker.scan(&state.detection, t, found, covered);
+            self.show(&mut tracker, &state, &labels);
+            owns_list = true;
+            self.scans.took(false, t0);
+            self.stats
+                .detect_us
+                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+            self.stats.scans.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// The track step: the model on each crop, each object found again or missed in its own
+    /// (at `crop_confidence_threshold`). A model that fails stops the step where it is.
+    fn track_step(&self, tracker: &mut Tracker, state: &State, crops: &Scan) {
+        let Some(model) = self.model.get() else {
+            return;
+        };
+        let threshold = state.detection.crop_confidence_threshold as f32;
+        let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
+        for ((view, planned), &id) in crops.views.iter().zip(&crops.plan.views).zip(&crops.crops) {
+            match model.crop(view, planned, &crops.picture, crops.stride, threshold) {
+                Ok(found) => {
+                    tracker.track(&state.detection, crops.t, id, found);
+                }
+                Err(e) => return warn!("detection: {e}"),
+            }
+            self.stats.crops.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Lowers this thread's priority to the least: SCHED_IDLE, which runs only when nothing else
+/// wants the CPU and yields at once when a video thread wakes (nice 19 where that is not
+/// allowed). The detector takes what the video path leaves of the CPU, never the frames'
+/// time. A model run on the CPU keeps a core busy for a second a scan on a small board; with
+/// it at the same priority the output fell from 26 to 15 fps at 1920x1080 on a 2-core host.
+fn yield_to_video() {
+    // SAFETY: gettid, sched_setscheduler and setpriority on the calling thread (Linux keeps
+    // a policy and a nice value per thread); the parameter lives across the call.
+    let done = unsafe {
+        let tid = libc::syscall(libc::SYS_gettid) as libc::pid_t;
+        let param = libc::sched_param { sched_priority: 0 };
+        libc::sched_setscheduler(tid, libc::SCHED_IDLE, &param) == 0
+            || libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, 19) == 0
+    };
+    if !done {
+        warn!(
+            "detection: cannot lower its priority: {}",
+            std::io::Error::last_os_error()
+        );
+    }
+}

@@ -1,0 +1,94 @@
+//! The vehicle as the frame path sees it, shared below the services: attitude samples over
+//! time and the latest position, so each frame is rendered with the attitude at its own
+//! capture time. The MAVLink link (or the demo's simulated flight) writes it, the frame loop
+//! reads it; neither knows the other.
+
+use crate::clock::clock_us;
+use crate::geometry::attitude::AttitudeTrack;
+use crate::geometry::{Euler, GeoPosition};
+use serde::{Deserialize, Serialize};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Attitude samples kept: a few seconds at autopilot rates.
+const SAMPLES: usize = 512;
+
+/// An autopilot heard within this long (µs) keeps the demo's simulated flight out.
+const EXTERNAL_US: u64 = 1_000_000;
+
+/// Which attitude a frame is rendered with (`[mavlink] attitude_sample`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AttitudeSample {
+    /// Slerp between the samples around its capture time.
+    #[default]
+    Interpolated,
+    /// The newest sample when it is rendered (only to see what interpolation is worth).
+    Latest,
+}
+
+pub struct Telemetry {
+    sample: AttitudeSample,
+    track: Mutex<AttitudeTrack>,
+    position: Mutex<Option<GeoPosition>>,
+    /// Local time of the autopilot's newest attitude (0: none).
+    external_us: AtomicU64,
+}
+
+impl Default for Telemetry {
+    fn default() -> Self {
+        Telemetry::new(AttitudeSample::Interpolated)
+    }
+}
+
+impl Telemetry {
+    pub fn new(sample: AttitudeSample) -> Self {
+        Telemetry {
+            sample,
+            track: Mutex::new(AttitudeTrack::new(SAMPLES)),
+            position: Mutex::new(None),
+            external_us: AtomicU64::new(0),
+        }
+    }
+
+    /// An attitude measured at `t_us` (the sources' clock, [`crate::clock::clock_us`]).
+    pub fn attitude(&self, t_us: u64, attitude: Euler) {
+        self.track
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(t_us, attitude);
+    }
+
+    /// An attitude from the autopilot, measured at `t_us`.
+    pub fn external_attitude(&self, t_us: u64, attitude: Euler) {
+        self.external_us.store(clock_us(), Ordering::Relaxed);
+        self.attitude(t_us, attitude);
+    }
+
+    /// The demo's simulated flight at `t_us`: taken only while no autopilot feeds the
+    /// telemetry, so the two never mix.
+    pub fn simulated(&self, t_us: u64, attitude: Euler, position: GeoPosition) {
+        let external = self.external_us.load(Ordering::Relaxed);
+        if external != 0 && clock_us().saturating_sub(external) < EXTERNAL_US {
+            return;
+        }
+        self.attitude(t_us, attitude);
+        self.position(position);
+    }
+
+    pub fn position(&self, position: GeoPosition) {
+        *self.position.lock().unwrap_or_else(|e| e.into_inner()) = Some(position);
+    }
+
+    /// The attitude at `t_us` (None before any sample) and the latest position.
+    pub fn at(&self, t_us: u64) -> (Option<Euler>, Option<GeoPosition>) {
+        let track = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        let attitude = match self.sample {
+            AttitudeSample::Interpolated => track.at(t_us),
+            AttitudeSample::Latest => track.latest(),
+        };
+        drop(track);
+        let position = *self.position.lock().unwrap_or_else(|e| e.into_inner());
+        (attitude, position)
+    }
+}

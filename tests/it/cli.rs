@@ -1,0 +1,516 @@
+//! The `digiview` binary as a user runs it: lens commands, synth → render against truth,
+//! importing into lens.cal, and clear errors for bad input.
+
+use digiview::image_ops::psnr;
+use digiview::layout::layout;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn digiview(args: &[&str], cal: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(args)
+        .env("DIGIVIEW_LENS_CAL", cal)
+        .output()
+        .expect("the binary runs")
+}
+
+fn shipped() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn the_shipped_lenses_pass_lens_check() {
+    let o = digiview(&["lens", "check"], &shipped());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{out}{}", stderr(&o));
+    for name in ["CIL216", "CIL018", "LN007"] {
+        assert_eq!(
+            out.lines()
+                .filter(|l| l.starts_with(name) && l.contains(" ok "))
+                .count(),
+            5,
+            "{out}"
+        );
+    }
+    assert!(!out.contains("FAIL"));
+}
+
+#[test]
+fn a_malformed_lens_cal_is_reported_with_file_line_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.cal");
+    let text = std::fs::read_to_string(shipped())
+        .unwrap()
+        .replacen("fx = 775.0", "fx = -775.0", 1);
+    std::fs::write(&bad, &text).unwrap();
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("fx = -775.0"))
+        .unwrap()
+        + 1;
+    let o = digiview(&["lens", "list"], &bad);
+    assert!(!o.status.success());
+    let want = format!("{}:{line}: fx: must be positive (got -775)", bad.display());
+    assert!(stderr(&o).contains(&want), "{} lacks {want}", stderr(&o));
+}
+
+#[test]
+fn synth_then_render_matches_synth_truth_through_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    let state = [
+        "--lens",
+        "LN007",
+        "--size",
+        "640x480",
+        "--layout",
+        "3",
+        "--overlay",
+        "5",
+        "--attitude",
+        "roll=15deg,pitch=-5deg",
+    ];
+    let run = |extra: &[&str]| {
+        let args: Vec<&str> = extra.iter().chain(state.iter()).copied().collect();
+        let o = digiview(&args, &shipped());
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    };
+    let (fish, out, truth) = (p("fish.png"), p("out.png"), p("truth.png"));
+    run(&["synth", "--sensor", "1280x720", "--out", &fish]);
+    run(&["render", "--input", &fish, "--out", &out]);
+    run(&["synth", "--truth", "--sensor", "1280x720", "--out", &truth]);
+    let (a, b) = (
+        image::open(&out).unwrap().to_rgb8(),
+        image::open(&truth).unwrap().to_rgb8(),
+    );
+    assert_eq!(a.dimensions(), (640, 480));
+    for (rect, _) in layout(640, 480, 3, 5).unwrap().views {
+        let db = psnr(&a, &b, rect);
+        assert!(db >= 32.0, "view {rect:?}: {db:.1} dB");
+    }
+}
+
+#[test]
+fn import_writes_a_new_lens_and_replaces_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let cal = dir.path().join("lens.cal");
+    std::fs::copy(shipped(), &cal).unwrap();
+    let sample =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml");
+    let sample = sample.to_str().unwrap();
+    let o = digiview(
+        &[
+            "lens", "import", sample, "--name", "KAL", "--id", "7", "--fov", "185deg", "--write",
+        ],
+        &cal,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let list = String::from_utf8_lossy(&digiview(&["lens", "list"], &cal).stdout).into_owned();
+    assert!(
+        list.contains("KAL") && list.contains("185.00deg") && list.contains("calibrated"),
+        "{list}"
+    );
+    assert!(list.contains("CIL216"), "existing lenses are kept");
+    let o = digiview(
+        &[
+            "lens", "import", sample, "--name", "KAL", "--id", "8", "--write",
+        ],
+        &cal,
+    );
+    assert!(
+        !o.status.success() && stderr(&o).contains("use --replace"),
+        "{}",
+        stderr(&o)
+    );
+    let o = digiview(
+        &[
+            "lens",
+            "import",
+            sample,
+            "--camera",
+            "cam1",
+            "--name",
+            "KAL",
+            "--id",
+            "7",
+            "--write",
+            "--replace",
+        ],
+        &cal,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("replaced KAL (lens_id 7, line "),
+        "{}",
+        stderr(&o)
+    );
+    let text = std::fs::read_to_string(&cal).unwrap();
+    let shipped_text = std::fs::read_to_string(shipped()).unwrap();
+    for comment in shipped_text
+        .lines()
+        .filter(|l| l.trim_start().starts_with('#'))
+    {
+        assert!(
+            text.contains(comment),
+            "the comment `{comment}` was dropped"
+        );
+    }
+    let list = String::from_utf8_lossy(&digiview(&["lens", "list"], &cal).stdout).into_owned();
+    assert_eq!(
+        list.lines().count(),
+        5,
+        "header, three shipped lenses, one imported: {list}"
+    );
+    assert!(list.contains("double_sphere"));
+    // A shipped lens in the middle of the file: its notes, and every other comment, stay.
+    let o = digiview(
+        &[
+            "lens",
+            "import",
+            sample,
+            "--name",
+            "CIL018",
+            "--id",
+            "1",
+            "--write",
+            "--replace",
+        ],
+        &cal,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&cal).unwrap();
+    for comment in shipped_text
+        .lines()
+        .filter(|l| l.trim_start().starts_with('#'))
+    {
+        assert!(
+            text.contains(comment),
+            "the comment `{comment}` was dropped"
+        );
+    }
+    assert!(
+        text.contains("# Notes of the entry this one replaced:\n# 1.8 mm, F/2.8"),
+        "{text}"
+    );
+    let o = digiview(&["lens", "check", "KAL"], &cal);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout));
+}
+
+#[test]
+fn bad_flags_and_missing_files_get_clear_errors() {
+    let cases: [(&[&str], &str); 11] = [
+        (
+            &[
+                "render",
+                "--input",
+                "/nonexistent.png",
+                "--out",
+                "/tmp/x.png",
+            ],
+            "reading /nonexistent.png",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--cam", "5:yaw=0"],
+            "camera id 5 is outside 0..=3",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--attitude", "roll=lots"],
+            "`lots` is not an angle",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--lens", "NOPE"],
+            "no lens named or numbered `NOPE`",
+        ),
+        (
+            &["synth", "--truth", "--out", "/tmp/x.png", "--layout", "9"],
+            "layout 9 does not exist",
+        ),
+        // Checked before any work: nothing is rendered for minutes first.
+        (
+            &["synth", "--out", "/tmp/s.bmp"],
+            "s.bmp: images are written as .png or .jpg",
+        ),
+        (
+            &["synth", "--size", "20000x20000", "--out", "/tmp/x.png"],
+            "sensor size 20000x20000 is outside 1x1..=8192x8192",
+        ),
+        (
+            &["synth", "--out", "/tmp/x.png", "--cam", "0:lock=99"],
+            "camera 0: lock flags 99 are outside 0..=7",
+        ),
+        (
+            &["render", "--input", "/tmp", "--out", "/tmp/x.mp4"],
+            "/tmp is a directory; give a video file or an image sequence",
+        ),
+        (
+            &[
+                "render",
+                "--input",
+                "a.mp4",
+                "--out",
+                "b.mp4",
+                "--bitrate-kbps",
+                "0",
+            ],
+            "0 is not a bitrate in 100..=100000 kbit/s",
+        ),
+        (
+            &["synth", "--out", "/no/such/dir/x.png"],
+            "/no/such/dir/x.png: the directory /no/such/dir does not exist",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = digiview(args, &shipped());
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(err.contains(want), "{args:?}: `{err}` lacks `{want}`");
+        assert!(
+            !err.contains("panicked") && !err.contains("GLib"),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("wrote"), "{args:?} wrote something: {err}");
+        // Each cause once: `No such file or directory (os error 2): No such file or …`
+        // was printed twice before.
+        assert!(err.matches("os error").count() <= 1, "{args:?}: {err}");
+        let last = err.lines().last().unwrap_or_default();
+        let parts: Vec<&str> = last.split(": ").collect();
+        for (i, p) in parts.iter().enumerate() {
+            assert!(
+                !parts[i + 1..].contains(p),
+                "{args:?}: `{p}` twice in {last}"
+            );
+        }
+    }
+}
+
+#[test]
+fn state_files_and_lens_cal_mistakes_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let state = p("state.toml");
+    let fish = p("fish.png");
+    let synth = |extra: &[&str]| {
+        let args = [&["synth", "--sensor", "640x480", "--out", &fish][..], extra].concat();
+        digiview(&args, &shipped())
+    };
+    // A lens by name, as the config takes it.
+    std::fs::write(&state, "lens = \"CIL018\"\n").unwrap();
+    let o = synth(&["--state", &state]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::write(&state, "lens = \"NOPE\"\n").unwrap();
+    let o = synth(&["--state", &state]);
+    assert!(
+        stderr(&o).contains("state.toml:1: lens `NOPE` is not in lens.cal"),
+        "{}",
+        stderr(&o)
+    );
+    // A sensor crop larger than the lens's frame: refused, as over the protocol.
+    std::fs::write(&state, "[sensor]\nroi = [0, 0, 5000, 5000]\n").unwrap();
+    let o = synth(&["--state", &state]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("sensor crop 5000x5000 at 0,0 does not fit"),
+        "{e}"
+    );
+
+    // An empty lens.cal is an error, not an empty list.
+    let empty = dir.path().join("empty.cal");
+    std::fs::write(&empty, "# nothing yet\n").unwrap();
+    let o = digiview(&["lens", "list"], &empty);
+    assert!(
+        !o.status.success() && stderr(&o).contains("no [[lens]] entries"),
+        "{}",
+        stderr(&o)
+    );
+    // A fov given as a bare number is radians, and the error says so (no invented line).
+    let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/opencv_fisheye.xml");
+    let args = [
+        "lens",
+        "import",
+        sample.to_str().unwrap(),
+        "--name",
+        "X",
+        "--id",
+        "9",
+    ];
+    let o = digiview(&[&args[..], &["--fov", "7"]].concat(), &shipped());
+    let e = stderr(&o);
+    assert!(
+        e.contains("for degrees write 7deg") && !e.contains("(imported):"),
+        "{e}"
+    );
+    // A file without an extension is recognised by its content.
+    let bare = p("calibration");
+    std::fs::copy(&sample, &bare).unwrap();
+    let o = digiview(
+        &["lens", "import", &bare, "--name", "X", "--id", "9"],
+        &shipped(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("name = \"X\""));
+}
+
+/// `digiview serve` as a script starts it: what it printed on stdout and stderr, and how it
+/// ended, within `limit`.
+fn serve_briefly(args: &[&str], limit: std::time::Duration) -> (Output, bool) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "serve",
+            "--control",
+            "127.0.0.1:0",
+            "--mavlink",
+            "off",
+            "--http",
+            "127.0.0.1:0",
+        ])
+        .args(args)
+        .env("DIGIVIEW_LENS_CAL", shipped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let end = std::time::Instant::now() + limit;
+    let mut ended = false;
+    while std::time::Instant::now() < end {
+        if child.try_wait().unwrap().is_some() {
+            ended = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    if !ended {
+        let _ = child.kill();
+    }
+    (child.wait_with_output().unwrap(), ended)
+}
+
+#[test]
+fn serve_fails_at_once_and_says_nothing_on_stdout_when_a_service_cannot_start() {
+    let taken = std::net::TcpListener::bind("0.0.0.0:0").unwrap();
+    let port = taken.local_addr().unwrap().port().to_string();
+    let cases: [(&[&str], &str); 3] = [
+        (&["--rtsp-port", &port], "cannot serve RTSP on 0.0.0.0:"),
+        // Sources that can never open are not retried for ever.
+        (
+            &["--rtsp-port", "0", "--source", "image:/no/such/fish.png"],
+            "/no/such/fish.png: no such file",
+        ),
+        (
+            &[
+                "--rtsp-port",
+                "0",
+                "--source",
+                "gst:videotestsrc ! ! fakesink",
+            ],
+            "syntax error",
+        ),
+    ];
+    for (args, want) in cases {
+        let (o, ended) = serve_briefly(args, std::time::Duration::from_secs(20));
+        let err = stderr(&o);
+        assert!(ended && !o.status.success(), "{args:?}: {err}");
+        assert!(
+            err.contains(want) && err.matches(want).count() == 1,
+            "{args:?}: {err}"
+        );
+        assert_eq!(
+            String::from_utf8_lossy(&o.stdout),
+            "",
+            "{args:?} announced a service"
+        );
+    }
+}
+
+#[test]
+fn bench_reports_every_stage_and_the_frame_rate_as_json() {
+    let o = digiview(
+        &[
+            "bench",
+            "--frames",
+            "3",
+            "--warmup",
+            "1",
+            "--input-size",
+            "640x360",
+            "--size",
+            "640x480",
+            "--json",
+        ],
+        &shipped(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for stage in ["upload_ms", "render_ms", "readback_ms", "total_ms"] {
+        let v = report["staged"][stage].as_f64().unwrap();
+        assert!(v > 0.0, "{stage} = {v}");
+    }
+    assert!(report["pipelined_fps"].as_f64().unwrap() > 0.0);
+    assert_eq!(report["output"], "640x480 i420");
+}
+
+#[test]
+fn without_any_vulkan_driver_render_says_what_to_install() {
+    let dir = tempfile::tempdir().unwrap();
+    let fish = dir.path().join("fish.png");
+    image::RgbImage::new(64, 36).save(&fish).unwrap();
+    let out = dir.path().join("out.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["render", "--input", fish.to_str().unwrap(), "--out"])
+        .arg(&out)
+        .arg("--lens-cal")
+        .arg(shipped())
+        .env("VK_ICD_FILENAMES", dir.path().join("no-such-driver.json"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(err.contains("mesa-vulkan-drivers"), "{err}");
+    assert!(!out.exists(), "no output file on failure");
+}
+
+#[test]
+fn an_odd_output_size_is_rounded_down_on_every_entry_as_over_the_protocol() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let fish = p("fish.png");
+    let sized = |o: &Output| {
+        assert!(o.status.success(), "{}", stderr(o));
+        stderr(o).contains("rounded down to 640x480")
+    };
+    // The flag (digiview once panicked in its frame loop on this very size).
+    let o = digiview(
+        &[
+            "synth", "--sensor", "1280x720", "--size", "641x481", "--out", &fish,
+        ],
+        &shipped(),
+    );
+    assert!(sized(&o), "{}", stderr(&o));
+    let out = p("out.png");
+    let o = digiview(
+        &[
+            "render", "--input", &fish, "--size", "641x481", "--out", &out,
+        ],
+        &shipped(),
+    );
+    assert!(sized(&o));
+    assert_eq!(
+        image::open(&out).unwrap().to_rgb8().dimensions(),
+        (640, 480)
+    );
+    // A state file.
+    let state = p("state.toml");
+    std::fs::write(&state, "[output]\nwidth = 641\nheight = 481\n").unwrap();
+    let o = digiview(
+        &["render", "--input", &fish, "--state", &state, "--out", &out],
+        &shipped(),
+    );
+    assert!(sized(&o));
+    assert_eq!(
+        image::open(&out).unwrap().to_rgb8().dimensions(),
+        (640, 480)
+    );
+}

@@ -1,0 +1,34 @@
+//! The integration tests, one binary: each module is one area of DigiView tried from outside
+//! (the `digiview` binary, its servers over real sockets, the GPU on lavapipe), two at a time;
+//! `common` the helpers and peers every area shares. One binary links once and shares its
+//! fixtures (the GPU device, the lens calibration) across the areas. `cargo test --release
+//! --test it AREA::` runs one area. The tests that need the machine to themselves are in
+//! `tests/alone`.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod cli;
+mod control_server;
+mod crop_modes;
+mod detect_motion;
+mod dewarp_vs_truth;
+mod doctor;
+mod entry_paths;
+mod fuzz_corpus;
+mod gpu_frames;
+mod gpu_render;
+mod lens_calibrate;
+mod lens_calibrate_video;
+mod locate;
+mod lock_flags;
+mod mavlink_camera_video;
+mod mavlink_cameras;
+mod package;
+mod players;
+mod protocol_camera;
+mod protocol_system;
+mod publish;
+mod render_video;
+mod web;
+mod web_api;

@@ -1,0 +1,162 @@
+//! The JSON API as a script uses it, with no browser: plain HTTP/1.1 requests written by hand
+//! and a WebSocket client that is not the page's (tokio-tungstenite). Reads agree with the
+//! binary protocol, SETs take effect there, bad values are refused with a reason and change
+//! nothing (what the protocol clamps is clamped here too), and the event socket pushes a
+//! change made over the binary protocol.
+
+use crate::common;
+
+use common::serve::Serve;
+use digiview::control::client::{Client, query};
+use digiview::protocol::params::CamFov;
+use digiview::protocol::{Param, ParamType};
+use futures_util::{SinkExt, StreamExt};
+use serde_json::{Value, json};
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+use tokio_tungstenite::tungstenite::Message;
+
+const DEG: f64 = std::f64::consts::PI / 180.0;
+
+/// One request, `Connection: close`: the status and the JSON body.
+fn request(host: &str, method: &str, path: &str, body: Option<&Value>) -> (u16, Value) {
+    let mut s = TcpStream::connect(host).unwrap();
+    let body = body.map(Value::to_string).unwrap_or_default();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\
+         Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
+    let mut reply = String::new();
+    s.read_to_string(&mut reply).unwrap();
+    let (head, body) = reply.split_once("\r\n\r\n").expect("a header and a body");
+    let status = head[9..12].parse().unwrap();
+    (status, serde_json::from_str(body).unwrap_or(Value::Null))
+}
+
+fn fov_of(client: &mut Client, cam: u8) -> f64 {
+    match client.get_one(query(ParamType::CamFov, cam)).unwrap() {
+        Param::CamFov(f) => f.fov,
+        p => panic!("{p:?}"),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_script_reads_and_sets_over_rest_and_the_event_socket() {
+    let serve = Serve::start(&[]);
+    let http = serve.http.clone().unwrap();
+    let host = http.trim_start_matches("http://").trim_end_matches('/');
+    let mut client =
+        Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+
+    // REST: a read agrees with the binary protocol's; a SET is seen there.
+    let (code, fov) = request(host, "GET", "/api/params/CAM_FOV?cam_id=1", None);
+    assert_eq!(code, 200, "{fov}");
+    assert!((fov["fov"].as_f64().unwrap() - fov_of(&mut client, 1)).abs() < 1e-3);
+    let (code, after) = request(
+        host,
+        "PUT",
+        "/api/params/CAM_FOV",
+        Some(&json!({"cam_id": 1, "fov": "40deg"})),
+    );
+    assert_eq!(code, 200, "{after}");
+    assert!((after["fov"].as_f64().unwrap() - 40.0 * DEG).abs() < 1e-3);
+    assert!((fov_of(&mut client, 1) - 40.0 * DEG).abs() < 1e-3);
+
+    // Bad input: a reason, and nothing changed.
+    let (_, lens) = request(host, "GET", "/api/params/LENS", None);
+    for (param, body, want) in [
+        ("CAM_FOV", json!({"cam_id": 1, "fov": "wide"}), 400),
+        ("CAM_FOV", json!({"cam_id": 9, "fov": "30deg"}), 422),
+        ("CAM_FOV", json!([1, 2]), 400),
+        ("LENS", json!({"lens_id": 9}), 422),
+    ] {
+        let path = format!("/api/params/{param}");
+        let (code, why) = request(host, "PUT", &path, Some(&body));
+        println!("PUT {param} {body}: {code} {why}");
+        assert_eq!(code, want, "{body}: {why}");
+        assert!(
+            !why["error"].as_str().unwrap_or_default().is_empty(),
+            "{body}: no reason"
+        );
+    }
+    assert_eq!(request(host, "GET", "/api/params/LENS", None).1, lens);
+    let (code, _) = request(host, "GET", "/api/params/NO_SUCH", None);
+    assert_eq!(code, 404);
+    assert!(
+        (fov_of(&mut client, 1) - 40.0 * DEG).abs() < 1e-3,
+        "the refusals changed nothing"
+    );
+
+    // The event socket: the state first, SETs answered by id, refusals with their code.
+    let (mut socket, _) = tokio_tungstenite::connect_async(format!("ws://{host}/api/events"))
+        .await
+        .expect("a client without an Origin header (not a browser) is let in");
+    // The first message is the whole state.
+    let first: Value = loop {
+        let m = tokio::time::timeout(Duration::from_secs(3), socket.next())
+            .await
+            .expect("a message within 3 s")
+            .unwrap()
+            .unwrap();
+        if let Message::Text(t) = m {
+            break serde_json::from_str(&t).unwrap();
+        }
+    };
+    assert!(first["params"]["CAM_FOV"][1]["fov"].is_number(), "{first}");
+    let set = json!({"id": 7, "set": "CAM_FOV", "fields": {"cam_id": 2, "fov": "55deg"}});
+    socket.send(Message::text(set.to_string())).await.unwrap();
+    let bad = json!({"id": 8, "set": "LENS", "fields": {"lens_id": 7}});
+    socket.send(Message::text(bad.to_string())).await.unwrap();
+    socket.send(Message::text("not json")).await.unwrap();
+    let mut replies = vec![];
+    let limit = Instant::now() + Duration::from_secs(3);
+    while replies.len() < 3 && Instant::now() < limit {
+        let Some(Ok(Message::Text(t))) = socket.next().await else {
+            continue;
+        };
+        let v: Value = serde_json::from_str(&t).unwrap();
+        if v.get("params").is_none() && v.get("status").is_none() {
+            replies.push(v);
+        }
+    }
+    println!("event socket replies: {replies:?}");
+    assert_eq!(replies.len(), 3, "every message answered");
+    assert_eq!(replies[0]["id"], 7);
+    assert!((replies[0]["ok"]["fov"].as_f64().unwrap() - 55.0 * DEG).abs() < 1e-3);
+    assert_eq!(
+        (replies[1]["id"].clone(), replies[1]["code"].clone()),
+        (json!(8), json!(422))
+    );
+    assert_eq!(replies[2]["code"], 400);
+    assert!((fov_of(&mut client, 2) - 55.0 * DEG).abs() < 1e-3);
+
+    // A change over the binary protocol is pushed to the socket.
+    client
+        .set(Param::CamFov(CamFov {
+            cam_id: 3,
+            fov: 33.0 * DEG,
+        }))
+        .unwrap();
+    let t = Instant::now();
+    loop {
+        assert!(
+            t.elapsed() < Duration::from_millis(500),
+            "not pushed within 0.5 s"
+        );
+        let Ok(Some(Ok(Message::Text(m)))) =
+            tokio::time::timeout(Duration::from_millis(500), socket.next()).await
+        else {
+            continue;
+        };
+        let v: Value = serde_json::from_str(&m).unwrap();
+        let fov = v["params"]["CAM_FOV"][3]["fov"].as_f64();
+        if fov.is_some_and(|f| (f - 33.0 * DEG).abs() < 1e-3) {
+            break;
+        }
+    }
+    println!("pushed after {:?}", t.elapsed());
+}
