@@ -1,8 +1,8 @@
 //! The serve assembly, on top of everything: it takes `digiview serve`'s configuration
 //! (`config`, one section per service) and the initial state, builds each service on the
 //! shared live state and telemetry (the MAVLink link, the MAVLink cameras, the control
-//! server, the HTTP server, the video head with its RTSP server and relays), wires them
-//! together through the small traits each lower side owns (`wiring`), says where each one
+//! server, the HTTP server, the video head with its RTSP server and relays), fills the small
+//! trait or hook each owns for what it needs of another (`wiring`), says where each one
 //! serves, and runs them until one of them stops the rest. Nothing below imports this module.
 
 pub mod config;

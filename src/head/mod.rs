@@ -1,16 +1,18 @@
 //! The video head: source → upload → GPU render → readback → H.264 → RTSP (and recording),
 //! frame after frame. One service among the others: it reads the live state and the
-//! vehicle's telemetry, and knows nothing of who writes them; the serve assembly (`crate::app`)
-//! builds it with its parts of the configuration ([`HeadConfig`]) and the outputs it feeds. A source thread (`source_thread`: a camera, file or image through
-//! GStreamer, or the demo) puts frames in a newest-wins slot; the frame loop (`frame_loop`,
-//! paced by `pacing`) takes the newest, renders it with the live state and the attitude at its
-//! capture time (`telemetry`), and feeds the encoder, whose access units go to the RTSP
-//! clients, the recorder (`capture`) and the relays it publishes to. Output size and rate follow the live state's
-//! VIDEO_OUTPUT at each frame. Watched views get streams of their own (`views`). A failed source is retried with back-off while a "no signal"
-//! frame is streamed; a failed encoder or GPU is rebuilt; `health` logs a summary line.
-//! `exposure` sets the camera's exposure and runs DigiView's auto exposure on new frames.
-//! `detection` renders scan views of the frames for the detector and tracker on a thread of
-//! their own, whose objects the detection tiles follow.
+//! vehicle's telemetry and knows nothing of who writes them; the serve assembly
+//! (`crate::app`) builds it from its parts of the configuration ([`HeadConfig`]) and the
+//! outputs it feeds ([`HeadParts`]). A source thread (`source_thread`: a camera, file or
+//! image through GStreamer, or the demo) puts frames in a newest-wins slot; the frame loop
+//! (`frame_loop`, paced by `pacing`) takes the newest, renders it with the live state and the
+//! attitude at its capture time (`crate::telemetry`), and feeds the encoder, whose access
+//! units go to the RTSP clients, the recorder (`capture`) and the relays it publishes to.
+//! Output size and rate follow the live state's VIDEO_OUTPUT at each frame. Watched views get
+//! streams of their own (`views`). A failed source is retried with back-off while a "no
+//! signal" frame is streamed; a failed encoder or GPU is rebuilt; `health` logs a summary
+//! line. `exposure` sets the camera's exposure and runs DigiView's auto exposure on new
+//! frames. `detection` renders scan views of the frames for `crate::detect`'s detector and
+//! tracker on a thread of their own, whose objects the detection tiles follow.
 
 pub mod capture;
 mod detection;
