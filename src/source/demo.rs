@@ -191,20 +191,21 @@ impl DemoCamera {
             .collect();
         let l = self.layout;
         let mut out = vec![0u8; l.size as usize];
-        // Pixel x lies (x - 0.5) / 2 block centres in; interpolate between the two around it.
+        let (w, h) = (l.width as usize, l.height as usize);
+        // Pixel x lies (x - 0.5) / 2 block centres in; interpolate between the two around it
+        // (the taps of every column worked out once, those of a row once a row).
         let taps = |x: usize, n: usize| -> (usize, usize, f64) {
             let g = (x as f64 - 0.5) / 2.0;
             let i = g.floor().clamp(0.0, (n - 1) as f64) as usize;
             let j = (i + 1).min(n - 1);
             (i, j, (g - i as f64).clamp(0.0, 1.0))
         };
-        let value = |grid: &[f64], x: usize, y: usize| -> f64 {
-            let (x0, x1, fx) = taps(x, bw);
-            let (y0, y1, fy) = taps(y, bh);
+        let columns: Vec<_> = (0..w).map(|x| taps(x, bw)).collect();
+        let value = |grid: &[f64], x: usize, (y0, y1, fy): (usize, usize, f64)| -> f64 {
+            let (x0, x1, fx) = columns[x];
             let row = |r: usize| grid[r * bw + x0] * (1.0 - fx) + grid[r * bw + x1] * fx;
             row(y0) * (1.0 - fy) + row(y1) * fy
         };
-        let (w, h) = (l.width as usize, l.height as usize);
         if l.format == PixelFormat::Rgba {
             let channels: Vec<Vec<f64>> = (0..3)
                 .map(|k| colours.iter().map(|c| c[k]).collect())
@@ -213,8 +214,9 @@ impl DemoCamera {
                 .take(h)
                 .enumerate()
                 .for_each(|(y, row)| {
+                    let ty = taps(y, bh);
                     for x in 0..w {
-                        let c = [0, 1, 2].map(|k| byte(value(&channels[k], x, y)));
+                        let c = [0, 1, 2].map(|k| byte(value(&channels[k], x, ty)));
                         row[4 * x..4 * x + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
                     }
                 });
@@ -228,8 +230,9 @@ impl DemoCamera {
             .par_chunks_mut(l.stride as usize)
             .enumerate()
             .for_each(|(y, row)| {
+                let ty = taps(y, bh);
                 for (x, px) in row.iter_mut().take(w).enumerate() {
-                    *px = byte(value(&luma, x, y));
+                    *px = byte(value(&luma, x, ty));
                 }
             });
         for (i, c) in colours.iter().enumerate() {
