@@ -8,10 +8,14 @@
 //!   lens.cal, importers, calibration), `layout` (where views sit in the output frame),
 //!   `frame` (frames as bytes: pixel formats, plane layouts, YUV), `image_ops` (sampling and
 //!   image metrics), `gst` (the GStreamer plumbing sources and streams share), `clock` (the one
-//!   time base), `protocol` (the control protocol's codec). On them: `state`, everything an
+//!   time base), `protocol` (the control protocol's codec), `policy` (the one trust boundary:
+//!   who may change the state, stop the system or delete files, and the refusal log every
+//!   control path shares). On them: `state`, everything an
 //!   operator can set, the live handle every service changes and the frame loop snapshots
 //!   once per frame, and the capture hooks (`state::capture`); `telemetry`, the vehicle's
-//!   attitude history and position, which the autopilot link writes and the frame loop reads.
+//!   attitude history and position, which the autopilot link writes and the frame loop reads;
+//!   `supervise`, which runs a service's thread again after a panic and notes it in the live
+//!   state.
 //! - **The data's path.** `source` brings camera frames in (`exposure` sets the camera's
 //!   exposure and gain, and runs the auto exposure; `scene` synthesises worlds for the demo
 //!   and ground truth), `render` turns a fisheye frame into the output frame (`gpu`, and the
@@ -43,11 +47,13 @@ pub mod http;
 pub mod image_ops;
 pub mod layout;
 pub mod lens;
+pub mod policy;
 pub mod protocol;
 pub mod render;
 pub mod scene;
 pub mod source;
 pub mod state;
 pub mod stream;
+pub mod supervise;
 pub mod telemetry;
 pub mod units;

@@ -2,6 +2,8 @@
 //! line a value stands on in a file. Used by lens.cal, state files and the command line alike.
 
 use serde::{Deserialize, Deserializer};
+use std::ops::RangeInclusive;
+use std::time::Duration;
 
 /// Why a value written by a person was not understood.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -16,6 +18,10 @@ pub enum UnitError {
     EmptySize(String),
     #[error("`{0}` is not a length (metres, or with a `mm`, `cm` or `m` suffix)")]
     NotALength(String),
+    #[error("`{0}` is not a number of seconds")]
+    NotATime(String),
+    #[error("{0}")]
+    TimeOutOfRange(String),
 }
 
 /// Parses `0.5`, `0.5rad` or `30deg` (spaces allowed before the unit) into radians.
@@ -65,6 +71,49 @@ pub fn parse_size(text: &str) -> Result<(u32, u32), UnitError> {
         return Err(UnitError::EmptySize(text.to_string()));
     }
     Ok((w, h))
+}
+
+/// A time in seconds that its field does not take: not a number, infinite, or outside the
+/// field's range.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{} s is not a time from {} to {} s", short(*value), short(*range.start()), short(*range.end()))]
+pub struct BadSeconds {
+    pub value: f64,
+    pub range: RangeInclusive<f64>,
+}
+
+/// A number as people read it: `1e30`, not thirty-one digits.
+fn short(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-3..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// Seconds as a [`Duration`], checked against the range the field takes. Every number that
+/// comes from outside (a flag, a file, a protocol, MAVLink, HTTP) and becomes a time goes
+/// through here: `Duration::from_secs_f64` panics on NaN, on negatives and past 2^64 s.
+pub fn seconds(value: f64, range: RangeInclusive<f64>) -> Result<Duration, BadSeconds> {
+    let bad = || BadSeconds {
+        value,
+        range: range.clone(),
+    };
+    if !range.contains(&value) {
+        return Err(bad());
+    }
+    Duration::try_from_secs_f64(value.max(0.0)).map_err(|_| bad())
+}
+
+/// Parses a number of seconds within `range`, for a flag: `--timeout 2.5`.
+pub fn parse_seconds(text: &str, range: RangeInclusive<f64>) -> Result<Duration, UnitError> {
+    let value: f64 = text
+        .trim()
+        .trim_end_matches('s')
+        .trim()
+        .parse()
+        .map_err(|_| UnitError::NotATime(text.to_string()))?;
+    seconds(value, range).map_err(|e| UnitError::TimeOutOfRange(e.to_string()))
 }
 
 /// The 1-based line of byte `offset` in `text`, for `file:line` messages.
@@ -120,6 +169,46 @@ mod tests {
         assert!((parse_angle("-30 deg").unwrap() + 30f64.to_radians()).abs() < 1e-15);
         assert!(parse_angle("ninety").is_err());
         assert!(parse_angle("nan").is_err());
+    }
+
+    #[test]
+    fn seconds_outside_their_range_are_refused_never_a_panic() {
+        let hostile = [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            -1.0,
+            -f64::MIN_POSITIVE,
+            1e30,
+            f64::MAX,
+            1e300,
+            18446744073709551616.0,
+        ];
+        for range in [0.0..=3600.0, 0.1..=86_400.0, 1e-3..=1e9] {
+            for v in hostile {
+                assert!(seconds(v, range.clone()).is_err(), "{v} in {range:?}");
+            }
+            let (lo, hi) = (*range.start(), *range.end());
+            assert_eq!(seconds(lo, range.clone()).unwrap().as_secs_f64(), lo);
+            assert!((seconds(hi, range.clone()).unwrap().as_secs_f64() - hi).abs() < 1e-6);
+        }
+        // Zero, negative zero and a subnormal are times where 0 is in the range.
+        for v in [0.0, -0.0, f64::from_bits(1)] {
+            assert!(seconds(v, 0.0..=1.0).unwrap() < Duration::from_nanos(1));
+        }
+        assert_eq!(
+            parse_seconds("2.5", 0.0..=10.0).unwrap(),
+            Duration::from_millis(2500)
+        );
+        assert_eq!(
+            parse_seconds("3 s", 0.0..=10.0).unwrap(),
+            Duration::from_secs(3)
+        );
+        for t in ["1e30", "inf", "nan", "-1", "soon", ""] {
+            let e = parse_seconds(t, 0.0..=10.0).unwrap_err().to_string();
+            let said = e.to_lowercase().contains(t) || e.contains("seconds");
+            assert!(said, "{t}: {e}");
+        }
     }
 
     #[test]

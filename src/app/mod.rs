@@ -13,11 +13,11 @@ pub use config::{Config, ConfigError};
 use crate::autopilot::{Components, EndpointError, Link};
 use crate::cameras::{self, Cameras};
 use crate::control::Controller;
-use crate::control::permissions::Permissions;
 use crate::control::server::{self, Shutdown};
 use crate::head::capture::Capture;
 use crate::head::{DetectorError, Head, HeadError, HeadParts};
 use crate::lens::LensCal;
+use crate::policy::{Permissions, Policy};
 use crate::state::capture::{Capturer, NoVideo, ViewShooter};
 use crate::state::{Invalid, Live, State};
 use crate::stream::publish::PublishError;
@@ -34,7 +34,7 @@ use tracing::info;
 pub struct Options {
     /// Only the control server on the live state: no camera, renderer or encoder.
     pub no_video: bool,
-    /// Who may SET and QUIT.
+    /// Who may change the state, QUIT and delete files, on every control path.
     pub permissions: Permissions,
 }
 
@@ -67,6 +67,8 @@ pub enum ServeError {
     Head(#[from] HeadError),
     #[error("the frame loop panicked")]
     Panicked,
+    #[error("the {0} service kept failing ({1}): given up")]
+    GivenUp(&'static str, String),
     #[error("the video head stopped before its first frame")]
     NoFirstFrame,
     #[error("the video head put out no frame in 60 s")]
@@ -90,21 +92,33 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
         false => Box::new(capture.clone()),
     };
     let live = Arc::new(Live::new(state, cal, hook)?);
+    let policy = Arc::new(Policy::new(options.permissions));
     let telemetry = Arc::new(Telemetry::new(cfg.mavlink.attitude_sample));
     let cameras = cfg.cameras.enabled.then(|| {
         let shooter: Option<Arc<dyn ViewShooter>> = match no_video {
             true => None,
             false => Some(capture.clone()),
         };
-        Arc::new(Cameras::new(live.clone(), cfg.cameras.clone(), shooter))
+        Arc::new(Cameras::new(
+            live.clone(),
+            policy.clone(),
+            cfg.cameras.clone(),
+            shooter,
+        ))
     });
     let components = cameras.clone().map(|c| c as Arc<dyn Components>);
-    let link = Link::start(&cfg.mavlink, live.clone(), telemetry.clone(), components)?;
+    let link = Link::start(
+        &cfg.mavlink,
+        live.clone(),
+        telemetry.clone(),
+        policy.clone(),
+        components,
+    )?;
     let controller = Arc::new(Controller {
         autopilot: link
             .as_ref()
             .map(|l| wiring::autopilot_status(l.status.clone())),
-        ..Controller::new(live.clone(), options.permissions)
+        ..Controller::new(live.clone(), policy.clone())
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -170,6 +184,14 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
         video: head.as_ref().map(|(h, _)| wiring::video(h.clone())),
         captures: (!no_video).then(|| cfg.capture.dir.clone()),
         login: cfg.rtsp.user.clone().zip(cfg.rtsp.password.clone()),
+        // The cameras' public host is in the URLs ground stations fetch the definition by.
+        hosts: cfg
+            .http
+            .hosts
+            .iter()
+            .chain(&cfg.cameras.public_host)
+            .cloned()
+            .collect(),
     };
     runtime.block_on(async {
         tokio::spawn(server::stop_on_signals(shutdown.clone()));
@@ -182,13 +204,31 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
                 }
             });
         }
+        tokio::spawn(watch(live.clone(), policy.clone(), shutdown.clone()));
         server::run(tcp, udp, controller, shutdown).await
     })?;
     if let Some((head, thread)) = head {
         head.stop.store(true, Ordering::Relaxed);
         thread.join().map_err(|_| ServeError::Panicked)??;
     }
-    Ok(())
+    match live.services.given_up() {
+        Some((service, why)) => Err(ServeError::GivenUp(service, why)),
+        None => Ok(()),
+    }
+}
+
+/// Stops everything once a supervised service is given up (`crate::supervise`), and logs
+/// the summary of refusals left out of the log once their second is over.
+async fn watch(live: Arc<Live>, policy: Arc<Policy>, shutdown: Shutdown) {
+    let mut look = tokio::time::interval(Duration::from_millis(250));
+    loop {
+        look.tick().await;
+        policy.refusals.flush();
+        if live.services.given_up().is_some() {
+            shutdown.trigger();
+            return;
+        }
+    }
 }
 
 /// The video head, not yet running: its RTSP server serves, its relays are started and its

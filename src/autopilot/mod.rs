@@ -22,8 +22,10 @@ pub mod vehicle;
 pub use config::{Endpoint, EndpointError, MavlinkConfig, signing_key};
 
 use crate::clock::clock_us;
+use crate::policy::{Peer, Policy};
 use crate::protocol::params::Autopilot;
 use crate::state::{Invalid, Live};
+use crate::supervise;
 use crate::telemetry::Telemetry;
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkMessageRaw, MavHeader, Message, SigningConfig, SigningData};
@@ -111,9 +113,10 @@ pub struct Link {
 }
 
 /// A part of DigiView that speaks on the link as components of its own: it sees every
-/// message that arrives and is ticked every [`TICK`] on a thread of its own.
+/// message that arrives, with who sent it as the policy knows peers, and is ticked every
+/// [`TICK`] on a thread of its own.
 pub trait Components: Send + Sync {
-    fn handle(&self, out: &Outbox, from: &MavHeader, msg: &MavMessage);
+    fn handle(&self, out: &Outbox, from: &MavHeader, peer: Peer, msg: &MavMessage);
     fn tick(&self, out: &Outbox);
 }
 
@@ -166,6 +169,8 @@ struct Shared {
     components: Option<Arc<dyn Components>>,
     /// With signing on: the key, checking what comes in and signing what goes out.
     signing: Option<SigningData>,
+    /// Where refused samples are noted (rate-limited, with every other path's refusals).
+    policy: Arc<Policy>,
     stop: Arc<AtomicBool>,
 }
 
@@ -185,6 +190,7 @@ impl Link {
         cfg: &MavlinkConfig,
         live: Arc<Live>,
         telemetry: Arc<Telemetry>,
+        policy: Arc<Policy>,
         components: Option<Arc<dyn Components>>,
     ) -> Result<Option<Link>, EndpointError> {
         let Endpoint::Address(address) = cfg.endpoint.parse()? else {
@@ -201,39 +207,43 @@ impl Link {
             connection: Mutex::new(None),
             syncs_sent: Mutex::new(VecDeque::new()),
             components,
+            policy,
             signing: cfg.signing_key.as_deref().map(|k| {
                 SigningData::from_config(SigningConfig::new(signing_key(k), 0, true, false))
             }),
             stop: stop.clone(),
         });
+        // Each thread supervised: a panic is noted and the thread started again.
         let mut threads = vec![];
         for (name, run) in [
             ("mavlink-rx", receive as fn(&Arc<Shared>)),
             ("mavlink-tx", |s: &Arc<Shared>| outgoing::send(s)),
         ] {
             let shared = shared.clone();
-            if let Ok(t) = std::thread::Builder::new()
-                .name(name.into())
-                .spawn(move || run(&shared))
-            {
-                threads.push(t);
-            }
+            let live = shared.live.clone();
+            threads.push(supervise::spawn(live, name, stop.clone(), move || {
+                run(&shared)
+            }));
         }
         if let Some(components) = shared.components.clone() {
             let out = Outbox(shared.clone());
             let stop = stop.clone();
-            if let Ok(t) = std::thread::Builder::new()
-                .name("mavlink-components".into())
-                .spawn(move || {
+            let fault = supervise::Fault::for_service("mavlink-components");
+            let live = shared.live.clone();
+            threads.push(supervise::spawn(
+                live,
+                "mavlink-components",
+                stop.clone(),
+                move || {
                     while !stop.load(Ordering::Relaxed) {
                         std::thread::sleep(TICK);
+                        fault.check("mavlink-components");
                         components.tick(&out);
                     }
-                })
-            {
-                threads.push(t);
-            }
+                },
+            ));
         }
+        let threads = threads.into_iter().flatten().collect();
         info!("mavlink: {}", cfg.endpoint);
         Ok(Some(Link {
             status,
@@ -284,22 +294,43 @@ fn receive(shared: &Arc<Shared>) {
     }
 }
 
+/// The link's connection while it is read: let go when the reading ends, a panic included,
+/// so nothing is sent into a port no one reads and the port can be opened again.
+struct Held<'a>(&'a Shared);
+
+impl Drop for Held<'_> {
+    fn drop(&mut self) {
+        *self.0.connection.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        self.0.status.connected.store(false, Ordering::Relaxed);
+    }
+}
+
 /// Reads an open link until it fails (why) or the link stops (None).
 fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> Option<String> {
     let out = Outbox(shared.clone());
+    let fault = supervise::Fault::for_service("mavlink-rx");
     *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
     shared.status.connected.store(true, Ordering::Relaxed);
+    let _held = Held(shared);
     let mut last_live = Instant::now() - LIVE_EVERY;
-    let why = loop {
+    loop {
         if shared.stop.load(Ordering::Relaxed) {
             break None;
         }
+        fault.check("mavlink-rx");
         match connection.recv_raw() {
             Ok(raw) => {
                 if let Some((header, msg)) = accept(shared, &raw) {
-                    apply(shared, vehicle, &header, &msg, &mut last_live);
+                    let peer = Peer::Mavlink {
+                        system: u8::try_from(header.system_id).unwrap_or(u8::MAX),
+                        component: header.component_id,
+                        from: connection.sender(),
+                        // With signing on, only signed messages are accepted.
+                        signed: shared.signing.is_some(),
+                    };
+                    apply(shared, vehicle, &header, peer, &msg, &mut last_live);
                     if let Some(c) = &shared.components {
-                        c.handle(&out, &header, &msg);
+                        c.handle(&out, &header, peer, &msg);
                     }
                 }
             }
@@ -314,10 +345,7 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
             // A frame that does not parse (unknown id, bad field): skipped.
             Err(_) => {}
         }
-    };
-    *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = None;
-    shared.status.connected.store(false, Ordering::Relaxed);
-    why
+    }
 }
 
 /// A frame's header and message, if it passes signing (when on) and parses.
@@ -346,6 +374,7 @@ fn apply(
     shared: &Shared,
     vehicle: &mut Vehicle,
     header: &MavHeader,
+    peer: Peer,
     msg: &MavMessage,
     last_live: &mut Instant,
 ) {
@@ -375,7 +404,7 @@ fn apply(
                     Ok::<_, Invalid>(())
                 });
                 if let Err(e) = written {
-                    tracing::warn!("mavlink: the attitude was refused: {e}");
+                    shared.policy.refusals.note(peer, "an attitude", &e.0);
                 }
             }
         }
@@ -397,7 +426,7 @@ fn apply(
                 Ok::<_, Invalid>(())
             });
             if let Err(e) = written {
-                tracing::warn!("mavlink: the position was refused: {e}");
+                shared.policy.refusals.note(peer, "a position", &e.0);
             }
         }
     }

@@ -42,8 +42,10 @@ pub(super) fn send(shared: &Shared) {
     // The first report comes soon after the start, so the log shows the mapping settled.
     let mut next_report = Instant::now() + FIRST_REPORT;
     let mut reported = (Instant::now(), 0u64);
+    let fault = crate::supervise::Fault::for_service("mavlink-tx");
     while !shared.stop.load(Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(100));
+        fault.check("mavlink-tx");
         if second.0.elapsed() >= Duration::from_secs(1) {
             let n = shared.status.attitudes.load(Ordering::Relaxed);
             let hz = (n - second.1) as f64 / second.0.elapsed().as_secs_f64();

@@ -14,7 +14,7 @@ use mavlink::dialects::common::MavMessage;
 use mavlink::error::{MessageReadError, MessageWriteError};
 use mavlink::{MAVLinkMessageRaw, MavConnection, MavHeader, MavlinkReader, MavlinkVersion};
 use std::io::{self, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
+use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream, ToSocketAddrs, UdpSocket};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -26,16 +26,21 @@ pub const PEER_SILENCE: Duration = Duration::from_secs(10);
 const MAX_PEERS: usize = 16;
 
 pub enum Port {
-    Net(Box<dyn MavConnection<MavMessage> + Send + Sync>),
+    /// The crate's transport (udpout), and the address it sends to.
+    Net(
+        Box<dyn MavConnection<MavMessage> + Send + Sync>,
+        Option<IpAddr>,
+    ),
     Listening {
         reader: Mutex<MavlinkReader<PeerRead>>,
         socket: UdpSocket,
         peers: Peers,
     },
-    /// A byte stream: a serial port, or a TCP connection.
+    /// A byte stream: a serial port, or a TCP connection (and its peer's address).
     Serial {
         reader: Mutex<MavlinkReader<Box<dyn Read + Send>>>,
         writer: Mutex<Box<dyn Write + Send>>,
+        remote: Option<IpAddr>,
     },
 }
 
@@ -63,7 +68,11 @@ impl Port {
             return Port::tcp(stream);
         }
         let Some(serial) = address.strip_prefix("serial:") else {
-            return mavlink::connect::<MavMessage>(address).map(|c| Port::Net(Box::new(c)));
+            let remote = address
+                .split_once(':')
+                .and_then(|(_, to)| to.to_socket_addrs().ok()?.next())
+                .map(|a| a.ip());
+            return mavlink::connect::<MavMessage>(address).map(|c| Port::Net(Box::new(c), remote));
         };
         let (device, baud) = serial
             .rsplit_once(':')
@@ -76,6 +85,7 @@ impl Port {
         Ok(Port::Serial {
             reader: Mutex::new(MavlinkReader::new(Box::new(port))),
             writer: Mutex::new(Box::new(writer)),
+            remote: None,
         })
     }
 
@@ -86,9 +96,11 @@ impl Port {
         stream.set_nodelay(true)?;
         stream.set_read_timeout(Some(SERIAL_WAIT))?;
         let writer = stream.try_clone()?;
+        let remote = stream.peer_addr().ok().map(|a| a.ip());
         Ok(Port::Serial {
             reader: Mutex::new(MavlinkReader::new(Box::new(stream))),
             writer: Mutex::new(Box::new(writer)),
+            remote,
         })
     }
 
@@ -96,7 +108,7 @@ impl Port {
     /// other `Io` errors mean the link is gone; the rest are frames that did not parse.
     pub fn recv_raw(&self) -> Result<MAVLinkMessageRaw, MessageReadError> {
         match self {
-            Port::Net(c) => c.recv_raw(),
+            Port::Net(c, _) => c.recv_raw(),
             Port::Listening { reader, peers, .. } => {
                 // A sender becomes a peer with its first whole frame: noise from any port
                 // cannot crowd the autopilot or a ground station out.
@@ -114,13 +126,27 @@ impl Port {
         }
     }
 
+    /// The address the last frame [`Port::recv_raw`] gave came from: the sender of a
+    /// listening UDP port's datagram, a TCP or udpout link's peer; None on a serial line.
+    pub fn sender(&self) -> Option<IpAddr> {
+        match self {
+            Port::Net(_, remote) | Port::Serial { remote, .. } => *remote,
+            Port::Listening { reader, .. } => reader
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .get_ref()
+                .last_from
+                .map(|a| a.ip()),
+        }
+    }
+
     pub fn send_raw(&self, raw: &MAVLinkMessageRaw) -> Result<(), MessageWriteError> {
         let bytes = match raw {
             MAVLinkMessageRaw::V1(r) => r.raw_bytes(),
             MAVLinkMessageRaw::V2(r) => r.raw_bytes(),
         };
         match self {
-            Port::Net(c) => c.send_raw(raw).map(drop),
+            Port::Net(c, _) => c.send_raw(raw).map(drop),
             Port::Listening { socket, peers, .. } => Ok(peers.send(socket, bytes)?),
             Port::Serial { writer, .. } => {
                 let mut w = writer.lock().unwrap_or_else(|e| e.into_inner());
@@ -131,7 +157,7 @@ impl Port {
 
     pub fn send(&self, header: MavHeader, msg: &MavMessage) -> Result<(), MessageWriteError> {
         match self {
-            Port::Net(c) => c.send(&header, msg).map(drop),
+            Port::Net(c, _) => c.send(&header, msg).map(drop),
             Port::Listening { socket, peers, .. } => {
                 let mut bytes = Vec::with_capacity(280);
                 mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, msg)?;

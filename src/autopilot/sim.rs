@@ -55,7 +55,8 @@ impl Drop for SimAutopilot {
 }
 
 fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBool) {
-    let period = Duration::from_secs_f64(1.0 / rate_hz.clamp(1.0, 1000.0));
+    let period = crate::units::seconds(1.0 / rate_hz.clamp(1.0, 1000.0), 0.001..=1.0)
+        .unwrap_or(Duration::from_millis(10));
     let header = MavHeader {
         system_id: SYSTEM.into(),
         component_id: 1,

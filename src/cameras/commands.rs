@@ -10,11 +10,16 @@ use super::info::COMPOSED_STREAM;
 use super::{Cameras, Shooting, zoom};
 use crate::autopilot::Outbox;
 use crate::geometry::view::{clamp_fov, zoomed_fov};
+use crate::policy::{Act, Peer};
 use crate::state::{Invalid, State};
+use crate::units::seconds;
 use mavlink::dialects::common::*;
 use mavlink::{MavHeader, MessageData};
 use std::time::{Duration, Instant};
-use tracing::{info, warn};
+use tracing::info;
+
+/// The longest interval between images IMAGE_START_CAPTURE takes: a day.
+const MAX_IMAGE_INTERVAL_S: f64 = 86_400.0;
 
 /// A command, whichever message carried it. `location` is params 5 to 7 read as a place:
 /// degrees from COMMAND_LONG, degE7 from COMMAND_INT; its altitude is above mean sea level,
@@ -67,10 +72,12 @@ impl Command {
     }
 }
 
-/// What a command came to: its COMMAND_ACK's result and the messages that follow it.
+/// What a command came to: its COMMAND_ACK's result, the messages that follow it, and why
+/// it was denied or failed (noted in the refusal log every control path shares).
 pub struct Answer {
     pub result: MavResult,
     pub then: Vec<MavMessage>,
+    pub why: Option<String>,
 }
 
 impl Answer {
@@ -78,43 +85,80 @@ impl Answer {
         Answer {
             result: MavResult::MAV_RESULT_ACCEPTED,
             then,
+            why: None,
         }
     }
     pub fn denied(why: impl std::fmt::Display) -> Answer {
-        warn!("mavlink camera: command denied: {why}");
         Answer {
             result: MavResult::MAV_RESULT_DENIED,
             then: vec![],
+            why: Some(why.to_string()),
         }
     }
     fn failed(why: impl std::fmt::Display) -> Answer {
-        warn!("mavlink camera: command failed: {why}");
         Answer {
             result: MavResult::MAV_RESULT_FAILED,
             then: vec![],
+            why: Some(why.to_string()),
         }
     }
 }
 
+/// What a camera command would do, as the policy judges it: None for those that only read
+/// (the information requests; streaming, which is served whenever watched).
+#[allow(deprecated)]
+fn act_of(command: MavCmd) -> Option<Act> {
+    use MavCmd::*;
+    match command {
+        MAV_CMD_SET_CAMERA_MODE
+        | MAV_CMD_SET_CAMERA_ZOOM
+        | MAV_CMD_IMAGE_START_CAPTURE
+        | MAV_CMD_IMAGE_STOP_CAPTURE
+        | MAV_CMD_VIDEO_START_CAPTURE
+        | MAV_CMD_VIDEO_STOP_CAPTURE
+        | MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW
+        | MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE
+        | MAV_CMD_DO_SET_ROI_LOCATION
+        | MAV_CMD_DO_SET_ROI_NONE => Some(Act::Change),
+        MAV_CMD_STORAGE_FORMAT => Some(Act::Delete),
+        _ => None,
+    }
+}
+
 impl Cameras {
-    /// Runs `cmd` for camera `i` and answers `from`: the ACK, then what follows. Unknown
-    /// commands sent to every component are left to the others.
+    /// Runs `cmd` for camera `i` and answers `from`: the ACK, then what follows. A command
+    /// the policy does not permit `peer` is DENIED and changes nothing. Unknown commands
+    /// sent to every component are left to the others.
     pub(super) fn command(
         &self,
         out: &Outbox,
-        from: &MavHeader,
+        (from, peer): (&MavHeader, Peer),
         i: usize,
         cmd: &Command,
         broadcast: bool,
     ) {
-        let answer = match self.run(from, i, cmd) {
-            Some(a) => a,
-            None if broadcast => return,
-            None => Answer {
-                result: MavResult::MAV_RESULT_UNSUPPORTED,
-                then: vec![],
+        let name = format!("{:?} to camera {i}", cmd.command);
+        let permitted =
+            act_of(cmd.command).map_or(Ok(()), |act| self.policy.allow(peer, act, &name));
+        let answer = match permitted {
+            // The policy noted the refusal.
+            Err(e) => Answer {
+                why: None,
+                ..Answer::denied(e)
+            },
+            Ok(()) => match self.run(from, i, cmd) {
+                Some(a) => a,
+                None if broadcast => return,
+                None => Answer {
+                    result: MavResult::MAV_RESULT_UNSUPPORTED,
+                    then: vec![],
+                    why: None,
+                },
             },
         };
+        if let Some(why) = &answer.why {
+            self.policy.refusals.note(peer, &name, why);
+        }
         let component = super::FIRST_COMPONENT + i as u8;
         let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
             command: cmd.command,
@@ -275,17 +319,18 @@ impl Cameras {
         }
     }
 
-    /// IMAGE_START_CAPTURE: `count` images (0: until stopped), `interval` s apart.
+    /// IMAGE_START_CAPTURE: `count` images (0: until stopped), `interval` s apart (0.1 s
+    /// to a day; a single image takes any interval in 0..=a day, and ignores it).
     fn start_images(&self, i: usize, interval: f32, count: f32) -> Answer {
         let count_ok = count.is_finite() && count >= 0.0 && count.fract() == 0.0;
-        if !count_ok || !interval.is_finite() || interval < 0.0 {
+        if !count_ok {
             return Answer::denied(format!("image capture of {count} every {interval} s"));
         }
-        if count != 1.0 && interval < 0.1 {
-            return Answer::denied(format!(
-                "an image interval of {interval} s (0.1 s at least)"
-            ));
-        }
+        let least = if count == 1.0 { 0.0 } else { 0.1 };
+        let interval = match seconds(interval as f64, least..=MAX_IMAGE_INTERVAL_S) {
+            Ok(d) => d,
+            Err(e) => return Answer::denied(format!("an image interval of {e}")),
+        };
         let Some(shooter) = &self.shooter else {
             return Answer::failed("there is no video pipeline to take images from");
         };
@@ -296,11 +341,14 @@ impl Cameras {
             return Answer::failed(format!("{} is full", shooter.dir().display()));
         }
         self.periodic().cameras[i].shooting = Some(Shooting {
-            interval: interval as f64,
+            interval,
             left: (count > 0.0).then_some(count as u32),
             next: Instant::now(),
         });
-        info!("camera {i}: taking {count} images every {interval} s (0: until stopped)");
+        info!(
+            "camera {i}: taking {count} images every {} s (0: until stopped)",
+            interval.as_secs_f64()
+        );
         Answer::accepted(vec![])
     }
 
@@ -313,7 +361,8 @@ impl Cameras {
     }
 
     /// STORAGE_FORMAT: removes DigiView's stills and recordings from the capture directory
-    /// (nothing else there), and with param 3 starts the image indices again.
+    /// (nothing else there, and no recording still running), and with param 3 starts the
+    /// image indices again.
     fn format(&self, i: usize, cmd: &Command) -> Answer {
         if cmd.whole(1, 1.0).is_none() || cmd.params[1] != 1.0 {
             return Answer::denied("STORAGE_FORMAT of storage 1 (or 0, all) with param 2 = 1");
@@ -321,7 +370,7 @@ impl Cameras {
         let Some(shooter) = &self.shooter else {
             return Answer::failed("there is no capture directory");
         };
-        let removed = match remove_captures(shooter.dir()) {
+        let removed = match shooter.format() {
             Ok(n) => n,
             Err(e) => return Answer::failed(format!("{}: {e}", shooter.dir().display())),
         };
@@ -336,21 +385,7 @@ impl Cameras {
     }
 }
 
-/// Removes the files DigiView names `digiview-*` from `dir`; how many.
-fn remove_captures(dir: &std::path::Path) -> std::io::Result<usize> {
-    let mut n = 0;
-    for entry in std::fs::read_dir(dir)? {
-        let entry = entry?;
-        let name = entry.file_name();
-        if name.to_string_lossy().starts_with("digiview-") && entry.file_type()?.is_file() {
-            std::fs::remove_file(entry.path())?;
-            n += 1;
-        }
-    }
-    Ok(n)
-}
-
 /// When the next interval image is due after one taken at `t`.
-pub(super) fn next_after(t: Instant, interval: f64) -> Instant {
-    t + Duration::from_secs_f64(interval.max(0.1))
+pub(super) fn next_after(t: Instant, interval: Duration) -> Instant {
+    t + interval.max(Duration::from_millis(100))
 }

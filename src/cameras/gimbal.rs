@@ -222,6 +222,7 @@ impl Cameras {
             Ok(()) => Answer {
                 result: MavResult::MAV_RESULT_ACCEPTED,
                 then: vec![],
+                why: None,
             },
             Err(e) => Answer::denied(e),
         };

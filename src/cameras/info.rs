@@ -121,7 +121,10 @@ impl Cameras {
             .map_or(f32::NAN, |s| s.1);
         let p = self.periodic();
         let cam = &p.cameras[i];
-        let interval = cam.shooting.as_ref().map_or(0.0, |s| s.interval as f32);
+        let interval = cam
+            .shooting
+            .as_ref()
+            .map_or(0.0, |s| s.interval.as_secs_f32());
         // 0 idle, 1 capturing, 2 interval set and idle, 3 interval set and capturing.
         let image_status = (cam.pending > 0) as u8 | (cam.shooting.is_some() as u8) << 1;
         MavMessage::CAMERA_CAPTURE_STATUS(CAMERA_CAPTURE_STATUS_DATA {

@@ -20,6 +20,7 @@ use crate::autopilot::{Components, Outbox};
 use crate::clock::clock_us;
 use crate::geometry::view::clamp_fov;
 use crate::layout::{Slot, layout};
+use crate::policy::{Act, Peer, Policy};
 use crate::state::capture::{CaptureError, ViewShooter};
 use crate::state::{Invalid, Live, MAX_CAMERAS, State};
 use mavlink::dialects::common::{
@@ -85,6 +86,8 @@ pub struct Streams {
 /// The views as cameras: the link's [`Components`].
 pub struct Cameras {
     live: Arc<Live>,
+    /// Who may change what (every control path's), and the refusal log.
+    policy: Arc<Policy>,
     cfg: CamerasConfig,
     shooter: Option<Arc<dyn ViewShooter>>,
     streams: Mutex<Streams>,
@@ -138,9 +141,9 @@ struct PerCamera {
     pending: u32,
 }
 
-/// Interval shooting: every `interval` s, `left` more (None: until stopped).
+/// Interval shooting: every `interval`, `left` more (None: until stopped).
 struct Shooting {
-    interval: f64,
+    interval: Duration,
     left: Option<u32>,
     next: Instant,
 }
@@ -148,11 +151,13 @@ struct Shooting {
 impl Cameras {
     pub fn new(
         live: Arc<Live>,
+        policy: Arc<Policy>,
         cfg: CamerasConfig,
         shooter: Option<Arc<dyn ViewShooter>>,
     ) -> Cameras {
         Cameras {
             live,
+            policy,
             cfg,
             shooter,
             streams: Mutex::default(),
@@ -243,8 +248,11 @@ impl Cameras {
 }
 
 impl Components for Cameras {
-    fn handle(&self, out: &Outbox, from: &MavHeader, msg: &MavMessage) {
+    fn handle(&self, out: &Outbox, from: &MavHeader, peer: Peer, msg: &MavMessage) {
         let state = self.live.snapshot();
+        // A gimbal message that the policy does not permit `peer` is dropped (it has no
+        // answer to deny with); the refusal is noted.
+        let may_aim = |what: &str| self.policy.allow(peer, Act::Change, what).is_ok();
         match msg {
             MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
                 self.periodic().ground_station = Some(Instant::now());
@@ -252,13 +260,13 @@ impl Components for Cameras {
             MavMessage::COMMAND_LONG(c) => {
                 let command = commands::Command::long(c);
                 for i in self.addressed(out, c.target_system, c.target_component, &state) {
-                    self.command(out, from, i, &command, c.target_component == 0);
+                    self.command(out, (from, peer), i, &command, c.target_component == 0);
                 }
             }
             MavMessage::COMMAND_INT(c) => {
                 let command = commands::Command::int(c);
                 for i in self.addressed(out, c.target_system, c.target_component, &state) {
-                    self.command(out, from, i, &command, c.target_component == 0);
+                    self.command(out, (from, peer), i, &command, c.target_component == 0);
                 }
             }
             MavMessage::PARAM_EXT_REQUEST_LIST(_)
@@ -267,12 +275,14 @@ impl Components for Cameras {
                 let system = msg.target_system_id().unwrap_or(0);
                 let component = msg.target_component_id().unwrap_or(0);
                 for i in self.addressed(out, system, component, &state) {
-                    self.parameter(out, i, msg);
+                    self.parameter(out, peer, i, msg);
                 }
             }
             MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(m) => {
                 for i in self.addressed(out, m.target_system, m.target_component, &state) {
-                    if gimbal::for_this_gimbal(m.gimbal_device_id) {
+                    if gimbal::for_this_gimbal(m.gimbal_device_id)
+                        && may_aim("GIMBAL_MANAGER_SET_PITCHYAW")
+                    {
                         let aim = gimbal::Aim::pitch_yaw(m.pitch, m.yaw, m.pitch_rate, m.yaw_rate);
                         let _ = self.aim(from, i, m.flags, aim);
                     }
@@ -280,7 +290,9 @@ impl Components for Cameras {
             }
             MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(m) => {
                 for i in self.addressed(out, m.target_system, m.target_component, &state) {
-                    if gimbal::for_this_gimbal(m.gimbal_device_id) {
+                    if gimbal::for_this_gimbal(m.gimbal_device_id)
+                        && may_aim("GIMBAL_MANAGER_SET_ATTITUDE")
+                    {
                         let aim = gimbal::Aim::attitude(m);
                         let _ = self.aim(from, i, m.flags, aim);
                     }

@@ -10,6 +10,7 @@
 use super::{Cameras, FIRST_COMPONENT};
 use crate::autopilot::Outbox;
 use crate::geometry::view::control;
+use crate::policy::{Act, Peer};
 use crate::state::{Invalid, State};
 use mavlink::dialects::common::{
     MavMessage, MavParamExtType, PARAM_EXT_ACK_DATA, PARAM_EXT_VALUE_DATA, ParamAck,
@@ -154,7 +155,7 @@ impl Cameras {
     }
 
     /// PARAM_EXT_REQUEST_LIST, _REQUEST_READ and _SET for camera `i`.
-    pub(super) fn parameter(&self, out: &Outbox, i: usize, msg: &MavMessage) {
+    pub(super) fn parameter(&self, out: &Outbox, peer: Peer, i: usize, msg: &MavMessage) {
         let all = settings(&self.lens_options());
         let component = FIRST_COMPONENT + i as u8;
         let value_of = |index: usize, s: &State| {
@@ -186,7 +187,19 @@ impl Cameras {
             }
             MavMessage::PARAM_EXT_SET(p) => {
                 let name = p.param_id.to_str().unwrap_or("").to_string();
-                let result = self.set_parameter(&all, i, &name, p.param_type, &p.param_value);
+                let what = format!("PARAM_EXT_SET {name} of camera {i}");
+                let result = match self.policy.allow(peer, Act::Change, &what) {
+                    Ok(()) => {
+                        match self.set_parameter(&all, i, &name, p.param_type, &p.param_value) {
+                            Ok(()) => ParamAck::PARAM_ACK_ACCEPTED,
+                            Err((ack, why)) => {
+                                self.policy.refusals.note(peer, &what, &why);
+                                ack
+                            }
+                        }
+                    }
+                    Err(_) => ParamAck::PARAM_ACK_FAILED,
+                };
                 let now = self.live.snapshot();
                 let shown = all
                     .iter()
@@ -207,7 +220,7 @@ impl Cameras {
     }
 
     /// A PARAM_EXT_SET: a known parameter, a one-byte value, one of its options, and a state
-    /// the one validation accepts.
+    /// the one validation accepts; else the ACK's result and why.
     fn set_parameter(
         &self,
         all: &[Setting],
@@ -215,27 +228,22 @@ impl Cameras {
         name: &str,
         kind: MavParamExtType,
         raw: &[u8; 128],
-    ) -> ParamAck {
+    ) -> Result<(), (ParamAck, String)> {
         let Some(setting) = all.iter().find(|s| s.name == name) else {
-            tracing::warn!("mavlink camera {i}: no parameter {name:?}");
-            return ParamAck::PARAM_ACK_FAILED;
+            return Err((ParamAck::PARAM_ACK_FAILED, format!("no parameter {name:?}")));
         };
         let v = raw[0];
         let one_byte = matches!(
             kind,
             MavParamExtType::MAV_PARAM_EXT_TYPE_UINT8 | MavParamExtType::MAV_PARAM_EXT_TYPE_INT8
         ) || raw[1..4].iter().all(|&b| b == 0);
+        let unsupported = ParamAck::PARAM_ACK_VALUE_UNSUPPORTED;
         if !one_byte || !setting.options.iter().any(|o| o.0 == v) {
-            tracing::warn!("mavlink camera {i}: {name} has no option {v}");
-            return ParamAck::PARAM_ACK_VALUE_UNSUPPORTED;
+            return Err((unsupported, format!("{name} has no option {v}")));
         }
-        match self.live.update(|s| set(s, i, name, v)) {
-            Ok(()) => ParamAck::PARAM_ACK_ACCEPTED,
-            Err(e) => {
-                tracing::warn!("mavlink camera {i}: {name} = {v} refused: {e}");
-                ParamAck::PARAM_ACK_VALUE_UNSUPPORTED
-            }
-        }
+        self.live
+            .update(|s| set(s, i, name, v))
+            .map_err(|e| (unsupported, format!("{name} = {v}: {e}")))
     }
 }
 

@@ -23,9 +23,9 @@ pub struct CtlArgs {
     /// Print every frame sent and received, annotated byte by byte, on stderr.
     #[arg(long)]
     hex: bool,
-    /// Seconds to wait for a reply.
-    #[arg(long, default_value_t = 2.0)]
-    timeout: f64,
+    /// Seconds to wait for a reply (up to an hour).
+    #[arg(long, default_value = "2", value_parser = reply_wait)]
+    timeout: Duration,
     #[command(subcommand)]
     action: Action,
 }
@@ -48,9 +48,9 @@ enum Action {
     Watch {
         param: String,
         fields: Vec<String>,
-        /// Seconds between polls.
-        #[arg(long, default_value_t = 0.5)]
-        interval: f64,
+        /// Seconds between polls (0.01 to a day).
+        #[arg(long, default_value = "0.5", value_parser = poll_interval)]
+        interval: Duration,
         /// Stop after this many prints (the first value counts).
         #[arg(long)]
         count: Option<usize>,
@@ -85,10 +85,7 @@ pub fn run(args: CtlArgs) -> Result<()> {
         } => return load(&args.addr, *clients, *requests, !no_stall, args.json),
         _ => {}
     }
-    if !(args.timeout > 0.0 && args.timeout.is_finite()) {
-        bail!("--timeout must be a positive number of seconds");
-    }
-    let mut client = Client::connect(&args.addr, args.udp, Duration::from_secs_f64(args.timeout))?;
+    let mut client = Client::connect(&args.addr, args.udp, args.timeout)?;
     if args.hex {
         client.trace = Some(Box::new(|sent, frame| {
             eprintln!("{} 80 bytes", if sent { ">>" } else { "<<" });
@@ -158,7 +155,7 @@ pub fn run(args: CtlArgs) -> Result<()> {
                         break;
                     }
                 }
-                std::thread::sleep(Duration::from_secs_f64(interval.max(0.01)));
+                std::thread::sleep(interval);
             }
         }
         Action::Quit => {
@@ -290,4 +287,14 @@ fn load(addr: &str, clients: usize, requests: usize, stall: bool, json: bool) ->
         bail!("{} replies did not answer their request", r.wrong);
     }
     Ok(())
+}
+
+/// `--timeout`: a reply is waited for 1 ms to an hour.
+fn reply_wait(text: &str) -> Result<Duration, crate::units::UnitError> {
+    crate::units::parse_seconds(text, 0.001..=3600.0)
+}
+
+/// `ctl watch --interval`: 10 ms to a day between polls.
+fn poll_interval(text: &str) -> Result<Duration, crate::units::UnitError> {
+    crate::units::parse_seconds(text, 0.01..=86_400.0)
 }

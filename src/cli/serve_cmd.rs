@@ -5,9 +5,9 @@
 
 use super::StateArgs;
 use crate::app::{self, Config};
-use crate::control::permissions::{Allow, Permissions};
 use crate::detect::Detector;
 use crate::lens::LensCal;
+use crate::policy::{Allow, Permissions};
 use anyhow::{Result, anyhow};
 use clap::Args;
 use std::net::SocketAddr;
@@ -26,6 +26,10 @@ pub struct ServeArgs {
     /// Who may QUIT (same forms as --allow-set).
     #[arg(long)]
     allow_quit: Option<Allow>,
+    /// Who may delete files: MAVLink's STORAGE_FORMAT (same forms as --allow-set; over
+    /// MAVLink a signed message as well).
+    #[arg(long)]
+    allow_delete: Option<Allow>,
     /// Also push the stream to a relay: rtsp://HOST:PORT/PATH (RTSP RECORD) or
     /// srt://HOST:PORT (repeatable; replaces the config's `publish`).
     #[arg(long = "publish", value_name = "URL")]
@@ -169,23 +173,17 @@ pub fn serve(cal: &LensCal, args: ServeArgs) -> Result<()> {
         tracing::info!("objects given with --track or the state: the detector is off");
         cfg.detection.detector = Detector::Off;
     }
+    let list = |given: &Option<Allow>, key: &str, text: &str| -> Result<Allow> {
+        match given {
+            Some(a) => Ok(a.clone()),
+            None => text.parse().map_err(|e| anyhow!("control.{key}: {e}")),
+        }
+    };
+    let c = &cfg.control;
     let permissions = Permissions {
-        set: match &args.allow_set {
-            Some(a) => a.clone(),
-            None => cfg
-                .control
-                .allow_set
-                .parse()
-                .map_err(|e| anyhow!("control.allow_set: {e}"))?,
-        },
-        quit: match &args.allow_quit {
-            Some(a) => a.clone(),
-            None => cfg
-                .control
-                .allow_quit
-                .parse()
-                .map_err(|e| anyhow!("control.allow_quit: {e}"))?,
-        },
+        set: list(&args.allow_set, "allow_set", &c.allow_set)?,
+        quit: list(&args.allow_quit, "allow_quit", &c.allow_quit)?,
+        delete: list(&args.allow_delete, "allow_delete", &c.allow_delete)?,
     };
     let options = app::Options {
         no_video: args.no_video,

@@ -3,7 +3,6 @@
 //! through them on every `cargo test`.
 
 use super::Controller;
-use super::permissions::Permissions;
 use crate::lens::LensCal;
 use crate::protocol::text::annotate;
 use crate::protocol::{Body, FRAME_LEN, Message, crc8};
@@ -39,7 +38,7 @@ pub fn controller(cal: &LensCal) -> Controller {
         .add_tracked("yaw=100deg,pitch=-60deg,size=2deg")
         .expect("valid");
     let live = Live::new(state, cal, Box::new(NoVideo)).expect("the default state is valid");
-    Controller::new(Arc::new(live), Permissions::default())
+    Controller::new(Arc::new(live), Arc::default())
 }
 
 /// Feeds `data` as a stream of frames: every request gets its replies (exactly one, or at

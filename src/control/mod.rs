@@ -11,22 +11,19 @@ pub mod checks;
 pub mod client;
 pub mod detection;
 pub mod load;
-pub mod permissions;
-pub mod refusals;
 pub mod server;
 pub mod system;
 
+use crate::policy::{Act, Peer, Policy};
 use crate::protocol::params::Autopilot;
 use crate::protocol::{Body, Message, Param, TextValue, Verdict, split_text};
 use crate::state::{Invalid, Live, MAX_CAMERAS};
-use permissions::Permissions;
-use refusals::Refusals;
 use serde::{Deserialize, Serialize};
 use std::net::IpAddr;
 use std::sync::Arc;
 
 /// `[control]` in the serve configuration: where the control protocol listens, and who may
-/// SET and QUIT.
+/// SET, QUIT and delete files, on this and every other control path (`crate::policy`).
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ControlConfig {
@@ -36,6 +33,8 @@ pub struct ControlConfig {
     pub allow_set: String,
     /// Who may QUIT.
     pub allow_quit: String,
+    /// Who may delete files (MAVLink's STORAGE_FORMAT; over MAVLink a signed message only).
+    pub allow_delete: String,
 }
 
 impl Default for ControlConfig {
@@ -44,6 +43,7 @@ impl Default for ControlConfig {
             listen: "0.0.0.0:5010".into(),
             allow_set: "any".into(),
             allow_quit: "loopback".into(),
+            allow_delete: "loopback".into(),
         }
     }
 }
@@ -57,6 +57,12 @@ pub enum Refusal {
     /// FORBIDDEN: the client may not do this.
     #[error("{0}")]
     Forbidden(&'static str),
+}
+
+impl From<crate::policy::Forbidden> for Refusal {
+    fn from(e: crate::policy::Forbidden) -> Self {
+        Refusal::Forbidden(e.0)
+    }
 }
 
 impl From<Invalid> for Refusal {
@@ -103,20 +109,19 @@ pub trait AutopilotStatus: Send + Sync {
 
 pub struct Controller {
     pub live: Arc<Live>,
-    pub permissions: Permissions,
+    /// Who may do what, and why requests were refused (logged, and the last per address
+    /// kept for REFUSAL): shared with every other control path.
+    pub policy: Arc<Policy>,
     /// The autopilot link's state, for AUTOPILOT (None: the link is off).
     pub autopilot: Option<Arc<dyn AutopilotStatus>>,
-    /// Why requests were refused: logged, and the last per address kept for REFUSAL.
-    pub refusals: Refusals,
 }
 
 impl Controller {
-    pub fn new(live: Arc<Live>, permissions: Permissions) -> Controller {
+    pub fn new(live: Arc<Live>, policy: Arc<Policy>) -> Controller {
         Controller {
             live,
-            permissions,
+            policy,
             autopilot: None,
-            refusals: Refusals::default(),
         }
     }
 
@@ -125,7 +130,9 @@ impl Controller {
         let msg = match Message::decode(frame) {
             Ok(m) => m,
             Err(e) => {
-                self.refusals.note(peer, "a frame", &e.to_string());
+                self.policy
+                    .refusals
+                    .note(Peer::Net(peer), "a frame", &e.to_string());
                 let (verdict, param_type) = e.reply();
                 return Outcome {
                     bad_checksum: matches!(e, crate::protocol::DecodeError::Checksum { .. }),
@@ -140,23 +147,29 @@ impl Controller {
                 Body::Set(p) => format!("SET {}", p.param_type()),
                 _ => format!("{}", msg.body.message_type()),
             };
-            self.refusals.note(peer, &what, &r.to_string());
+            if !matches!(r, Refusal::Forbidden(_)) {
+                // The policy noted its own refusals.
+                self.policy
+                    .refusals
+                    .note(Peer::Net(peer), &what, &r.to_string());
+            }
             Outcome::one(Body::Verdict(r.verdict(), param_type))
         };
         match msg.body {
             Body::Empty(p) => Outcome::one(Body::Verdict(Verdict::Acknowledgement, p)),
-            Body::Quit(p) => {
-                if self.permissions.quit.permits(peer) {
-                    Outcome {
-                        quit: true,
-                        ..Outcome::one(Body::Verdict(Verdict::Acknowledgement, p))
-                    }
-                } else {
-                    refused(Refusal::Forbidden("QUIT is not permitted from here"))
-                }
-            }
+            Body::Quit(p) => match self.policy.allow(Peer::Net(peer), Act::Stop, "QUIT") {
+                Ok(()) => Outcome {
+                    quit: true,
+                    ..Outcome::one(Body::Verdict(Verdict::Acknowledgement, p))
+                },
+                Err(e) => refused(e.into()),
+            },
             Body::Get(Param::RefusalReason(q)) => {
-                let reason = self.refusals.last(peer).unwrap_or_default();
+                let reason = self
+                    .policy
+                    .refusals
+                    .last(Peer::Net(peer))
+                    .unwrap_or_default();
                 let parts = split_text(&reason, TextValue::MAX);
                 // Not noted as a refusal: that would replace the reason being read.
                 let Some(text) = parts.get(q.part as usize) else {
@@ -195,7 +208,9 @@ impl Controller {
     pub fn get_from(&self, query: &Param, peer: IpAddr) -> Result<Vec<Param>, Refusal> {
         self.get(query).inspect_err(|r| {
             let what = format!("GET {}", query.param_type());
-            self.refusals.note(peer, &what, &r.to_string())
+            self.policy
+                .refusals
+                .note(Peer::Net(peer), &what, &r.to_string())
         })
     }
 
@@ -203,8 +218,12 @@ impl Controller {
     /// and permissions, and a refusal logged alike.
     pub fn set_from(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
         self.set(param, peer).inspect_err(|r| {
-            let what = format!("SET {}", param.param_type());
-            self.refusals.note(peer, &what, &r.to_string())
+            if !matches!(r, Refusal::Forbidden(_)) {
+                let what = format!("SET {}", param.param_type());
+                self.policy
+                    .refusals
+                    .note(Peer::Net(peer), &what, &r.to_string())
+            }
         })
     }
 
@@ -249,10 +268,9 @@ impl Controller {
     }
 
     fn set(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
-        if !self.permissions.set.permits(peer) {
-            return Err(Refusal::Forbidden("SET is not permitted from here"));
-        }
         let kind = param.param_type();
+        self.policy
+            .allow(Peer::Net(peer), Act::Change, &format!("SET {kind}"))?;
         if !kind.settable() {
             return Err(Refusal::Data(format!("{kind} can only be read")));
         }

@@ -311,6 +311,18 @@ impl ViewShooter for Capture {
     fn dir(&self) -> &std::path::Path {
         &self.cfg.dir
     }
+
+    fn format(&self) -> std::io::Result<usize> {
+        // Both recorders' locks held while removing: no recording starts or ends meanwhile.
+        let composed = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
+        let views = self.view_recorders();
+        let keep: Vec<&std::path::Path> = composed
+            .iter()
+            .chain(views.iter().flatten())
+            .map(|r| r.path())
+            .collect();
+        crate::state::capture::remove_captures(&self.cfg.dir, &keep)
+    }
 }
 
 impl Capturer for Capture {

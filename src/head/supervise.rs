@@ -8,6 +8,7 @@
 
 use super::{Head, HeadError};
 use crate::state::Failure;
+use crate::supervise::panic_message;
 use std::collections::VecDeque;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::Ordering;
@@ -60,15 +61,6 @@ impl Head {
             }
         }
     }
-}
-
-/// What a panic said.
-fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
-    panic
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "a panic without a message".into())
 }
 
 /// A fault injected into a stage for tests (`DIGIVIEW_FAULT=frames`).

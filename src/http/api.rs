@@ -219,6 +219,7 @@ pub(crate) fn status_value(web: &Web) -> Value {
         "failure": s.failure(),
         "video": web.video.as_ref().map(|v| v.status()),
         "autopilot": web.controller.autopilot.as_ref().map(|a| a.param()),
+        "services": s.services.failures(),
         "version": env!("CARGO_PKG_VERSION"),
     })
 }

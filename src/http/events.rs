@@ -5,7 +5,9 @@
 //! at once and whenever a value changes (looked at every 100 ms, once for all sockets), and `{"status": {...}}`
 //! (as `GET /api/status`) every second. Client to server: `{"id": 7, "set": "CAM_FOV",
 //! "fields": {"cam_id": 1, "fov": "60deg"}}`, answered `{"id": 7, "ok": {...}}` or `{"id":
-//! 7, "error": "...", "code": 422}` with the same checks and permissions as `PUT`.
+//! 7, "error": "...", "code": 422}` with the same checks and permissions as `PUT`. A client
+//! that sends more than [`MAX_PER_SECOND`] frames of any kind in a second, or one frame over
+//! [`MAX_MESSAGE`] bytes, is disconnected.
 
 use super::Web;
 use super::api::{set_json, snapshot, status_value};
@@ -23,6 +25,8 @@ use tokio::sync::{Notify, watch};
 const LOOK_EVERY: Duration = Duration::from_millis(100);
 /// Messages a client may send per second before the socket is closed (a flood).
 const MAX_PER_SECOND: u32 = 200;
+/// The largest message a client may send: a SET is a few hundred bytes.
+const MAX_MESSAGE: usize = 16 * 1024;
 
 /// The parameters every event socket pushes, built once per look for all of them (and only
 /// while one is open): the `{"params": ...}` message, ready to send.
@@ -76,7 +80,8 @@ pub(super) async fn upgrade(
     Extension(feed): Extension<Arc<Feed>>,
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
 ) -> Response {
-    ws.max_message_size(64 * 1024)
+    ws.max_message_size(MAX_MESSAGE)
+        .max_frame_size(MAX_MESSAGE)
         .on_upgrade(move |socket| events(socket, web, feed, peer.ip()))
 }
 
@@ -114,16 +119,19 @@ async fn events(mut socket: WebSocket, web: Web, feed: Arc<Feed>, peer: IpAddr) 
                 }
             }
             message = socket.recv() => {
+                // Every frame counts against the limit, whatever its type; only text is
+                // answered. A frame over the size limit is an error: the socket closes.
                 let text = match message {
-                    Some(Ok(Message::Text(t))) => t,
+                    Some(Ok(Message::Text(t))) => Some(t),
                     Some(Ok(Message::Close(_))) | None | Some(Err(_)) => return,
-                    Some(Ok(_)) => continue,
+                    Some(Ok(_)) => None,
                 };
                 received += 1;
                 if received > MAX_PER_SECOND {
                     tracing::info!("http: closing {peer}'s event socket: over {MAX_PER_SECOND} messages a second");
                     return;
                 }
+                let Some(text) = text else { continue };
                 let reply = answer(&web, peer, &text);
                 if socket.send(Message::Text(reply.to_string().into())).await.is_err() {
                     return;

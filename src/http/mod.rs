@@ -6,12 +6,15 @@
 //! preview (`preview`), the MAVLink cameras' definition file (which ground stations fetch by
 //! the URL in CAMERA_INFORMATION) and the captures (`/captures/NAME`).
 //!
-//! With the RTSP user and password set, everything but the definition file asks for them
-//! (basic authentication). A request that changes something, and every WebSocket, is refused
-//! when it comes from another site's page (its Origin is not this server).
+//! A request whose `Host` is not one of this server's names is refused, the defence against
+//! DNS rebinding (`names`). With the RTSP user and password set, everything but the
+//! definition file asks for them (basic authentication). A request that changes something,
+//! and every WebSocket, is refused when it comes from another site's page (its Origin is not
+//! one of this server's names on its port).
 
 mod api;
 mod events;
+mod names;
 mod page;
 mod preview;
 
@@ -41,12 +44,17 @@ pub const DEFINITION_PATH: &str = "/camera.xml";
 pub struct HttpConfig {
     /// `ADDR:PORT` (port 0 picks a free one), or `off`.
     pub listen: String,
+    /// Names the server answers to besides its addresses, `localhost` and this machine's
+    /// host name: the DNS names users type to reach it (a request naming any other host is
+    /// refused, the defence against DNS rebinding).
+    pub hosts: Vec<String>,
 }
 
 impl Default for HttpConfig {
     fn default() -> Self {
         HttpConfig {
             listen: "0.0.0.0:8080".into(),
+            hosts: vec![],
         }
     }
 }
@@ -89,6 +97,8 @@ pub struct Web {
     pub captures: Option<PathBuf>,
     /// `user:password` for basic authentication (the RTSP server's), or open.
     pub login: Option<(String, String)>,
+    /// Names the server answers to besides its addresses, `localhost` and the host name.
+    pub hosts: Vec<String>,
 }
 
 /// Serves on `listener` until `stop` resolves.
@@ -97,6 +107,7 @@ pub async fn serve(
     web: Web,
     stop: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
+    let names = Arc::new(names::Names::new(&web.hosts, listener.local_addr()?.port()));
     let expected = web.login.as_ref().map(|(user, password)| {
         let token = base64::engine::general_purpose::STANDARD.encode(format!("{user}:{password}"));
         Arc::<str>::from(format!("Basic {token}"))
@@ -108,11 +119,15 @@ pub async fn serve(
         .route("/api/preview", get(preview::upgrade))
         .route(&format!("{CAPTURES_PATH}{{name}}"), get(api::capture_file))
         .layer(axum::Extension(events::Feed::start(web.clone())))
-        .layer(axum::middleware::from_fn(same_site))
+        .layer(axum::middleware::from_fn_with_state(
+            names.clone(),
+            same_site,
+        ))
         .layer(axum::middleware::from_fn_with_state(expected, logged_in));
     let app = Router::new()
         .route(DEFINITION_PATH, get(definition))
         .merge(guarded)
+        .layer(axum::middleware::from_fn_with_state(names, known_host))
         .with_state(web);
     axum::serve(
         listener,
@@ -161,22 +176,46 @@ async fn logged_in(
 }
 
 /// Whether a request comes from this server's own page, or from no page (a script, `curl`):
-/// an `Origin` naming another host is another site's page.
-pub(crate) fn from_this_site(headers: &HeaderMap) -> bool {
+/// an `Origin` that is not one of this server's names on its port is another site's page.
+fn from_this_site(names: &names::Names, headers: &HeaderMap) -> bool {
     let Some(origin) = headers.get(header::ORIGIN) else {
         return true;
     };
-    let host = headers.get(header::HOST).and_then(|h| h.to_str().ok());
-    let origin = origin.to_str().ok().and_then(|o| o.split_once("://"));
-    matches!((origin, host), (Some((_, o)), Some(h)) if o.eq_ignore_ascii_case(h))
+    origin.to_str().is_ok_and(|o| names.knows_origin(o))
+}
+
+/// Refuses a request whose `Host` is not one of this server's names (DNS rebinding).
+async fn known_host(
+    State(names): State<Arc<names::Names>>,
+    request: Request,
+    next: Next,
+) -> Response {
+    let host = request.headers().get(header::HOST).map(|h| h.to_str());
+    match host {
+        // No Host at all (HTTP/1.0, a script): no browser page sends that.
+        None => next.run(request).await,
+        Some(Ok(h)) if names.knows_host(h) => next.run(request).await,
+        Some(h) => text(
+            StatusCode::FORBIDDEN,
+            format!(
+                "this server does not answer to the name {:?}: add it to [http] hosts to \
+                 reach it by that name",
+                h.unwrap_or("?")
+            ),
+        ),
+    }
 }
 
 /// Refuses what changes something (every method but GET and HEAD, and every WebSocket) from
 /// another site's page.
-async fn same_site(request: Request, next: Next) -> Response {
+async fn same_site(
+    State(names): State<Arc<names::Names>>,
+    request: Request,
+    next: Next,
+) -> Response {
     let reads = matches!(*request.method(), Method::GET | Method::HEAD);
     let upgrade = request.headers().contains_key(header::UPGRADE);
-    if (!reads || upgrade) && !from_this_site(request.headers()) {
+    if (!reads || upgrade) && !from_this_site(&names, request.headers()) {
         return text(
             StatusCode::FORBIDDEN,
             "another site's page may not change this video head",

@@ -55,6 +55,27 @@ pub trait ViewShooter: Send + Sync {
     fn recording(&self, view: usize) -> bool;
     /// The directory stills and recordings go to (STORAGE_INFORMATION measures it).
     fn dir(&self) -> &Path;
+    /// Removes DigiView's captures (the files it names `digiview-*`) from [`Self::dir`],
+    /// never a file being written (a running recording stays whole and playable); how many.
+    fn format(&self) -> std::io::Result<usize>;
+}
+
+/// Removes the files DigiView names `digiview-*` from `dir`, but those in `keep`; how many.
+pub fn remove_captures(dir: &Path, keep: &[&Path]) -> std::io::Result<usize> {
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name();
+        let path = entry.path();
+        if name.to_string_lossy().starts_with("digiview-")
+            && entry.file_type()?.is_file()
+            && !keep.iter().any(|k| *k == path)
+        {
+            std::fs::remove_file(path)?;
+            n += 1;
+        }
+    }
+    Ok(n)
 }
 
 pub trait Capturer: Send + Sync {

@@ -1,6 +1,7 @@
 //! The live handle of a running DigiView: the one [`State`] that the frame loop snapshots once
 //! per frame and the control server (and later MAVLink and the web page) changes, the lenses
-//! of lens.cal it may name, the run's status, and its capture hook.
+//! of lens.cal it may name, the run's status (with the services that failed), and its
+//! capture hook.
 //!
 //! Readers never wait: a snapshot is an `Arc` loaded lock-free. Writers take a short mutex
 //! among themselves only, copy the state, change the copy, check it and publish it whole,
@@ -8,6 +9,7 @@
 //! refused change leaves nothing behind.
 
 use super::capture::Capturer;
+use super::services::Services;
 use super::{Invalid, State};
 use crate::lens::{LensCal, Lenses};
 use arc_swap::ArcSwap;
@@ -53,6 +55,8 @@ pub struct Live {
     capture: Box<dyn Capturer>,
     /// Why CAM_SENSOR cannot be set, for a source with no exposure to set.
     sensor_refusal: Mutex<Option<String>>,
+    /// The supervised services that have failed.
+    pub services: Services,
 }
 
 impl Live {
@@ -69,6 +73,7 @@ impl Live {
             attitude_lost: AtomicBool::new(false),
             capture,
             sensor_refusal: Mutex::new(None),
+            services: Services::default(),
         })
     }
 

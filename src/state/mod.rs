@@ -13,6 +13,7 @@ mod detection;
 pub mod file;
 pub mod flags;
 pub mod live;
+pub mod services;
 mod validate;
 
 pub use file::StateError;

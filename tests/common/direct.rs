@@ -8,7 +8,6 @@ use super::lens_cal;
 use clap::Parser;
 use digiview::cli::StateArgs;
 use digiview::control::Controller;
-use digiview::control::permissions::Permissions;
 use digiview::protocol::{FRAME_LEN, Message};
 use digiview::state::Live;
 use digiview::state::capture::NoVideo;
@@ -39,7 +38,7 @@ impl Direct {
         let state = flags.state.state(&cal).expect("a valid state");
         let live = Live::new(state, &cal, Box::new(NoVideo)).expect("a valid state");
         Direct {
-            controller: Controller::new(Arc::new(live), Permissions::default()),
+            controller: Controller::new(Arc::new(live), Arc::default()),
             pending: Vec::new(),
             replies: VecDeque::new(),
         }

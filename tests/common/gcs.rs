@@ -27,10 +27,15 @@ pub struct Gcs {
 impl Gcs {
     /// Talks to DigiView's link at `udpout:127.0.0.1:PORT`.
     pub fn connect(port: u16) -> Gcs {
-        let link: Arc<dyn MavConnection<MavMessage> + Send + Sync> = Arc::from(
-            mavlink::connect::<MavMessage>(&format!("udpout:127.0.0.1:{port}"))
-                .expect("the ground station's link"),
-        );
+        Gcs::connect_signed(port, None)
+    }
+
+    /// As [`Gcs::connect`], signing every message with `key` when given.
+    pub fn connect_signed(port: u16, key: Option<[u8; 32]>) -> Gcs {
+        let mut link = mavlink::connect::<MavMessage>(&format!("udpout:127.0.0.1:{port}"))
+            .expect("the ground station's link");
+        link.setup_signing(key.map(|k| mavlink::SigningConfig::new(k, 0, true, false)));
+        let link: Arc<dyn MavConnection<MavMessage> + Send + Sync> = Arc::from(link);
         let (tx, rx) = channel();
         let stop = Arc::new(AtomicBool::new(false));
         {
@@ -44,6 +49,11 @@ impl Gcs {
                                 break;
                             }
                         }
+                        // A datagram sent while DigiView's port was closed (its link
+                        // restarting) comes back as "connection refused" on the next
+                        // read: a ground station goes on listening.
+                        Err(mavlink::error::MessageReadError::Io(e))
+                            if e.kind() == std::io::ErrorKind::ConnectionRefused => {}
                         Err(mavlink::error::MessageReadError::Io(_)) => break,
                         Err(_) => {}
                     }

@@ -45,6 +45,12 @@ impl Serve {
         Serve::launch(&["--rtsp-port", "0"], extra, Some("error"), Some(fault))
     }
 
+    /// As [`Serve::start`], logging at `level` into a pipe ([`Serve::log`]), with
+    /// `DIGIVIEW_FAULT=fault` when given.
+    pub fn start_logging(level: &str, fault: Option<&str>, extra: &[&str]) -> Serve {
+        Serve::launch(&["--no-video"], extra, Some(level), fault)
+    }
+
     /// As [`Serve::start_video`], logging at `level` into a pipe ([`Serve::log`]).
     pub fn start_video_logging(level: &str, extra: &[&str]) -> Serve {
         Serve::launch(&["--rtsp-port", "0"], extra, Some(level), None)

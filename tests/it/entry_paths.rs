@@ -12,7 +12,6 @@ use crate::common;
 use digiview::app::Config;
 use digiview::cli::StateArgs;
 use digiview::control::Controller;
-use digiview::control::permissions::Permissions;
 use digiview::lens::LensCal;
 use digiview::protocol::params::*;
 use digiview::protocol::{Body, Message, Param, Verdict};
@@ -28,7 +27,7 @@ type Outcome = Result<State, String>;
 /// The control protocol: one SET from a loopback client on the default state.
 fn by_protocol(cal: &LensCal, p: Param) -> Outcome {
     let live = Live::new(State::default(), cal, Box::new(NoVideo)).unwrap();
-    let c = Controller::new(Arc::new(live), Permissions::default());
+    let c = Controller::new(Arc::new(live), Arc::default());
     let frame = Message::new(Body::Set(p)).encode();
     let out = c.handle(&frame, IpAddr::V4(Ipv4Addr::LOCALHOST));
     match out.replies[0].body {

@@ -30,5 +30,8 @@ mod protocol_camera;
 mod protocol_system;
 mod publish;
 mod render_video;
+mod services;
+mod trust_mavlink;
+mod trust_web;
 mod web;
 mod web_api;

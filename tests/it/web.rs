@@ -340,7 +340,12 @@ async fn the_page_plays_the_stream_and_its_drags_turn_the_cameras() {
 /// through Media Source Extensions instead, and shows what RTSP clients see.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn over_plain_http_from_elsewhere_the_preview_plays_through_mse() {
-    let serve = Serve::start_video(&["--size", "640x480", "--demo-hover"]);
+    // The name is the user's: a name the server was not told of is refused (DNS rebinding).
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(&config, "[http]\nhosts = [\"drone.test\"]\n").unwrap();
+    let config = config.to_str().unwrap();
+    let serve = Serve::start_video(&["--config", config, "--size", "640x480", "--demo-hover"]);
     let page = serve
         .http
         .clone()
@@ -432,9 +437,12 @@ async fn sets_without_permission_and_other_sites_pages_are_refused() {
         "nothing changed"
     );
 
-    // Another site's page (localhost is another origin than 127.0.0.1) gets no WebSocket.
-    let other = http.replace("127.0.0.1", "localhost");
-    b.client.goto(&other).await.unwrap();
+    // Another site's page (one of another port on this machine) gets no WebSocket.
+    let elsewhere = Serve::start(&[]);
+    b.client
+        .goto(&elsewhere.http.clone().unwrap())
+        .await
+        .unwrap();
     let cross = b
         .js(
             "return new Promise(done => { const s = new WebSocket(arguments[0]);

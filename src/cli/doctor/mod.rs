@@ -17,9 +17,9 @@ use std::path::Path;
 pub struct DoctorArgs {
     #[command(flatten)]
     setup: SetupArgs,
-    /// How long to wait for the autopilot's HEARTBEAT, seconds.
-    #[arg(long, default_value_t = 3.0)]
-    heartbeat_wait: f64,
+    /// How long to wait for the autopilot's HEARTBEAT, seconds (up to an hour).
+    #[arg(long, default_value = "3", value_parser = heartbeat_wait)]
+    heartbeat_wait: std::time::Duration,
 }
 
 /// One check's outcome: its line, and what to do when it failed.
@@ -84,10 +84,7 @@ pub fn doctor(lens_cal: Option<&Path>, args: DoctorArgs) -> Result<()> {
     for o in links::ports(&cfg) {
         report(o);
     }
-    report(links::mavlink(
-        &cfg,
-        std::time::Duration::from_secs_f64(args.heartbeat_wait),
-    ));
+    report(links::mavlink(&cfg, args.heartbeat_wait));
     report(checks::disk(&cfg));
     let failed = outcomes.iter().filter(|ok| !**ok).count();
     if failed > 0 {
@@ -95,4 +92,9 @@ pub fn doctor(lens_cal: Option<&Path>, args: DoctorArgs) -> Result<()> {
     }
     println!("all {} checks passed", outcomes.len());
     Ok(())
+}
+
+/// `--heartbeat-wait`: 0 s to an hour.
+fn heartbeat_wait(text: &str) -> Result<std::time::Duration, crate::units::UnitError> {
+    crate::units::parse_seconds(text, 0.0..=3600.0)
 }

@@ -1,10 +1,11 @@
-//! Why requests were refused: each refusal is logged at info level (at most a few lines a
-//! second, then a count of those left out, so a flood cannot fill the journal), and the last
-//! one per client address is kept for the REFUSAL extension, which `digiview ctl` reads to
-//! say why its request was refused.
+//! Why requests were refused, on every control path alike: each refusal is logged at info
+//! level (at most a few lines a second, then one summary line "N more refused in the last
+//! second, the last: ...", so a flood cannot fill the journal), and the last one per client
+//! address is kept for the REFUSAL extension, which `digiview ctl` reads to say why its
+//! request was refused.
 
+use super::Peer;
 use std::collections::HashMap;
-use std::net::IpAddr;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -20,17 +21,32 @@ pub struct Refusals {
 
 #[derive(Default)]
 struct Inner {
-    last: HashMap<IpAddr, (u64, String)>,
+    last: HashMap<Peer, (u64, String)>,
     /// Refusals so far, which orders `last` by age.
     count: u64,
     window: Option<Instant>,
     logged: u32,
     left_out: u64,
+    /// The last refusal not logged line by line, for the summary.
+    last_left_out: String,
+}
+
+impl Inner {
+    fn summarise(&mut self) {
+        if self.left_out > 0 {
+            tracing::info!(
+                "{} more refused in the last second, the last: {}",
+                self.left_out,
+                self.last_left_out
+            );
+        }
+        self.left_out = 0;
+    }
 }
 
 impl Refusals {
     /// Notes that `peer`'s request `what` was refused because of `why`.
-    pub fn note(&self, peer: IpAddr, what: &str, why: &str) {
+    pub fn note(&self, peer: Peer, what: &str, why: &str) {
         let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         let inner = &mut *g;
         inner.count += 1;
@@ -51,26 +67,38 @@ impl Refusals {
             .window
             .is_none_or(|w| now.duration_since(w) >= Duration::from_secs(1))
         {
-            if inner.left_out > 0 {
-                tracing::info!(
-                    "{} more refusals in the last second not logged",
-                    inner.left_out
-                );
-            }
+            inner.summarise();
             inner.window = Some(now);
             inner.logged = 0;
-            inner.left_out = 0;
         }
         if inner.logged < LINES_PER_SECOND {
             inner.logged += 1;
             tracing::info!(%peer, "refused {what}: {why}");
         } else {
             inner.left_out += 1;
+            inner.last_left_out = format!("{what} from {peer}: {why}");
         }
     }
 
+    /// Logs the summary of the refusals left out, if any, even when no new refusal comes
+    /// (the frame loop's health thread, or any periodic task, may call it).
+    pub fn flush(&self) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        if g.window
+            .is_some_and(|w| w.elapsed() >= Duration::from_secs(1))
+        {
+            g.summarise();
+            g.window = None;
+        }
+    }
+
+    /// Refusals noted since the start.
+    pub fn count(&self) -> u64 {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).count
+    }
+
     /// The reason for `peer`'s last refused request, if it had one.
-    pub fn last(&self, peer: IpAddr) -> Option<String> {
+    pub fn last(&self, peer: Peer) -> Option<String> {
         let g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         g.last.get(&peer).map(|(_, why)| why.clone())
     }
@@ -79,13 +107,13 @@ impl Refusals {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::net::Ipv4Addr;
+    use std::net::{IpAddr, Ipv4Addr};
 
     #[test]
     fn each_address_keeps_its_own_last_reason_and_the_memory_is_bounded() {
         let r = Refusals::default();
-        let a = IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1));
-        let b = IpAddr::V4(Ipv4Addr::new(10, 0, 0, 2));
+        let a = Peer::Net(IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1)));
+        let b = Peer::Net(IpAddr::V4(Ipv4Addr::new(10, 0, 0, 2)));
         assert_eq!(r.last(a), None);
         r.note(a, "SET LENS", "lens_id 9 is not in lens.cal");
         r.note(b, "GET CAM_FOV", "cam_id 7 is outside 0..=3");
@@ -93,7 +121,11 @@ mod tests {
         assert_eq!(r.last(a).as_deref(), Some("not a directory"));
         assert_eq!(r.last(b).as_deref(), Some("cam_id 7 is outside 0..=3"));
         for i in 0..1000u32 {
-            r.note(IpAddr::V4(Ipv4Addr::from(i)), "SET LENS", "flood");
+            r.note(
+                Peer::Net(IpAddr::V4(Ipv4Addr::from(i))),
+                "SET LENS",
+                "flood",
+            );
         }
         let g = r.inner.lock().unwrap();
         assert_eq!(g.last.len(), PEERS);

@@ -1,5 +1,4 @@
-//! Who may do what on the control server: SET and QUIT are allowed per client address
-//! (protocol.md, "Permissions"); GET and EMPTY are open to everyone.
+//! A set of client addresses, as `allow_set`, `allow_quit` and `allow_delete` write them.
 
 use ipnet::IpNet;
 use std::net::IpAddr;
@@ -63,22 +62,6 @@ impl FromStr for Allow {
             }
         }
         Ok(Allow::Nets(nets))
-    }
-}
-
-/// The server's permissions. Default: anyone may SET, only loopback clients may QUIT.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Permissions {
-    pub set: Allow,
-    pub quit: Allow,
-}
-
-impl Default for Permissions {
-    fn default() -> Self {
-        Permissions {
-            set: Allow::Anyone,
-            quit: Allow::loopback(),
-        }
     }
 }
 

@@ -1,0 +1,51 @@
+//! How the supervised services of a running DigiView fare: for each that has failed, how
+//! often it was started again, why it failed last, and whether it was given up. The
+//! supervisor (`crate::supervise`) writes it; `/api/status` and the health line read it.
+
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::sync::Mutex;
+
+/// One service's failures.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ServiceHealth {
+    /// Times it was started again after a failure (counted as it starts).
+    pub restarts: u32,
+    /// What its last failure said (a panic's message).
+    pub last_failure: String,
+    /// It failed too often and was given up: the process stops, exiting non-zero.
+    pub given_up: bool,
+}
+
+/// The services that have failed, by name.
+#[derive(Default)]
+pub struct Services(Mutex<BTreeMap<&'static str, ServiceHealth>>);
+
+impl Services {
+    /// `service` failed with `why`; `given_up` when it will not be started again.
+    pub fn failed(&self, service: &'static str, why: &str, given_up: bool) {
+        let mut all = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let h = all.entry(service).or_default();
+        h.last_failure = why.to_string();
+        h.given_up |= given_up;
+    }
+
+    /// `service` is being started again after a failure.
+    pub fn restarted(&self, service: &'static str) {
+        let mut all = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        all.entry(service).or_default().restarts += 1;
+    }
+
+    /// Every service that has failed so far.
+    pub fn failures(&self) -> BTreeMap<&'static str, ServiceHealth> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+
+    /// The first service given up, and why, if any.
+    pub fn given_up(&self) -> Option<(&'static str, String)> {
+        let all = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        all.iter()
+            .find(|(_, h)| h.given_up)
+            .map(|(n, h)| (*n, h.last_failure.clone()))
+    }
+}

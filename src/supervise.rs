@@ -1,0 +1,149 @@
+//! No thread of `serve` fails silently. A service's thread runs under [`spawn`]: a panic is
+//! caught, logged with its message, noted in the live state (SYSTEM_STATUS error 5, and
+//! `/api/status`'s `services` say which one and why), and the service is started again after
+//! [`PAUSE`]; one that fails [`MAX_FAILURES`] times within [`WINDOW`] is given up, and the
+//! assembly then stops `serve`, which exits non-zero saying why. Shared data at the bottom,
+//! beside the state: every service's threads use it, and it knows none of them.
+//!
+//! For tests of this very path, `DIGIVIEW_FAULT=NAME` makes the service of that thread name
+//! panic once, half a second after it first starts ([`Fault`]).
+
+use crate::state::{Failure, Live};
+use std::collections::VecDeque;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use tracing::error;
+
+/// Failures within this long count together.
+pub const WINDOW: Duration = Duration::from_secs(60);
+/// This many failures within the window and the service is given up.
+pub const MAX_FAILURES: usize = 3;
+/// The pause before a service is started again.
+pub const PAUSE: Duration = Duration::from_millis(500);
+
+/// Runs `work` on a thread named `service` until it returns or `stop` is set, starting it
+/// again after each panic (see the module's doc).
+pub fn spawn(
+    live: Arc<Live>,
+    service: &'static str,
+    stop: Arc<AtomicBool>,
+    mut work: impl FnMut() + Send + 'static,
+) -> std::io::Result<JoinHandle<()>> {
+    std::thread::Builder::new()
+        .name(service.into())
+        .spawn(move || {
+            let mut failures: VecDeque<Instant> = VecDeque::new();
+            loop {
+                let why = match catch_unwind(AssertUnwindSafe(&mut work)) {
+                    Ok(()) => return,
+                    Err(panic) => panic_message(panic.as_ref()),
+                };
+                failures.push_back(Instant::now());
+                failures.retain(|t| t.elapsed() < WINDOW);
+                let give_up = failures.len() >= MAX_FAILURES;
+                live.services.failed(service, &why, give_up);
+                live.set_failure(Failure::Internal);
+                if give_up {
+                    error!(
+                        "the {service} service failed ({why}) {} times within {} s: stopping",
+                        failures.len(),
+                        WINDOW.as_secs()
+                    );
+                    return;
+                }
+                error!(
+                    "the {service} service failed ({why}); starting it again in {} ms",
+                    PAUSE.as_millis()
+                );
+                let until = Instant::now() + PAUSE;
+                while Instant::now() < until {
+                    if stop.load(Ordering::Relaxed) {
+                        return;
+                    }
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                live.services.restarted(service);
+            }
+        })
+}
+
+/// What a panic said.
+pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
+}
+
+/// A fault injected into a service for tests: `DIGIVIEW_FAULT=NAME` (its thread's name).
+pub struct Fault {
+    armed: bool,
+    after: Instant,
+}
+
+/// A fault fires once per process: the service started again runs clean.
+static FIRED: AtomicBool = AtomicBool::new(false);
+
+impl Fault {
+    /// The fault for `service`, armed when the environment names it.
+    pub fn for_service(service: &str) -> Fault {
+        Fault {
+            armed: std::env::var("DIGIVIEW_FAULT").is_ok_and(|s| s == service),
+            after: Instant::now() + Duration::from_millis(500),
+        }
+    }
+
+    /// Panics once, when armed and half a second has passed since the fault was made.
+    #[track_caller]
+    pub fn check(&self, service: &str) {
+        if self.armed && Instant::now() >= self.after && !FIRED.swap(true, Ordering::Relaxed) {
+            panic!("fault injected into the {service} service (DIGIVIEW_FAULT)");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lens::LensCal;
+    use crate::state::State;
+    use crate::state::capture::NoVideo;
+    use std::sync::atomic::AtomicU32;
+
+    fn live() -> Arc<Live> {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
+        let cal = LensCal::load(&path).unwrap();
+        Arc::new(Live::new(State::default(), &cal, Box::new(NoVideo)).unwrap())
+    }
+
+    #[test]
+    fn a_service_that_panics_is_started_again_and_given_up_when_it_keeps_failing() {
+        let live = live();
+        let stop = Arc::new(AtomicBool::new(false));
+        let runs = Arc::new(AtomicU32::new(0));
+        let counted = runs.clone();
+        let t = spawn(live.clone(), "flaky", stop.clone(), move || {
+            if counted.fetch_add(1, Ordering::Relaxed) == 0 {
+                panic!("first run fails");
+            }
+        })
+        .unwrap();
+        t.join().unwrap();
+        assert_eq!(runs.load(Ordering::Relaxed), 2, "started again once");
+        let h = &live.services.failures()["flaky"];
+        assert_eq!((h.restarts, h.given_up), (1, false));
+        assert_eq!(h.last_failure, "first run fails");
+        assert_eq!(live.failure(), Failure::Internal as u8);
+        assert!(live.services.given_up().is_none());
+
+        let t = spawn(live.clone(), "broken", stop, || panic!("always")).unwrap();
+        t.join().unwrap();
+        let h = &live.services.failures()["broken"];
+        assert_eq!((h.restarts, h.given_up), (MAX_FAILURES as u32 - 1, true));
+        assert_eq!(live.services.given_up().unwrap().0, "broken");
+    }
+}

@@ -1,0 +1,84 @@
+//! Every supervised service of `serve` survives a panic: with `DIGIVIEW_FAULT=NAME` the
+//! service of that thread name panics once; the panic is logged with its message,
+//! `/api/status` says which service failed and that it was started again, the process goes
+//! on, and a ground station hears the cameras' heartbeats again within 3 s.
+
+use crate::common;
+
+use common::autopilot::free_udp_port;
+use common::gcs::{Gcs, REQUEST, cameras, http_get, params};
+use common::serve::Serve;
+use mavlink::dialects::common::*;
+use serde_json::Value;
+use std::time::{Duration, Instant};
+
+fn status(http: &str) -> Value {
+    let (code, body) = http_get(&format!("{http}api/status"));
+    assert_eq!(code, 200);
+    serde_json::from_slice(&body).unwrap()
+}
+
+#[test]
+fn each_mavlink_service_is_restarted_after_a_panic_and_said_to_have_failed() {
+    for service in ["mavlink-components", "mavlink-rx", "mavlink-tx"] {
+        let port = free_udp_port();
+        let link = format!("udpin:127.0.0.1:{port}");
+        let mut serve = Serve::start_logging("info", Some(service), &["--mavlink", &link]);
+        let http = serve.http.clone().unwrap();
+        let gcs = Gcs::connect(port);
+        let (system, seen) = cameras(&gcs);
+        assert_eq!(seen.len(), 4, "{service}: {seen:?}");
+
+        // The fault fires half a second in; the status says so once it is started again.
+        let deadline = Instant::now() + Duration::from_secs(10);
+        let restarted = loop {
+            let s = status(&http);
+            let failed = &s["services"][service];
+            if failed["restarts"] == 1 {
+                assert_eq!(failed["given_up"], false, "{service}: {s}");
+                assert!(
+                    failed["last_failure"]
+                        .as_str()
+                        .unwrap()
+                        .contains("fault injected"),
+                    "{service}: {s}"
+                );
+                break Instant::now();
+            }
+            assert!(Instant::now() < deadline, "{service}: no restart seen: {s}");
+            std::thread::sleep(Duration::from_millis(100));
+        };
+
+        // The cameras beat again within 3 s, and answer.
+        gcs.forget();
+        let beat = gcs.wait_for(Duration::from_secs(3), |h, m| match m {
+            MavMessage::HEARTBEAT(b) if b.mavtype == MavType::MAV_TYPE_CAMERA => {
+                Some(h.component_id)
+            }
+            _ => None,
+        });
+        assert!(beat.is_some(), "{service}: no camera heartbeat within 3 s");
+        println!(
+            "{service}: a camera heartbeat {:.2} s after the restart was seen",
+            restarted.elapsed().as_secs_f64()
+        );
+        let answer = gcs.command(system, 100, REQUEST, params(&[259.0]));
+        if answer.as_ref().map(|a| a.0) != Some(MavResult::MAV_RESULT_ACCEPTED) {
+            serve.terminate();
+            serve.wait_exit(Duration::from_secs(10));
+            panic!("{service}: {:?}\n{}", answer.map(|a| a.0), serve.log());
+        }
+        assert!(
+            serve.wait_exit(Duration::from_millis(100)).is_none(),
+            "{service}: serve goes on"
+        );
+        serve.terminate();
+        let code = serve.wait_exit(Duration::from_secs(10));
+        assert_eq!(code.and_then(|c| c.code()), Some(0), "{service}");
+        let log = serve.log();
+        assert!(
+            log.contains(&format!("the {service} service failed (fault injected")),
+            "{service}: {log}"
+        );
+    }
+}
