@@ -10,12 +10,12 @@
 //!   image metrics), `gst` (the GStreamer plumbing sources and streams share), `clock` (the one
 //!   time base), `protocol` (the control protocol's codec), `policy` (the one trust boundary:
 //!   who may change the state, stop the system or delete files, and the refusal log every
-//!   control path shares). On them: `state`, everything an
-//!   operator can set, the live handle every service changes and the frame loop snapshots
-//!   once per frame, and the capture hooks (`state::capture`); `telemetry`, the vehicle's
-//!   attitude history and position, which the autopilot link writes and the frame loop reads;
-//!   `supervise`, which runs a service's thread again after a panic and notes it in the live
-//!   state.
+//!   control path shares), `supervise` (a service's thread run again after a panic, its
+//!   failures reported through a trait the live state implements). On them: `state`,
+//!   everything an operator can set, the live handle every service changes and the frame loop
+//!   snapshots once per frame (with the services that failed), and the capture hooks
+//!   (`state::capture`); `telemetry`, the vehicle's attitude history and position, which the
+//!   autopilot link writes and the frame loop reads.
 //! - **The data's path.** `source` brings camera frames in (`exposure` sets the camera's
 //!   exposure and gain, and runs the auto exposure; `scene` synthesises worlds for the demo
 //!   and ground truth), `render` turns a fisheye frame into the output frame (`gpu`, and the

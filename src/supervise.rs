@@ -1,14 +1,14 @@
 //! No thread of `serve` fails silently. A service's thread runs under [`spawn`]: a panic is
-//! caught, logged with its message, noted in the live state (SYSTEM_STATUS error 5, and
-//! `/api/status`'s `services` say which one and why), and the service is started again after
-//! [`PAUSE`]; one that fails [`MAX_FAILURES`] times within [`WINDOW`] is given up, and the
-//! assembly then stops `serve`, which exits non-zero saying why. Shared data at the bottom,
-//! beside the state: every service's threads use it, and it knows none of them.
+//! caught, logged with its message, reported (to the live state, which makes it SYSTEM_STATUS
+//! error 5 and lists it in `/api/status`'s `services`), and the service is started again
+//! after [`PAUSE`]; one that fails [`MAX_FAILURES`] times within [`WINDOW`] is given up, and
+//! the assembly then stops `serve`, which exits non-zero saying why. At the bottom: every
+//! service's threads use it, it knows none of them, and it reports through [`Report`], which
+//! the live state implements.
 //!
 //! For tests of this very path, `DIGIVIEW_FAULT=NAME` makes the service of that thread name
 //! panic once, half a second after it first starts ([`Fault`]).
 
-use crate::state::{Failure, Live};
 use std::collections::VecDeque;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
@@ -24,10 +24,18 @@ pub const MAX_FAILURES: usize = 3;
 /// The pause before a service is started again.
 pub const PAUSE: Duration = Duration::from_millis(500);
 
+/// Where a supervised service's failures are told.
+pub trait Report: Send + Sync {
+    /// `service` failed with `why`; `given_up` when it will not be started again.
+    fn failed(&self, service: &'static str, why: &str, given_up: bool);
+    /// `service` is being started again after a failure.
+    fn restarted(&self, service: &'static str);
+}
+
 /// Runs `work` on a thread named `service` until it returns or `stop` is set, starting it
 /// again after each panic (see the module's doc).
 pub fn spawn(
-    live: Arc<Live>,
+    report: Arc<dyn Report>,
     service: &'static str,
     stop: Arc<AtomicBool>,
     mut work: impl FnMut() + Send + 'static,
@@ -44,8 +52,7 @@ pub fn spawn(
                 failures.push_back(Instant::now());
                 failures.retain(|t| t.elapsed() < WINDOW);
                 let give_up = failures.len() >= MAX_FAILURES;
-                live.services.failed(service, &why, give_up);
-                live.set_failure(Failure::Internal);
+                report.failed(service, &why, give_up);
                 if give_up {
                     error!(
                         "the {service} service failed ({why}) {} times within {} s: stopping",
@@ -65,7 +72,7 @@ pub fn spawn(
                     }
                     std::thread::sleep(Duration::from_millis(20));
                 }
-                live.services.restarted(service);
+                report.restarted(service);
             }
         })
 }
@@ -109,24 +116,30 @@ impl Fault {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lens::LensCal;
-    use crate::state::State;
-    use crate::state::capture::NoVideo;
+    use std::sync::Mutex;
     use std::sync::atomic::AtomicU32;
 
-    fn live() -> Arc<Live> {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal");
-        let cal = LensCal::load(&path).unwrap();
-        Arc::new(Live::new(State::default(), &cal, Box::new(NoVideo)).unwrap())
+    /// What was reported, in order.
+    #[derive(Default)]
+    struct Told(Mutex<Vec<String>>);
+
+    impl Report for Told {
+        fn failed(&self, service: &'static str, why: &str, given_up: bool) {
+            let line = format!("{service} failed: {why}, given up: {given_up}");
+            self.0.lock().unwrap().push(line);
+        }
+        fn restarted(&self, service: &'static str) {
+            self.0.lock().unwrap().push(format!("{service} restarted"));
+        }
     }
 
     #[test]
     fn a_service_that_panics_is_started_again_and_given_up_when_it_keeps_failing() {
-        let live = live();
+        let told = Arc::new(Told::default());
         let stop = Arc::new(AtomicBool::new(false));
         let runs = Arc::new(AtomicU32::new(0));
         let counted = runs.clone();
-        let t = spawn(live.clone(), "flaky", stop.clone(), move || {
+        let t = spawn(told.clone(), "flaky", stop.clone(), move || {
             if counted.fetch_add(1, Ordering::Relaxed) == 0 {
                 panic!("first run fails");
             }
@@ -134,16 +147,22 @@ mod tests {
         .unwrap();
         t.join().unwrap();
         assert_eq!(runs.load(Ordering::Relaxed), 2, "started again once");
-        let h = &live.services.failures()["flaky"];
-        assert_eq!((h.restarts, h.given_up), (1, false));
-        assert_eq!(h.last_failure, "first run fails");
-        assert_eq!(live.failure(), Failure::Internal as u8);
-        assert!(live.services.given_up().is_none());
+        assert_eq!(
+            *told.0.lock().unwrap(),
+            [
+                "flaky failed: first run fails, given up: false",
+                "flaky restarted"
+            ]
+        );
 
-        let t = spawn(live.clone(), "broken", stop, || panic!("always")).unwrap();
+        told.0.lock().unwrap().clear();
+        let t = spawn(told.clone(), "broken", stop, || panic!("always")).unwrap();
         t.join().unwrap();
-        let h = &live.services.failures()["broken"];
-        assert_eq!((h.restarts, h.given_up), (MAX_FAILURES as u32 - 1, true));
-        assert_eq!(live.services.given_up().unwrap().0, "broken");
+        let lines = told.0.lock().unwrap().clone();
+        assert_eq!(lines.len(), 2 * MAX_FAILURES - 1, "{lines:?}");
+        assert_eq!(
+            lines.last().unwrap(),
+            "broken failed: always, given up: true"
+        );
     }
 }

@@ -259,7 +259,10 @@ fn start_head(
         .map(|target| {
             let wanted = key_wanted.clone();
             info!("publishing to {}", target.url);
-            Publisher::start(target, move || wanted.store(true, Ordering::Relaxed))
+            let report: Arc<dyn crate::supervise::Report> = live.clone();
+            Publisher::start(target, report, move || {
+                wanted.store(true, Ordering::Relaxed)
+            })
         })
         .collect::<Result<Vec<_>, _>>()?;
     let parts = HeadParts {

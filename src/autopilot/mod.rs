@@ -220,7 +220,7 @@ impl Link {
             ("mavlink-tx", |s: &Arc<Shared>| outgoing::send(s)),
         ] {
             let shared = shared.clone();
-            let live = shared.live.clone();
+            let live: Arc<dyn supervise::Report> = shared.live.clone();
             threads.push(supervise::spawn(live, name, stop.clone(), move || {
                 run(&shared)
             }));
@@ -229,7 +229,7 @@ impl Link {
             let out = Outbox(shared.clone());
             let stop = stop.clone();
             let fault = supervise::Fault::for_service("mavlink-components");
-            let live = shared.live.clone();
+            let live: Arc<dyn supervise::Report> = shared.live.clone();
             threads.push(supervise::spawn(
                 live,
                 "mavlink-components",

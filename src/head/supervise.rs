@@ -1,5 +1,6 @@
 //! No thread of the head fails silently. Each runs under [`Head::supervised`]: a panic is
-//! caught, logged with its message, reported as SYSTEM_STATUS error 5, and the stage is
+//! caught, logged with its message, reported as SYSTEM_STATUS error 5 (and under its name
+//! in `/api/status`'s `services`, as `crate::supervise` reports a service), and the stage is
 //! started again after a second; a stage that panics [`MAX_RESTARTS`] times within
 //! [`WINDOW`] is given up, the head stops, and `serve` exits non-zero saying why.
 //!
@@ -7,8 +8,7 @@
 //! has run half a second ([`Fault`]).
 
 use super::{Head, HeadError};
-use crate::state::Failure;
-use crate::supervise::panic_message;
+use crate::supervise::{Report, panic_message};
 use std::collections::VecDeque;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::Ordering;
@@ -36,10 +36,12 @@ impl Head {
                 Ok(done) => return done,
                 Err(panic) => panic_message(panic.as_ref()),
             };
-            self.live.set_failure(Failure::Internal);
             panics.push_back(Instant::now());
             panics.retain(|t| t.elapsed() < WINDOW);
-            if panics.len() >= MAX_RESTARTS || self.stop.load(Ordering::Relaxed) {
+            let give_up = panics.len() >= MAX_RESTARTS || self.stop.load(Ordering::Relaxed);
+            // SYSTEM_STATUS error 5, and /api/status's `services` name the stage.
+            self.live.failed(stage, &why, give_up);
+            if give_up {
                 error!(
                     "the {stage} stage failed ({why}) {} times within {} s: stopping",
                     panics.len(),
@@ -59,6 +61,7 @@ impl Head {
                 }
                 std::thread::sleep(Duration::from_millis(50));
             }
+            self.live.restarted(stage);
         }
     }
 }

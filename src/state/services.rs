@@ -1,7 +1,10 @@
 //! How the supervised services of a running DigiView fare: for each that has failed, how
 //! often it was started again, why it failed last, and whether it was given up. The
-//! supervisor (`crate::supervise`) writes it; `/api/status` and the health line read it.
+//! supervisor (`crate::supervise`) reports to the live state, which keeps it here and makes
+//! the run's status error 5 (internal); `/api/status` reads it.
 
+use super::{Failure, Live};
+use crate::supervise::Report;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
@@ -47,5 +50,16 @@ impl Services {
         all.iter()
             .find(|(_, h)| h.given_up)
             .map(|(n, h)| (*n, h.last_failure.clone()))
+    }
+}
+
+impl Report for Live {
+    fn failed(&self, service: &'static str, why: &str, given_up: bool) {
+        self.services.failed(service, why, given_up);
+        self.set_failure(Failure::Internal);
+    }
+
+    fn restarted(&self, service: &'static str) {
+        self.services.restarted(service);
     }
 }

@@ -8,6 +8,7 @@
 
 use super::{AccessUnit, H264_CAPS, Restamp, StreamError};
 use crate::gst::{GstError, element, element_error, launch};
+use crate::supervise::{self, Fault, Report};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
@@ -121,11 +122,13 @@ pub struct Publisher {
 }
 
 impl Publisher {
-    /// Starts publishing to `target` (connecting in the background); `want_key` is called
-    /// whenever a connection is made (ask the encoder for a key frame: the relay's stream
-    /// starts at one). Fails at once only when the target's element is not installed.
+    /// Starts publishing to `target` (connecting in the background, on a thread supervised
+    /// as every service's is, its failures told to `report`); `want_key` is called whenever a
+    /// connection is made (ask the encoder for a key frame: the relay's stream starts at
+    /// one). Fails at once only when the target's element is not installed.
     pub fn start(
         target: PublishTarget,
+        report: Arc<dyn Report>,
         want_key: impl Fn() + Send + Sync + 'static,
     ) -> Result<Publisher, StreamError> {
         super::init()?;
@@ -148,10 +151,11 @@ impl Publisher {
                 connected.clone(),
                 stop.clone(),
             );
-            std::thread::Builder::new()
-                .name("publish".into())
-                .spawn(move || keep_publishing(&target, &link, &connected, &stop, &want_key))
-                .map_err(|e| StreamError::Thread("publish", e))?
+            let (until, fault) = (stop.clone(), Fault::for_service("publish"));
+            supervise::spawn(report, "publish", until, move || {
+                keep_publishing(&target, &link, &connected, &stop, &want_key, &fault)
+            })
+            .map_err(|e| StreamError::Thread("publish", e))?
         };
         Ok(Publisher {
             target,
@@ -213,11 +217,15 @@ fn keep_publishing(
     connected: &AtomicBool,
     stop: &AtomicBool,
     want_key: &(dyn Fn() + Send + Sync),
+    fault: &Fault,
 ) {
     let mut backoff = FIRST_BACKOFF;
+    // Started again after a panic: the last run's pipeline is let go first.
+    *link.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    connected.store(false, Ordering::Relaxed);
     while !stop.load(Ordering::Relaxed) {
         let started = Instant::now();
-        let result = publish_once(target, link, connected, stop, want_key);
+        let result = publish_once(target, link, connected, stop, want_key, fault);
         *link.lock().unwrap_or_else(|e| e.into_inner()) = None;
         let was_connected = connected.swap(false, Ordering::Relaxed);
         if stop.load(Ordering::Relaxed) {
@@ -250,8 +258,11 @@ fn publish_once(
     connected: &AtomicBool,
     stop: &AtomicBool,
     want_key: &(dyn Fn() + Send + Sync),
+    fault: &Fault,
 ) -> Result<(), GstError> {
     let pipeline = launch(&target.description())?;
+    // However this ends, a panic included, the pipeline stops and no unit is handed to it.
+    let _stopped = Stopped(&pipeline, link);
     let sink: gst::Element = element(&pipeline, "sink")?;
     sink.set_property(
         match target.kind {
@@ -262,7 +273,7 @@ fn publish_once(
     );
     let src: gst_app::AppSrc = element(&pipeline, "src")?;
     let bus = pipeline.bus().ok_or(GstError::NoBus)?;
-    let result = (|| {
+    (|| {
         pipeline
             .set_state(gst::State::Playing)
             .map_err(|_| GstError::Refused(format!("cannot start publishing to {}", target.url)))?;
@@ -277,6 +288,7 @@ fn publish_once(
         // reach PLAYING before they know: a relay that is not there fails right after).
         let mut playing_since = None;
         while !stop.load(Ordering::Relaxed) {
+            fault.check("publish");
             if playing_since.is_some_and(|t: Instant| t.elapsed() >= TAKEN)
                 && !connected.swap(true, Ordering::Relaxed)
             {
@@ -298,10 +310,17 @@ fn publish_once(
             }
         }
         Ok(())
-    })();
-    *link.lock().unwrap_or_else(|e| e.into_inner()) = None;
-    let _ = pipeline.set_state(gst::State::Null);
-    result
+    })()
+}
+
+/// Stops a publishing pipeline, and the hand-over to it, when dropped.
+struct Stopped<'a>(&'a gst::Pipeline, &'a Mutex<Option<Link>>);
+
+impl Drop for Stopped<'_> {
+    fn drop(&mut self) {
+        *self.1.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        let _ = self.0.set_state(gst::State::Null);
+    }
 }
 
 #[cfg(test)]

@@ -32,16 +32,20 @@ fn serve_with_captures(dir: &Path, mavlink_section: &str) -> (Serve, u16) {
     .unwrap();
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
-    let serve = Serve::start_video(&[
-        "--config",
-        config.to_str().unwrap(),
-        "--mavlink",
-        &link,
-        "--demo-size",
-        "640x480",
-        "--size",
-        "640x480",
-    ]);
+    // Warnings logged into a pipe: a still not written says why there.
+    let serve = Serve::start_video_logging(
+        "warn",
+        &[
+            "--config",
+            config.to_str().unwrap(),
+            "--mavlink",
+            &link,
+            "--demo-size",
+            "640x480",
+            "--size",
+            "640x480",
+        ],
+    );
     (serve, port)
 }
 
@@ -76,22 +80,38 @@ fn beats(gcs: &Gcs, limit: Duration) -> BTreeMap<u8, usize> {
     n
 }
 
-/// Starts camera `recording`'s recording, has camera 0 take one still (waited for) and puts
-/// a file of the pilot's beside them.
-fn record_and_shoot(gcs: &Gcs, system: u8, recording: u8, captures: &Path) {
+/// Starts camera `recording`'s recording, has camera 0 take one still (waited for: its
+/// CAMERA_IMAGE_CAPTURED and its file) and puts a file of the pilot's beside them.
+fn record_and_shoot(serve: &mut Serve, gcs: &Gcs, system: u8, recording: u8, captures: &Path) {
     let video = MavCmd::MAV_CMD_VIDEO_START_CAPTURE;
     let r = result(gcs.command(system, recording, video, params(&[])), "video");
     assert_eq!(r, MavResult::MAV_RESULT_ACCEPTED);
     let images = MavCmd::MAV_CMD_IMAGE_START_CAPTURE;
-    let r = result(
-        gcs.command(system, 100, images, params(&[0.0, 0.0, 1.0])),
-        "one image",
-    );
+    let (r, then) = gcs
+        .command(system, 100, images, params(&[0.0, 0.0, 1.0]))
+        .expect("one image: no COMMAND_ACK");
     assert_eq!(r, MavResult::MAV_RESULT_ACCEPTED);
+    let captured = |m: &MavMessage| match m {
+        MavMessage::CAMERA_IMAGE_CAPTURED(c) => Some(c.capture_result),
+        _ => None,
+    };
     std::fs::write(captures.join("notes.txt"), "the pilot's").unwrap();
-    let deadline = Instant::now() + Duration::from_secs(10);
+    let announced = then.iter().find_map(captured).or_else(|| {
+        gcs.wait_for(Duration::from_secs(10), |h, m| {
+            (h.component_id == 100).then(|| captured(m)).flatten()
+        })
+    });
+    let deadline = Instant::now() + Duration::from_secs(5);
     while !files(captures).keys().any(|n| n.ends_with(".jpg")) {
-        assert!(Instant::now() < deadline, "no still: {:?}", files(captures));
+        if Instant::now() > deadline {
+            serve.terminate();
+            serve.wait_exit(Duration::from_secs(10));
+            panic!(
+                "no still (CAMERA_IMAGE_CAPTURED result {announced:?}): {:?}\n{}",
+                files(captures),
+                serve.log()
+            );
+        }
         std::thread::sleep(Duration::from_millis(100));
     }
 }
@@ -99,7 +119,7 @@ fn record_and_shoot(gcs: &Gcs, system: u8, recording: u8, captures: &Path) {
 #[test]
 fn unsigned_peers_cannot_silence_the_cameras_or_delete_the_captures() {
     let dir = tempfile::tempdir().unwrap();
-    let (serve, port) = serve_with_captures(dir.path(), "");
+    let (mut serve, port) = serve_with_captures(dir.path(), "");
     let captures = dir.path().join("captures");
     let gcs = Gcs::connect(port);
     let (system, seen) = cameras(&gcs);
@@ -130,7 +150,7 @@ fn unsigned_peers_cannot_silence_the_cameras_or_delete_the_captures() {
     }
 
     // A recording runs and a still is taken; an unsigned format is denied, every file stays.
-    record_and_shoot(&gcs, system, 101, &captures);
+    record_and_shoot(&mut serve, &gcs, system, 101, &captures);
     let before: Vec<String> = files(&captures).into_keys().collect();
     let format = MavCmd::MAV_CMD_STORAGE_FORMAT;
     let r = result(
@@ -157,12 +177,12 @@ fn unsigned_peers_cannot_silence_the_cameras_or_delete_the_captures() {
 #[test]
 fn a_signed_format_removes_the_captures_and_keeps_the_running_recording_playable() {
     let dir = tempfile::tempdir().unwrap();
-    let (serve, port) = serve_with_captures(dir.path(), &format!("signing_key = {KEY:?}"));
+    let (mut serve, port) = serve_with_captures(dir.path(), &format!("signing_key = {KEY:?}"));
     let captures = dir.path().join("captures");
     let gcs = Gcs::connect_signed(port, Some(digiview::autopilot::signing_key(KEY)));
     let (system, seen) = cameras(&gcs);
     assert_eq!(seen.len(), 4, "{seen:?}");
-    record_and_shoot(&gcs, system, 102, &captures);
+    record_and_shoot(&mut serve, &gcs, system, 102, &captures);
     std::thread::sleep(Duration::from_secs(1));
 
     let format = MavCmd::MAV_CMD_STORAGE_FORMAT;

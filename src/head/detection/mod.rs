@@ -218,7 +218,9 @@ impl Head {
         // time its last line gave (its lines are placed in time by their arrival).
         let mut labels: Vec<String> = vec![];
         let mut last_sent: Option<f64> = None;
+        let fault = crate::supervise::Fault::for_service("detection");
         while !self.stop.load(Ordering::Relaxed) {
+            fault.check("detection");
             let state = self.live.snapshot();
             if !self.detecting(&state) {
                 if owns_list {
