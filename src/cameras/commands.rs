@@ -45,10 +45,15 @@ impl Command {
         }
     }
 
+    /// COMMAND_INT's x and y are params 5 and 6: a latitude and longitude in degE7 for a
+    /// command that names a place, plain whole numbers for every other (the gimbal
+    /// manager's flags, for DO_GIMBAL_MANAGER_PITCHYAW), as each command's definition says.
     /// The `_INT` frames are superseded by their plain names, and still sent.
     #[allow(deprecated)]
     pub fn int(c: &COMMAND_INT_DATA) -> Command {
-        let (x, y) = (c.x as f64 * 1e-7, c.y as f64 * 1e-7);
+        let place = matches!(c.command, MavCmd::MAV_CMD_DO_SET_ROI_LOCATION);
+        let scale = if place { 1e-7 } else { 1.0 };
+        let (x, y) = (c.x as f64 * scale, c.y as f64 * scale);
         Command {
             command: c.command,
             params: [
@@ -69,6 +74,15 @@ impl Command {
     fn whole(&self, n: usize, max: f32) -> Option<u32> {
         let v = self.params[n - 1];
         (v.is_finite() && v >= 0.0 && v <= max && v.fract() == 0.0).then_some(v as u32)
+    }
+
+    /// Param `n` as a video stream id: 0 (or NaN, as MAVSDK fills what it does not use) for
+    /// every stream, else one of the camera's.
+    fn stream(&self, n: usize) -> Option<u32> {
+        match self.params[n - 1] {
+            v if v.is_nan() => Some(0),
+            _ => self.whole(n, COMPOSED_STREAM as f32),
+        }
     }
 }
 
@@ -193,7 +207,7 @@ impl Cameras {
             MAV_CMD_REQUEST_STORAGE_INFORMATION => Answer::accepted(vec![self.storage()]),
             MAV_CMD_REQUEST_CAMERA_CAPTURE_STATUS => Answer::accepted(vec![self.capture_status(i)]),
             MAV_CMD_REQUEST_VIDEO_STREAM_INFORMATION | MAV_CMD_REQUEST_VIDEO_STREAM_STATUS => {
-                let Some(id) = cmd.whole(1, COMPOSED_STREAM as f32) else {
+                let Some(id) = cmd.stream(1) else {
                     return Some(Answer::denied(format!("no video stream {}", p[0])));
                 };
                 let info = cmd.command == MAV_CMD_REQUEST_VIDEO_STREAM_INFORMATION;
@@ -228,12 +242,10 @@ impl Cameras {
                 }
             }
             // The streams are served whenever someone watches them.
-            MAV_CMD_VIDEO_START_STREAMING | MAV_CMD_VIDEO_STOP_STREAMING => {
-                match cmd.whole(1, COMPOSED_STREAM as f32) {
-                    Some(_) => Answer::accepted(vec![]),
-                    None => Answer::denied(format!("no video stream {}", p[0])),
-                }
-            }
+            MAV_CMD_VIDEO_START_STREAMING | MAV_CMD_VIDEO_STOP_STREAMING => match cmd.stream(1) {
+                Some(_) => Answer::accepted(vec![]),
+                None => Answer::denied(format!("no video stream {}", p[0])),
+            },
             MAV_CMD_STORAGE_FORMAT => self.format(i, cmd),
             MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW
             | MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE
@@ -252,7 +264,7 @@ impl Cameras {
             STORAGE_INFORMATION_DATA::ID => Answer::accepted(vec![self.storage()]),
             CAMERA_CAPTURE_STATUS_DATA::ID => Answer::accepted(vec![self.capture_status(i)]),
             VIDEO_STREAM_INFORMATION_DATA::ID | VIDEO_STREAM_STATUS_DATA::ID => {
-                let Some(stream) = cmd.whole(2, COMPOSED_STREAM as f32) else {
+                let Some(stream) = cmd.stream(2) else {
                     return Some(Answer::denied(format!("no video stream {p2}")));
                 };
                 Answer::accepted(match id {

@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 use tracing::{error, info, warn};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
@@ -65,11 +66,14 @@ enum StillError {
     Encode(#[from] image::ImageError),
 }
 
+/// A view's still asked for: the view, when it was asked for, and whom to tell.
+pub type ViewStill = (usize, Instant, StillDone);
+
 pub struct Capture {
     cfg: CaptureConfig,
     still_wanted: AtomicBool,
     /// Stills of single views asked for and not rendered yet.
-    view_stills: Mutex<Vec<(usize, StillDone)>>,
+    view_stills: Mutex<Vec<ViewStill>>,
     /// Recordings of single views' own streams, and whether each owes a key frame.
     view_recorders: Mutex<[Option<Recorder>; MAX_CAMERAS]>,
     view_key_wanted: [AtomicBool; MAX_CAMERAS],
@@ -142,9 +146,18 @@ impl Capture {
         self.still_wanted.swap(false, Ordering::Relaxed)
     }
 
-    /// The views whose stills were asked for since the last frame, with whom to tell.
-    pub fn take_view_stills(&self) -> Vec<(usize, StillDone)> {
+    /// The views whose stills were asked for and not taken yet: each with when it was
+    /// asked for and whom to tell.
+    pub fn take_view_stills(&self) -> Vec<ViewStill> {
         std::mem::take(&mut *self.view_stills.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+
+    /// Stills asked for that wait for the next frame with a picture (the source was silent).
+    pub fn put_back_view_stills(&self, waiting: Vec<ViewStill>) {
+        let mut stills = self.view_stills.lock().unwrap_or_else(|e| e.into_inner());
+        // Older first, as they were asked for.
+        let newer = std::mem::replace(&mut *stills, waiting);
+        stills.extend(newer);
     }
 
     /// Writes a view's still on a thread of its own and says where (or why not) to `done`.
@@ -304,7 +317,7 @@ impl ViewShooter for Capture {
         self.view_stills
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .push((view, done));
+            .push((view, Instant::now(), done));
         Ok(())
     }
 

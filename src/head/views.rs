@@ -21,6 +21,8 @@ use tracing::{error, info};
 
 /// After an encoder for a view would not start, the next try waits this long.
 const RETRY: Duration = Duration::from_secs(1);
+/// A still asked for while the source is silent waits this long for a picture.
+const STILL_PATIENCE: Duration = Duration::from_secs(3);
 
 /// Why a view alone has no picture this frame: every still asked for of it is told.
 #[derive(Clone, Debug, thiserror::Error)]
@@ -61,6 +63,15 @@ impl Head {
         fps: u32,
     ) {
         let mut stills = self.capture.take_view_stills();
+        if rendered.is_none() {
+            // No picture now (the source fell silent a moment): a still waits for the next
+            // frame that has one, up to STILL_PATIENCE, before it is refused.
+            let (waiting, late) = stills
+                .into_iter()
+                .partition(|s| s.1.elapsed() < STILL_PATIENCE);
+            self.capture.put_back_view_stills(waiting);
+            stills = late;
+        }
         let (w, h) = self.cfg.view_size;
         for i in 0..VIEW_MOUNTS {
             // Watched, or recorded by its camera: its stream is encoded.
@@ -86,7 +97,7 @@ impl Head {
                 }
                 None => Err(NoPicture::NoSignal),
             };
-            for (_, done) in asked {
+            for (_, _, done) in asked {
                 match &picture {
                     Ok((data, layout)) => {
                         self.capture.save_view_still(data.clone(), *layout, i, done)

@@ -24,6 +24,7 @@ mod locate;
 mod lock_flags;
 mod mavlink_camera_video;
 mod mavlink_cameras;
+mod mavlink_commands;
 mod package;
 mod players;
 mod protocol_camera;
