@@ -43,28 +43,15 @@ pub fn spawn(
     std::thread::Builder::new()
         .name(service.into())
         .spawn(move || {
-            let mut failures: VecDeque<Instant> = VecDeque::new();
+            let mut failures = Failures::default();
             loop {
                 let why = match catch_unwind(AssertUnwindSafe(&mut work)) {
                     Ok(()) => return,
                     Err(panic) => panic_message(panic.as_ref()),
                 };
-                failures.push_back(Instant::now());
-                failures.retain(|t| t.elapsed() < WINDOW);
-                let give_up = failures.len() >= MAX_FAILURES;
-                report.failed(service, &why, give_up);
-                if give_up {
-                    error!(
-                        "the {service} service failed ({why}) {} times within {} s: stopping",
-                        failures.len(),
-                        WINDOW.as_secs()
-                    );
+                if failures.given_up(&*report, service, &why) {
                     return;
                 }
-                error!(
-                    "the {service} service failed ({why}); starting it again in {} ms",
-                    PAUSE.as_millis()
-                );
                 let until = Instant::now() + PAUSE;
                 while Instant::now() < until {
                     if stop.load(Ordering::Relaxed) {
@@ -75,6 +62,34 @@ pub fn spawn(
                 report.restarted(service);
             }
         })
+}
+
+/// A service's failures within the last [`WINDOW`], for a supervisor of its own (an async
+/// task's, where [`spawn`]'s thread does not fit).
+#[derive(Default)]
+pub struct Failures(VecDeque<Instant>);
+
+impl Failures {
+    /// Notes a failure of `service` (`why`), logs and reports it; whether it is given up now.
+    pub fn given_up(&mut self, report: &dyn Report, service: &'static str, why: &str) -> bool {
+        self.0.push_back(Instant::now());
+        self.0.retain(|t| t.elapsed() < WINDOW);
+        let give_up = self.0.len() >= MAX_FAILURES;
+        report.failed(service, why, give_up);
+        if give_up {
+            error!(
+                "the {service} service failed ({why}) {} times within {} s: stopping",
+                self.0.len(),
+                WINDOW.as_secs()
+            );
+        } else {
+            error!(
+                "the {service} service failed ({why}); starting it again in {} ms",
+                PAUSE.as_millis()
+            );
+        }
+        give_up
+    }
 }
 
 /// What a panic said.
@@ -102,6 +117,16 @@ impl Fault {
             armed: std::env::var("DIGIVIEW_FAULT").is_ok_and(|s| s == service),
             after: Instant::now() + Duration::from_millis(500),
         }
+    }
+
+    /// Whether this fault is still to fire.
+    pub fn pending(&self) -> bool {
+        self.armed && !FIRED.load(Ordering::Relaxed)
+    }
+
+    /// When it fires, once [`Fault::check`] is called.
+    pub fn when(&self) -> Instant {
+        self.after
     }
 
     /// Panics once, when armed and half a second has passed since the fault was made.

@@ -22,12 +22,14 @@ use crate::state::capture::{Capturer, NoVideo, ViewShooter};
 use crate::state::{Invalid, Live, State};
 use crate::stream::publish::PublishError;
 use crate::stream::{Publisher, Rtsp, StreamError};
+use crate::supervise;
 use crate::telemetry::Telemetry;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
+use tokio::net::TcpListener;
 use tracing::info;
 
 /// How `serve` runs, beyond its configuration file.
@@ -154,7 +156,7 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     let http = match http_address {
         Some(addr) => {
             let listener = runtime
-                .block_on(tokio::net::TcpListener::bind(addr))
+                .block_on(TcpListener::bind(addr))
                 .map_err(|e| ServeError::Listen(addr, "http", e))?;
             let port = listener.local_addr()?.port();
             let public = cameras::public_host(&cfg.cameras, &addr.ip().to_string());
@@ -196,13 +198,7 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     runtime.block_on(async {
         tokio::spawn(server::stop_on_signals(shutdown.clone()));
         if let Some(listener) = http {
-            let stop = shutdown.clone();
-            tokio::spawn(async move {
-                let stopped = async move { stop.wait().await };
-                if let Err(e) = crate::http::serve(listener, web, stopped).await {
-                    tracing::error!("http: {e}");
-                }
-            });
+            tokio::spawn(serve_http(listener, web, live.clone(), shutdown.clone()));
         }
         tokio::spawn(watch(live.clone(), policy.clone(), shutdown.clone()));
         server::run(tcp, udp, controller, shutdown).await
@@ -214,6 +210,47 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     match live.services.given_up() {
         Some((service, why)) => Err(ServeError::GivenUp(service, why)),
         None => Ok(()),
+    }
+}
+
+/// The HTTP server, supervised as every service is (`crate::supervise`): one that fails
+/// (an error, or a panic in the server itself) is reported and served again on the same
+/// address after the pause; given up, it stops `serve` through [`watch`].
+async fn serve_http(listener: TcpListener, web: crate::http::Web, live: Arc<Live>, stop: Shutdown) {
+    let Ok(address) = listener.local_addr() else {
+        return;
+    };
+    let mut listener = Some(listener);
+    let mut failures = supervise::Failures::default();
+    loop {
+        let served = match listener.take() {
+            Some(l) => Ok(l),
+            None => TcpListener::bind(address).await,
+        };
+        let why = match served {
+            Ok(l) => {
+                let stopped = stop.clone();
+                let until = async move { stopped.wait().await };
+                match tokio::spawn(crate::http::serve(l, web.clone(), until)).await {
+                    Ok(Ok(())) if stop.is_triggered() => return,
+                    Ok(Ok(())) => "the server ended".to_string(),
+                    Ok(Err(e)) => e.to_string(),
+                    Err(e) => match e.try_into_panic() {
+                        Ok(panic) => supervise::panic_message(panic.as_ref()),
+                        Err(e) => e.to_string(),
+                    },
+                }
+            }
+            Err(e) => format!("cannot listen on {address}: {e}"),
+        };
+        if failures.given_up(&*live, "http", &why) {
+            return;
+        }
+        tokio::time::sleep(supervise::PAUSE).await;
+        if stop.is_triggered() {
+            return;
+        }
+        supervise::Report::restarted(&*live, "http");
     }
 }
 

@@ -129,12 +129,23 @@ pub async fn serve(
         .merge(guarded)
         .layer(axum::middleware::from_fn_with_state(names, known_host))
         .with_state(web);
-    axum::serve(
+    let fault = crate::supervise::Fault::for_service("http");
+    let server = axum::serve(
         listener,
         app.into_make_service_with_connect_info::<SocketAddr>(),
     )
-    .with_graceful_shutdown(stop)
-    .await
+    .with_graceful_shutdown(stop);
+    if !fault.pending() {
+        return server.await;
+    }
+    // For the test of the supervisor: the server fails half a second in (DIGIVIEW_FAULT=http).
+    tokio::select! {
+        done = server.into_future() => done,
+        _ = tokio::time::sleep_until(fault.when().into()) => {
+            fault.check("http");
+            Ok(())
+        }
+    }
 }
 
 /// A plain-text error response.

@@ -1,7 +1,8 @@
 //! Every supervised service of `serve` survives a panic: with `DIGIVIEW_FAULT=NAME` the
 //! service of that thread name panics once; the panic is logged with its message,
 //! `/api/status` says which service failed and that it was started again, the process goes
-//! on, and a ground station hears the cameras' heartbeats again within 3 s.
+//! on, and a ground station hears the cameras' heartbeats again within 3 s. The HTTP server
+//! (`DIGIVIEW_FAULT=http`) is served again on its address.
 
 use crate::common;
 
@@ -81,4 +82,52 @@ fn each_mavlink_service_is_restarted_after_a_panic_and_said_to_have_failed() {
             "{service}: {log}"
         );
     }
+}
+
+/// `/api/status` from `http`, or None while nothing answers there.
+fn try_status(http: &str) -> Option<Value> {
+    use std::io::{Read, Write};
+    let host = http.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = std::net::TcpStream::connect(host).ok()?;
+    write!(
+        s,
+        "GET /api/status HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+    )
+    .ok()?;
+    let mut reply = String::new();
+    s.read_to_string(&mut reply).ok()?;
+    serde_json::from_str(reply.split_once("\r\n\r\n")?.1).ok()
+}
+
+#[test]
+fn the_http_server_is_served_again_after_a_failure() {
+    let mut serve = Serve::start_logging("error", Some("http"), &[]);
+    let http = serve.http.clone().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let s = loop {
+        if let Some(s) = try_status(&http)
+            && s["services"]["http"]["restarts"] == 1
+        {
+            break s;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no restart of the http server seen"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let why = s["services"]["http"]["last_failure"].as_str().unwrap();
+    assert!(why.contains("fault injected"), "{s}");
+    // On the same address, and the page is there.
+    let (code, page) = http_get(&http);
+    assert_eq!(code, 200);
+    assert!(String::from_utf8_lossy(&page).contains("<html"));
+    serve.terminate();
+    let code = serve.wait_exit(Duration::from_secs(10));
+    assert_eq!(code.and_then(|c| c.code()), Some(0));
+    assert!(
+        serve
+            .log()
+            .contains("the http service failed (fault injected")
+    );
 }
