@@ -153,13 +153,9 @@ impl Cameras {
     ) {
         let name = format!("{:?} to camera {i}", cmd.command);
         let permitted =
-            act_of(cmd.command).map_or(Ok(()), |act| self.policy.allow(peer, act, &name));
+            act_of(cmd.command).map_or(Ok(()), |act| self.policy.permissions.check(peer, act));
         let answer = match permitted {
-            // The policy noted the refusal.
-            Err(e) => Answer {
-                why: None,
-                ..Answer::denied(e)
-            },
+            Err(e) => Answer::denied(e),
             Ok(()) => match self.run(from, i, cmd) {
                 Some(a) => a,
                 None if broadcast => return,

@@ -188,17 +188,20 @@ impl Cameras {
             MavMessage::PARAM_EXT_SET(p) => {
                 let name = p.param_id.to_str().unwrap_or("").to_string();
                 let what = format!("PARAM_EXT_SET {name} of camera {i}");
-                let result = match self.policy.allow(peer, Act::Change, &what) {
-                    Ok(()) => {
-                        match self.set_parameter(&all, i, &name, p.param_type, &p.param_value) {
-                            Ok(()) => ParamAck::PARAM_ACK_ACCEPTED,
-                            Err((ack, why)) => {
-                                self.policy.refusals.note(peer, &what, &why);
-                                ack
-                            }
-                        }
+                let set = self
+                    .policy
+                    .permissions
+                    .check(peer, Act::Change)
+                    .map_err(|e| (ParamAck::PARAM_ACK_FAILED, e.to_string()))
+                    .and_then(|()| {
+                        self.set_parameter(&all, i, &name, p.param_type, &p.param_value)
+                    });
+                let result = match set {
+                    Ok(()) => ParamAck::PARAM_ACK_ACCEPTED,
+                    Err((ack, why)) => {
+                        self.policy.refusals.note(peer, &what, &why);
+                        ack
                     }
-                    Err(_) => ParamAck::PARAM_ACK_FAILED,
                 };
                 let now = self.live.snapshot();
                 let shown = all

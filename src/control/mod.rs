@@ -147,17 +147,14 @@ impl Controller {
                 Body::Set(p) => format!("SET {}", p.param_type()),
                 _ => format!("{}", msg.body.message_type()),
             };
-            if !matches!(r, Refusal::Forbidden(_)) {
-                // The policy noted its own refusals.
-                self.policy
-                    .refusals
-                    .note(Peer::Net(peer), &what, &r.to_string());
-            }
+            self.policy
+                .refusals
+                .note(Peer::Net(peer), &what, &r.to_string());
             Outcome::one(Body::Verdict(r.verdict(), param_type))
         };
         match msg.body {
             Body::Empty(p) => Outcome::one(Body::Verdict(Verdict::Acknowledgement, p)),
-            Body::Quit(p) => match self.policy.allow(Peer::Net(peer), Act::Stop, "QUIT") {
+            Body::Quit(p) => match self.policy.permissions.check(Peer::Net(peer), Act::Stop) {
                 Ok(()) => Outcome {
                     quit: true,
                     ..Outcome::one(Body::Verdict(Verdict::Acknowledgement, p))
@@ -218,12 +215,10 @@ impl Controller {
     /// and permissions, and a refusal logged alike.
     pub fn set_from(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
         self.set(param, peer).inspect_err(|r| {
-            if !matches!(r, Refusal::Forbidden(_)) {
-                let what = format!("SET {}", param.param_type());
-                self.policy
-                    .refusals
-                    .note(Peer::Net(peer), &what, &r.to_string())
-            }
+            let what = format!("SET {}", param.param_type());
+            self.policy
+                .refusals
+                .note(Peer::Net(peer), &what, &r.to_string())
         })
     }
 
@@ -270,7 +265,8 @@ impl Controller {
     fn set(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
         let kind = param.param_type();
         self.policy
-            .allow(Peer::Net(peer), Act::Change, &format!("SET {kind}"))?;
+            .permissions
+            .check(Peer::Net(peer), Act::Change)?;
         if !kind.settable() {
             return Err(Refusal::Data(format!("{kind} can only be read")));
         }
