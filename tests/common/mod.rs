@@ -266,3 +266,37 @@ pub fn ctl(addr: &str, args: &[&str]) -> std::process::Output {
         .output()
         .unwrap()
 }
+
+/// One HTTP/1.1 request written by hand to `addr` (`HOST:PORT`), `Connection: close`, with
+/// `headers` (`Host` among them) and a JSON `body`: the status and the body of the reply, or
+/// the error when nothing answers at `addr`.
+pub fn raw_request(
+    addr: &str,
+    method: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+    body: &str,
+) -> std::io::Result<(u16, String)> {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr)?;
+    let mut head = format!("{method} {path} HTTP/1.1\r\nConnection: close\r\n");
+    for (name, value) in headers {
+        head.push_str(&format!("{name}: {value}\r\n"));
+    }
+    if !body.is_empty() {
+        head.push_str(&format!(
+            "Content-Type: application/json\r\nContent-Length: {}\r\n",
+            body.len()
+        ));
+    }
+    write!(s, "{head}\r\n{body}")?;
+    let mut reply = String::new();
+    s.read_to_string(&mut reply)?;
+    let bad = || std::io::Error::other(format!("not an HTTP reply: {reply:?}"));
+    let (head, body) = reply.split_once("\r\n\r\n").ok_or_else(bad)?;
+    let status = head
+        .get(9..12)
+        .and_then(|c| c.parse().ok())
+        .ok_or_else(bad)?;
+    Ok((status, body.to_string()))
+}

@@ -86,17 +86,9 @@ fn each_mavlink_service_is_restarted_after_a_panic_and_said_to_have_failed() {
 
 /// `/api/status` from `http`, or None while nothing answers there.
 fn try_status(http: &str) -> Option<Value> {
-    use std::io::{Read, Write};
     let host = http.trim_start_matches("http://").trim_end_matches('/');
-    let mut s = std::net::TcpStream::connect(host).ok()?;
-    write!(
-        s,
-        "GET /api/status HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
-    )
-    .ok()?;
-    let mut reply = String::new();
-    s.read_to_string(&mut reply).ok()?;
-    serde_json::from_str(reply.split_once("\r\n\r\n")?.1).ok()
+    let (_, body) = common::raw_request(host, "GET", "/api/status", &[("Host", host)], "").ok()?;
+    serde_json::from_str(&body).ok()
 }
 
 #[test]

@@ -10,12 +10,11 @@ use crate::common;
 use common::serve::Serve;
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
-use std::io::{Read, Write};
-use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use tokio_tungstenite::tungstenite::Message;
 
-/// One request to `addr` with the given Host and Origin headers: the status and the body.
+/// One request to `addr` with the given Host and Origin headers (a CAM_FOV body): the
+/// status and the body.
 fn request(
     addr: &str,
     method: &str,
@@ -23,22 +22,10 @@ fn request(
     host: &str,
     origin: Option<&str>,
 ) -> (u16, String) {
-    let mut s = TcpStream::connect(addr).unwrap();
     let body = json!({"cam_id": 1, "fov": 0.9}).to_string();
-    let origin = origin
-        .map(|o| format!("Origin: {o}\r\n"))
-        .unwrap_or_default();
-    write!(
-        s,
-        "{method} {path} HTTP/1.1\r\nHost: {host}\r\n{origin}Connection: close\r\n\
-         Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    let mut reply = String::new();
-    s.read_to_string(&mut reply).unwrap();
-    let (head, body) = reply.split_once("\r\n\r\n").expect("a header and a body");
-    (head[9..12].parse().unwrap(), body.to_string())
+    let mut headers = vec![("Host", host)];
+    headers.extend(origin.map(|o| ("Origin", o)));
+    common::raw_request(addr, method, path, &headers, &body).unwrap()
 }
 
 fn fov_1(addr: &str) -> f64 {

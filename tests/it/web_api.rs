@@ -12,8 +12,6 @@ use digiview::protocol::params::CamFov;
 use digiview::protocol::{Param, ParamType};
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
-use std::io::{Read, Write};
-use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use tokio_tungstenite::tungstenite::Message;
 
@@ -21,20 +19,9 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// One request, `Connection: close`: the status and the JSON body.
 fn request(host: &str, method: &str, path: &str, body: Option<&Value>) -> (u16, Value) {
-    let mut s = TcpStream::connect(host).unwrap();
     let body = body.map(Value::to_string).unwrap_or_default();
-    write!(
-        s,
-        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\
-         Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    let mut reply = String::new();
-    s.read_to_string(&mut reply).unwrap();
-    let (head, body) = reply.split_once("\r\n\r\n").expect("a header and a body");
-    let status = head[9..12].parse().unwrap();
-    (status, serde_json::from_str(body).unwrap_or(Value::Null))
+    let (status, body) = common::raw_request(host, method, path, &[("Host", host)], &body).unwrap();
+    (status, serde_json::from_str(&body).unwrap_or(Value::Null))
 }
 
 fn fov_of(client: &mut Client, cam: u8) -> f64 {
