@@ -20,8 +20,9 @@ packages=(
   ffmpeg
   # Chromium driven over WebDriver: the tuning page's end-to-end tests.
   chromium chromium-driver
-  # pip fetches the onnxruntime wheel, whose ONNX Runtime library the ONNX detector loads.
-  python3 python3-pip
+  # pip fetches the onnxruntime wheel, whose ONNX Runtime library the ONNX detector loads;
+  # venv holds the MAVLink peers the tests drive DigiView with (below).
+  python3 python3-pip python3-venv
 )
 
 missing=()
@@ -124,6 +125,18 @@ if ! ls "$cache/darknet/usr/share/darknet/data/person.jpg" >/dev/null 2>&1; then
   (cd "$debs" && apt-get download darknet >/dev/null)
   dpkg-deb -x "$debs"/darknet_*.deb "$cache/darknet"
   rm -rf "$debs"
+fi
+
+# The MAVLink peers users have, in the project's own Python environment (.venv): MAVSDK (its
+# wheel carries the C++ core most apps build on), pymavlink, and MAVProxy as the router that
+# joins an autopilot, DigiView and a ground station on a drone. Pinned, so every machine
+# tests against the same ones; the tests find them at .venv/bin/python.
+mavlink_peers=(mavsdk==4.1.0 pymavlink==2.4.50 MAVProxy==1.8.75)
+if ! .venv/bin/python -c 'import mavsdk, pymavlink, MAVProxy' 2>/dev/null ||
+  ! .venv/bin/pip freeze 2>/dev/null | grep -qx "${mavlink_peers[0]}"; then
+  echo "setup: installing ${mavlink_peers[*]} into .venv"
+  python3 -m venv .venv
+  .venv/bin/pip install --quiet --disable-pip-version-check "${mavlink_peers[@]}"
 fi
 
 if ! command -v cargo >/dev/null; then

@@ -329,6 +329,7 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
                         signed: shared.signing.is_some(),
                     };
                     apply(shared, vehicle, &header, peer, &msg, &mut last_live);
+                    outgoing::refuse_own_command(&out, &header, &msg);
                     if let Some(c) = &shared.components {
                         c.handle(&out, &header, peer, &msg);
                     }

@@ -3,11 +3,13 @@
 //! (the clock mapping's round trips), and the attitude's staleness, reported once each way.
 //! Everything sent is signed when signing is on.
 
-use super::{Connection, FIRST_REPORT, LinkStatus, OWN_COMPONENT, REPORT_EVERY, STALE, Shared};
+use super::{
+    Connection, FIRST_REPORT, LinkStatus, OWN_COMPONENT, Outbox, REPORT_EVERY, STALE, Shared,
+};
 use crate::clock::clock_us;
 use mavlink::dialects::common::{
-    COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavState,
-    MavType, TIMESYNC_DATA,
+    COMMAND_ACK_DATA, COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage,
+    MavModeFlag, MavResult, MavState, MavType, TIMESYNC_DATA,
 };
 use mavlink::{MAVLinkMessageRaw, MAVLinkV2MessageRaw, MavHeader};
 use std::sync::atomic::Ordering;
@@ -217,4 +219,28 @@ pub(super) fn answer_timesync(shared: &Shared, to: &MavHeader, ts1: i64) {
         target_component: to.component_id,
     });
     send_one(shared, &c, header, &answer);
+}
+
+/// Answers a command addressed to DigiView's own component, which carries none out (the
+/// cameras, components 100 and up, do): COMMAND_ACK UNSUPPORTED. Unanswered, MAVSDK probes it
+/// as a camera and gimbal manager and asks again every half second for as long as it is
+/// connected; told, it stops. A command to every component (0) is left to those it concerns.
+pub(super) fn refuse_own_command(out: &Outbox, from: &MavHeader, msg: &MavMessage) {
+    let (command, system, component) = match msg {
+        MavMessage::COMMAND_LONG(c) => (c.command, c.target_system, c.target_component),
+        MavMessage::COMMAND_INT(c) => (c.command, c.target_system, c.target_component),
+        _ => return,
+    };
+    if component != OWN_COMPONENT || (system != 0 && system != out.system_id()) {
+        return;
+    }
+    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+        command,
+        result: MavResult::MAV_RESULT_UNSUPPORTED,
+        progress: 0,
+        result_param2: 0,
+        target_system: from.system_id as u8,
+        target_component: from.component_id,
+    });
+    out.send(OWN_COMPONENT, &ack);
 }

@@ -198,7 +198,7 @@ impl Cameras {
                 };
                 return self.requested(s, i, id, cmd);
             }
-            MAV_CMD_REQUEST_CAMERA_INFORMATION => Answer::accepted(vec![self.information(s, i)]),
+            MAV_CMD_REQUEST_CAMERA_INFORMATION => Answer::accepted(self.introduction(s, i)),
             MAV_CMD_REQUEST_CAMERA_SETTINGS => Answer::accepted(vec![self.settings(s, i)]),
             MAV_CMD_REQUEST_STORAGE_INFORMATION => Answer::accepted(vec![self.storage()]),
             MAV_CMD_REQUEST_CAMERA_CAPTURE_STATUS => Answer::accepted(vec![self.capture_status(i)]),
@@ -217,8 +217,12 @@ impl Cameras {
                 None => Answer::denied(format!("no image index {}", p[0])),
             },
             MAV_CMD_SET_CAMERA_MODE => match cmd.whole(2, 1.0) {
-                // Stills and video are both taken in either mode.
-                Some(_) => Answer::accepted(vec![self.settings(s, i)]),
+                // Stills and video are both taken in either mode; the mode is remembered
+                // for the ground station that shows it.
+                Some(mode) => {
+                    self.periodic().cameras[i].video_mode = mode == 1;
+                    Answer::accepted(vec![self.settings(s, i)])
+                }
                 None => Answer::denied(format!("camera mode {}", p[1])),
             },
             MAV_CMD_SET_CAMERA_ZOOM => self.zoom(i, p[0], p[1]),
@@ -255,7 +259,7 @@ impl Cameras {
     fn requested(&self, s: &State, i: usize, id: u32, cmd: &Command) -> Option<Answer> {
         let p2 = cmd.params[1];
         Some(match id {
-            CAMERA_INFORMATION_DATA::ID => Answer::accepted(vec![self.information(s, i)]),
+            CAMERA_INFORMATION_DATA::ID => Answer::accepted(self.introduction(s, i)),
             CAMERA_SETTINGS_DATA::ID => Answer::accepted(vec![self.settings(s, i)]),
             STORAGE_INFORMATION_DATA::ID => Answer::accepted(vec![self.storage()]),
             CAMERA_CAPTURE_STATUS_DATA::ID => Answer::accepted(vec![self.capture_status(i)]),
@@ -276,6 +280,9 @@ impl Cameras {
             },
             GIMBAL_MANAGER_INFORMATION_DATA::ID => {
                 Answer::accepted(vec![self.manager_information()])
+            }
+            GIMBAL_DEVICE_INFORMATION_DATA::ID => {
+                Answer::accepted(vec![self.device_information(i)])
             }
             GIMBAL_MANAGER_STATUS_DATA::ID => Answer::accepted(vec![self.manager_status(s, i)]),
             GIMBAL_DEVICE_ATTITUDE_STATUS_DATA::ID => {

@@ -8,7 +8,7 @@
 //! followed as the vehicle flies) and DO_SET_ROI_NONE leaves it pointing where it points.
 
 use super::commands::{Answer, Command};
-use super::info::{GIMBAL_DEVICE_ID, view_quaternion};
+use super::info::{GIMBAL_DEVICE_ID, firmware_version, view_quaternion};
 use super::{ATTITUDE_EVERY, ATTITUDE_SOONEST, Cameras, FIRST_COMPONENT, boot_ms};
 use crate::autopilot::Outbox;
 use crate::geometry::GeoPoint;
@@ -20,6 +20,24 @@ use mavlink::MavHeader;
 use mavlink::dialects::common::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::time::Instant;
+
+/// What each view can do as a gimbal, told alike by its manager and its device: every axis
+/// turns, follows the vehicle or holds in the world (the lock flags), and yaw turns without end.
+const CAPS: GimbalDeviceCapFlags = GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_ROLL_AXIS
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_ROLL_FOLLOW)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_ROLL_LOCK)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_AXIS)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_FOLLOW)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_LOCK)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_AXIS)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_FOLLOW)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_LOCK)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_SUPPORTS_INFINITE_YAW)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_SUPPORTS_YAW_IN_EARTH_FRAME)
+    .union(GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_CAN_POINT_LOCATION_GLOBAL);
+
+/// The largest roll, pitch and yaw either way, radians.
+const LIMITS: (f32, f32, f32) = (FRAC_PI_2 as f32, FRAC_PI_2 as f32, PI as f32);
 
 /// Who may point a gimbal (DO_GIMBAL_MANAGER_CONFIGURE): (system, component), 0 for none.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -323,28 +341,43 @@ impl Cameras {
     }
 
     pub(super) fn manager_information(&self) -> MavMessage {
-        use GimbalManagerCapFlags as C;
+        let (roll, pitch, yaw) = LIMITS;
         MavMessage::GIMBAL_MANAGER_INFORMATION(GIMBAL_MANAGER_INFORMATION_DATA {
             time_boot_ms: boot_ms(),
-            cap_flags: C::GIMBAL_MANAGER_CAP_FLAGS_HAS_ROLL_AXIS
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_ROLL_FOLLOW
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_ROLL_LOCK
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_AXIS
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_FOLLOW
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_LOCK
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_AXIS
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_FOLLOW
-                | C::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_LOCK
-                | C::GIMBAL_MANAGER_CAP_FLAGS_SUPPORTS_INFINITE_YAW
-                | C::GIMBAL_MANAGER_CAP_FLAGS_SUPPORTS_YAW_IN_EARTH_FRAME
-                | C::GIMBAL_MANAGER_CAP_FLAGS_CAN_POINT_LOCATION_GLOBAL,
-            roll_min: -FRAC_PI_2 as f32,
-            roll_max: FRAC_PI_2 as f32,
-            pitch_min: -FRAC_PI_2 as f32,
-            pitch_max: FRAC_PI_2 as f32,
-            yaw_min: -PI as f32,
-            yaw_max: PI as f32,
+            cap_flags: GimbalManagerCapFlags::from_bits_truncate(CAPS.bits()),
+            roll_min: -roll,
+            roll_max: roll,
+            pitch_min: -pitch,
+            pitch_max: pitch,
+            yaw_min: -yaw,
+            yaw_max: yaw,
             gimbal_device_id: GIMBAL_DEVICE_ID,
+        })
+    }
+
+    /// GIMBAL_DEVICE_INFORMATION of gimbal `i`, which its camera answers for as its manager
+    /// (the view is a gimbal with no component of its own, GIMBAL_DEVICE_ID 1): what MAVSDK's
+    /// Gimbal plugin waits for before it lists the gimbal with a vendor and a model.
+    pub(super) fn device_information(&self, i: usize) -> MavMessage {
+        let (roll, pitch, yaw) = LIMITS;
+        MavMessage::GIMBAL_DEVICE_INFORMATION(GIMBAL_DEVICE_INFORMATION_DATA {
+            uid: 0,
+            time_boot_ms: boot_ms(),
+            firmware_version: firmware_version(),
+            hardware_version: 0,
+            roll_min: -roll,
+            roll_max: roll,
+            pitch_min: -pitch,
+            pitch_max: pitch,
+            yaw_min: -yaw,
+            yaw_max: yaw,
+            cap_flags: GimbalDeviceCapFlagsU16::from_bits_truncate(CAPS.bits() as u16),
+            custom_cap_flags: 0,
+            vendor_name: "DigiView".into(),
+            model_name: format!("virtual gimbal {i}").as_str().into(),
+            custom_name: format!("view {i}").as_str().into(),
+            gimbal_device_id: GIMBAL_DEVICE_ID,
+            cap_flags2: CAPS,
         })
     }
 

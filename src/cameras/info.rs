@@ -16,6 +16,18 @@ use std::path::Path;
 /// Stream 1 is the view's own stream, stream 2 the composed frame.
 pub const VIEW_STREAM: u8 = 1;
 pub const COMPOSED_STREAM: u8 = 2;
+
+/// The streams told in answer to a request for stream `id`: that one, or for 0 (every stream)
+/// the view's own first and again last. QGroundControl shows the first stream it hears of
+/// and MAVSDK keeps the last, so both show the view; the composed frame is listed between
+/// (docs/decisions.md, "Which stream a ground station shows").
+fn told(id: u8) -> &'static [u8] {
+    match id {
+        VIEW_STREAM => &[VIEW_STREAM],
+        COMPOSED_STREAM => &[COMPOSED_STREAM],
+        _ => &[VIEW_STREAM, COMPOSED_STREAM, VIEW_STREAM],
+    }
+}
 /// The gimbal of each camera: the camera component is its own gimbal manager and device.
 pub const GIMBAL_DEVICE_ID: u8 = 1;
 
@@ -28,7 +40,7 @@ fn text<const N: usize>(s: &str) -> [u8; N] {
 }
 
 /// `(Dev & 0xff) << 24 | patch << 16 | minor << 8 | major`, from the crate's version.
-fn firmware_version() -> u32 {
+pub(super) fn firmware_version() -> u32 {
     let part = |s: &str| s.parse::<u32>().unwrap_or(0) & 0xff;
     part(env!("CARGO_PKG_VERSION_MAJOR"))
         | part(env!("CARGO_PKG_VERSION_MINOR")) << 8
@@ -49,10 +61,9 @@ impl Cameras {
     pub(super) fn information(&self, state: &State, i: usize) -> MavMessage {
         let cam = &state.cameras[i];
         let (w, h) = (self.cfg.width, self.cfg.height);
-        let (uri, version) = match self.streams().definition {
-            Some(url) => (url, self.definition().1),
-            None => (String::new(), 0),
-        };
+        // Over MAVLink FTP, which every ground station reaches (the HTTP server serves the
+        // same file at /camera.xml for browsers and tools).
+        let (uri, version) = (super::ftp::definition_uri(i), self.definition().1);
         MavMessage::CAMERA_INFORMATION(CAMERA_INFORMATION_DATA {
             time_boot_ms: boot_ms(),
             firmware_version: firmware_version(),
@@ -75,12 +86,20 @@ impl Cameras {
         })
     }
 
+    /// CAMERA_INFORMATION and, after it, the streams (as for a request of every stream): a
+    /// ground station that has just found the camera has its stream at once. MAVSDK asks for
+    /// the streams only every 20 s, so its apps would show none for that long.
+    pub(super) fn introduction(&self, state: &State, i: usize) -> Vec<MavMessage> {
+        let mut all = vec![self.information(state, i)];
+        all.extend(self.stream_information(state, i, 0));
+        all
+    }
+
     pub(super) fn settings(&self, state: &State, i: usize) -> MavMessage {
         let cam = &state.cameras[i];
-        let recording = self.recording(i);
         MavMessage::CAMERA_SETTINGS(CAMERA_SETTINGS_DATA {
             time_boot_ms: boot_ms(),
-            mode_id: if recording {
+            mode_id: if self.video_mode(i) {
                 CameraMode::CAMERA_MODE_VIDEO
             } else {
                 CameraMode::CAMERA_MODE_IMAGE
@@ -139,13 +158,12 @@ impl Cameras {
         })
     }
 
-    /// VIDEO_STREAM_INFORMATION of stream `id` (0: both).
+    /// VIDEO_STREAM_INFORMATION of stream `id` (0: both, in the order [`told`] gives).
     pub(super) fn stream_information(&self, state: &State, i: usize, id: u8) -> Vec<MavMessage> {
         let streams = self.streams();
-        [VIEW_STREAM, COMPOSED_STREAM]
-            .into_iter()
-            .filter(|&s| id == 0 || id == s)
-            .map(|s| {
+        told(id)
+            .iter()
+            .map(|&s| {
                 let d = self.stream(state, i, s, &streams);
                 let name = match s {
                     VIEW_STREAM => format!("camera {i}"),
@@ -175,13 +193,12 @@ impl Cameras {
             .collect()
     }
 
-    /// VIDEO_STREAM_STATUS of stream `id` (0: both).
+    /// VIDEO_STREAM_STATUS of stream `id` (0: both, in the order [`told`] gives).
     pub(super) fn stream_status(&self, state: &State, i: usize, id: u8) -> Vec<MavMessage> {
         let streams = self.streams();
-        [VIEW_STREAM, COMPOSED_STREAM]
-            .into_iter()
-            .filter(|&s| id == 0 || id == s)
-            .map(|s| MavMessage::VIDEO_STREAM_STATUS(self.stream(state, i, s, &streams)))
+        told(id)
+            .iter()
+            .map(|&s| MavMessage::VIDEO_STREAM_STATUS(self.stream(state, i, s, &streams)))
             .collect()
     }
 

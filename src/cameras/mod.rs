@@ -9,6 +9,7 @@
 //! interval shooting.
 
 mod commands;
+mod ftp;
 mod gimbal;
 mod images;
 mod info;
@@ -24,8 +25,8 @@ use crate::policy::{Act, Peer, Policy};
 use crate::state::capture::{CaptureError, ViewShooter};
 use crate::state::{Invalid, Live, MAX_CAMERAS, State};
 use mavlink::dialects::common::{
-    CAMERA_IMAGE_CAPTURED_DATA, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState,
-    MavType,
+    CAMERA_IMAGE_CAPTURED_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavAutopilot,
+    MavMessage, MavModeFlag, MavState, MavType,
 };
 use mavlink::{MavHeader, Message};
 use serde::{Deserialize, Serialize};
@@ -126,6 +127,9 @@ struct Periodic {
 
 #[derive(Default)]
 struct PerCamera {
+    /// The camera mode a ground station chose (SET_CAMERA_MODE, CAM_MODE): video rather than
+    /// photo. Both take stills and record alike; a recording shows as video whatever it is.
+    video_mode: bool,
     /// Yaw and pitch rates (rad/s) being applied, from a gimbal command.
     rates: Option<(f64, f64)>,
     /// Continuous zoom: -1 out, 0 stop, 1 in.
@@ -192,6 +196,11 @@ impl Cameras {
         self.shooter.as_ref().is_some_and(|s| s.recording(i))
     }
 
+    /// Whether camera `i` is in video mode: chosen so, or recording.
+    fn video_mode(&self, i: usize) -> bool {
+        self.recording(i) || self.periodic().cameras[i].video_mode
+    }
+
     fn periodic(&self) -> std::sync::MutexGuard<'_, Periodic> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -256,6 +265,22 @@ impl Components for Cameras {
         match msg {
             MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
                 self.periodic().ground_station = Some(Instant::now());
+            }
+            // Reading the definition asks nothing of the policy: it changes nothing.
+            MavMessage::FILE_TRANSFER_PROTOCOL(m) if m.target_component != 0 => {
+                for i in self.addressed(out, m.target_system, m.target_component, &state) {
+                    let file = self.definition().0;
+                    for payload in ftp::answer(&m.payload, i, file.as_bytes()) {
+                        let reply =
+                            MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {
+                                target_network: 0,
+                                target_system: u8::try_from(from.system_id).unwrap_or(0),
+                                target_component: from.component_id,
+                                payload,
+                            });
+                        out.send(FIRST_COMPONENT + i as u8, &reply);
+                    }
+                }
             }
             MavMessage::COMMAND_LONG(c) => {
                 let command = commands::Command::long(c);

@@ -97,10 +97,16 @@ fn settings(lenses: &[(u8, String)]) -> Vec<Setting> {
             description: "Detection",
             options: named(&["Off", "On"]),
         },
+        // The camera protocol's own: MAVSDK and QGroundControl look for it in a definition.
+        Setting {
+            name: "CAM_MODE",
+            description: "Camera mode",
+            options: named(&["Photo", "Video"]),
+        },
     ]
 }
 
-/// A parameter's value in camera `i`'s state.
+/// A parameter's value in camera `i`'s state (CAM_MODE is the camera's own, not the state's).
 fn value(s: &State, i: usize, name: &str) -> u8 {
     let c = &s.cameras[i];
     match name {
@@ -115,7 +121,7 @@ fn value(s: &State, i: usize, name: &str) -> u8 {
     }
 }
 
-/// Sets a parameter of camera `i` (an option's value, checked before).
+/// Sets a parameter of camera `i` (an option's value, checked before; not CAM_MODE).
 fn set(s: &mut State, i: usize, name: &str, v: u8) -> Result<(), Invalid> {
     let c = &mut s.cameras[i];
     match name {
@@ -137,6 +143,14 @@ fn set(s: &mut State, i: usize, name: &str, v: u8) -> Result<(), Invalid> {
 }
 
 impl Cameras {
+    /// A parameter's value for camera `i`: the state's, or the camera's own mode.
+    fn value(&self, s: &State, i: usize, name: &str) -> u8 {
+        match name {
+            "CAM_MODE" => self.video_mode(i) as u8,
+            _ => value(s, i, name),
+        }
+    }
+
     fn lens_options(&self) -> Vec<(u8, String)> {
         self.live.lenses().names()
     }
@@ -164,8 +178,8 @@ impl Cameras {
                 param_count: all.len() as u16,
                 param_index: index as u16,
                 param_id: p.name.into(),
-                param_value: encode(value(s, i, p.name)),
-                param_type: MavParamExtType::MAV_PARAM_EXT_TYPE_UINT8,
+                param_value: encode(self.value(s, i, p.name)),
+                param_type: PARAM_TYPE,
             })
         };
         let state = self.live.snapshot();
@@ -207,13 +221,13 @@ impl Cameras {
                 let shown = all
                     .iter()
                     .find(|s| s.name == name)
-                    .map_or(0, |s| value(&now, i, s.name));
+                    .map_or(0, |s| self.value(&now, i, s.name));
                 out.send(
                     component,
                     &MavMessage::PARAM_EXT_ACK(PARAM_EXT_ACK_DATA {
                         param_id: p.param_id,
                         param_value: encode(shown),
-                        param_type: MavParamExtType::MAV_PARAM_EXT_TYPE_UINT8,
+                        param_type: PARAM_TYPE,
                         param_result: result,
                     }),
                 );
@@ -244,16 +258,26 @@ impl Cameras {
         if !one_byte || !setting.options.iter().any(|o| o.0 == v) {
             return Err((unsupported, format!("{name} has no option {v}")));
         }
+        if name == "CAM_MODE" {
+            self.periodic().cameras[i].video_mode = v == 1;
+            return Ok(());
+        }
         self.live
             .update(|s| set(s, i, name, v))
             .map_err(|e| (unsupported, format!("{name} = {v}: {e}")))
     }
 }
 
-/// A one-byte value as PARAM_EXT carries it (little-endian bytes of the type).
+/// The type every parameter is told as. Their values are small options, but MAVSDK (4.0)
+/// delivers a changed value only to an int32, float or text parameter and logs an error for
+/// each other one; the first byte is the value either way, so a client that reads one byte
+/// reads it right (docs/decisions.md, "Camera settings are int32").
+const PARAM_TYPE: MavParamExtType = MavParamExtType::MAV_PARAM_EXT_TYPE_INT32;
+
+/// A value as PARAM_EXT carries it: the little-endian bytes of an int32.
 fn encode(v: u8) -> mavlink::types::CharArray<128> {
     let mut bytes = [0u8; 128];
-    bytes[0] = v;
+    bytes[..4].copy_from_slice(&i32::from(v).to_le_bytes());
     bytes.into()
 }
 
@@ -262,7 +286,7 @@ fn definition_body(all: &[Setting]) -> String {
     let mut x = String::from("  <parameters>\n");
     for p in all {
         x += &format!(
-            "    <parameter name=\"{}\" type=\"uint8\" default=\"{}\">\n      \
+            "    <parameter name=\"{}\" type=\"int32\" default=\"{}\">\n      \
              <description>{}</description>\n      <options>\n",
             p.name,
             p.options.first().map_or(0, |o| o.0),

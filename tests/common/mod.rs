@@ -8,6 +8,7 @@ pub mod direct;
 pub mod frames;
 pub mod gcs;
 pub mod gpu;
+pub mod peers;
 pub mod relay;
 pub mod serve;
 pub mod viewer;

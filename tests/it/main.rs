@@ -25,6 +25,7 @@ mod lock_flags;
 mod mavlink_camera_video;
 mod mavlink_cameras;
 mod mavlink_commands;
+mod mavsdk;
 mod package;
 mod players;
 mod protocol_camera;

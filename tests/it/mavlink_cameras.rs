@@ -97,7 +97,13 @@ fn four_cameras_are_discovered_both_ways_and_bad_commands_change_nothing() {
             _ => None,
         })
         .collect();
-    assert_eq!(ids, [1, 2], "the view's own stream and the composed frame");
+    // The view's own stream first and again last: QGroundControl shows the first stream it
+    // hears of, MAVSDK keeps the last; the composed frame between.
+    assert_eq!(
+        ids,
+        [1, 2, 1],
+        "the view's own stream and the composed frame"
+    );
     assert!(matches!(
         one(261.0, 0.0)[..],
         [MavMessage::STORAGE_INFORMATION(_), ..]
@@ -305,7 +311,8 @@ fn four_cameras_are_discovered_both_ways_and_bad_commands_change_nothing() {
     );
 }
 
-/// CAMERA_INFORMATION's definition URI and version, and the file there.
+/// CAMERA_INFORMATION's definition URI and version, and the file there, read over MAVLink
+/// FTP as ground stations read it.
 fn definition(gcs: &Gcs, system: u8) -> (String, u16, String) {
     let then = accepted(gcs.command(system, 100, REQUEST, params(&[259.0])), "info");
     let info = match &then[..] {
@@ -313,13 +320,61 @@ fn definition(gcs: &Gcs, system: u8) -> (String, u16, String) {
         other => panic!("{other:?}"),
     };
     let uri = info.cam_definition_uri.to_str().unwrap().to_string();
-    let (status, xml) = http_get(&uri);
-    assert_eq!(status, 200, "{uri}");
+    let path = uri
+        .strip_prefix("mftp://")
+        .unwrap_or_else(|| panic!("{uri}"));
+    let xml = ftp_read(gcs, system, 100, path);
     (
         uri,
         info.cam_definition_version,
         String::from_utf8(xml).unwrap(),
     )
+}
+
+/// A file read over MAVLink FTP from `component`: OpenFileRO, ReadFile to its size,
+/// TerminateSession.
+fn ftp_read(gcs: &Gcs, system: u8, component: u8, path: &str) -> Vec<u8> {
+    let mut seq = 0u16;
+    let mut ask = |opcode: u8, offset: u32, size: u8, body: &[u8]| -> [u8; 251] {
+        let mut p = [0u8; 251];
+        seq += 1;
+        p[..2].copy_from_slice(&seq.to_le_bytes());
+        (p[3], p[4]) = (opcode, size);
+        p[8..12].copy_from_slice(&offset.to_le_bytes());
+        p[12..12 + body.len()].copy_from_slice(body);
+        gcs.forget();
+        gcs.send(&MavMessage::FILE_TRANSFER_PROTOCOL(
+            FILE_TRANSFER_PROTOCOL_DATA {
+                target_network: 0,
+                target_system: system,
+                target_component: component,
+                payload: p,
+            },
+        ));
+        let reply = gcs
+            .wait_for(Duration::from_secs(3), |h, m| match m {
+                MavMessage::FILE_TRANSFER_PROTOCOL(f) if h.component_id == component => {
+                    Some(f.payload)
+                }
+                _ => None,
+            })
+            .expect("an FTP answer");
+        assert_eq!(
+            (reply[3], reply[5]),
+            (128, opcode),
+            "ACK of {opcode}: {reply:?}"
+        );
+        reply
+    };
+    let open = ask(4, 0, path.len() as u8, path.as_bytes());
+    let size = u32::from_le_bytes(open[12..16].try_into().unwrap()) as usize;
+    let mut file = vec![];
+    while file.len() < size {
+        let r = ask(5, file.len() as u32, 239, &[]);
+        file.extend_from_slice(&r[12..12 + r[4] as usize]);
+    }
+    ask(1, 0, 0, &[]);
+    file
 }
 
 fn ext_value(m: &MavMessage) -> Option<(String, u8, u16)> {
@@ -352,7 +407,7 @@ fn ext_set(gcs: &Gcs, system: u8, name: &str, v: u8) -> ParamAck {
 }
 
 #[test]
-fn settings_are_parameters_described_by_a_definition_file_served_over_http() {
+fn settings_are_parameters_described_by_a_definition_file_served_over_mavlink_ftp() {
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
     let serve = Serve::start(&["--mavlink", &link]);
@@ -362,9 +417,13 @@ fn settings_are_parameters_described_by_a_definition_file_served_over_http() {
     // The file: the protocol's XML, its version the one CAMERA_INFORMATION gives, a
     // parameter for each setting, the lenses of lens.cal as LENS's options.
     let (uri, version, xml) = definition(&gcs, system);
-    assert!(
-        uri.starts_with("http://127.0.0.1:") && uri.ends_with("/camera.xml"),
-        "{uri}"
+    assert_eq!(uri, "mftp://camera0.xml");
+    // The HTTP server serves the same file, for browsers and tools.
+    let page = serve.http.as_deref().unwrap();
+    let (status, over_http) = http_get(&format!("{page}camera.xml"));
+    assert_eq!(
+        (status, String::from_utf8(over_http).unwrap()),
+        (200, xml.clone())
     );
     let doc = roxmltree::Document::parse(&xml).unwrap();
     let root = doc.root_element();
@@ -389,6 +448,7 @@ fn settings_are_parameters_described_by_a_definition_file_served_over_http() {
         "CONTROL",
         "SORTING",
         "DETECTION",
+        "CAM_MODE",
     ];
     assert_eq!(names, want);
     let lens = root
@@ -449,6 +509,20 @@ fn settings_are_parameters_described_by_a_definition_file_served_over_http() {
         (h.component_id == 101).then(|| ext_value(m)).flatten()
     });
     assert_eq!(crop.map(|c| (c.0, c.1)), Some(("CROP".to_string(), 2)));
+
+    // CAM_MODE is the camera's mode, as CAMERA_SETTINGS tells it.
+    assert_eq!(
+        ext_set(&gcs, system, "CAM_MODE", 1),
+        ParamAck::PARAM_ACK_ACCEPTED
+    );
+    let then = accepted(
+        gcs.command(system, 101, REQUEST, params(&[260.0])),
+        "settings",
+    );
+    assert!(
+        matches!(&then[..], [MavMessage::CAMERA_SETTINGS(s)] if s.mode_id == CameraMode::CAMERA_MODE_VIDEO),
+        "{then:?}"
+    );
 
     // What is not an option, and what the state cannot take, changes nothing.
     let unsupported = ParamAck::PARAM_ACK_VALUE_UNSUPPORTED;

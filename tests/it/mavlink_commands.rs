@@ -11,6 +11,7 @@ use common::gcs::{Gcs, REQUEST, cameras, euler, params};
 use common::serve::Serve;
 use digiview::control::client::Client;
 use mavlink::dialects::common::*;
+use std::collections::BTreeSet;
 use std::time::Duration;
 
 /// COMMAND_INT `command` to `(system, component)` with params 1 to 4, x, y and z; its ACK's
@@ -61,16 +62,15 @@ fn nan_for_what_is_not_used_and_command_int_decoded_per_command() {
             .command(system, 101, REQUEST, params(&[id, f32::NAN]))
             .expect("an ACK");
         assert_eq!(r, MavResult::MAV_RESULT_ACCEPTED, "message {id}");
-        let streams = then
+        let streams: BTreeSet<u8> = then
             .iter()
-            .filter(|m| {
-                matches!(
-                    m,
-                    MavMessage::VIDEO_STREAM_INFORMATION(_) | MavMessage::VIDEO_STREAM_STATUS(_)
-                )
+            .filter_map(|m| match m {
+                MavMessage::VIDEO_STREAM_INFORMATION(v) => Some(v.stream_id),
+                MavMessage::VIDEO_STREAM_STATUS(v) => Some(v.stream_id),
+                _ => None,
             })
-            .count();
-        assert_eq!(streams, 2, "message {id}: {then:?}");
+            .collect();
+        assert_eq!(streams, [1, 2].into(), "message {id}: {then:?}");
     }
     #[allow(deprecated)]
     let old = MavCmd::MAV_CMD_REQUEST_VIDEO_STREAM_INFORMATION;
