@@ -261,6 +261,7 @@ impl Cameras {
         Some(match id {
             CAMERA_INFORMATION_DATA::ID => Answer::accepted(self.introduction(s, i)),
             CAMERA_SETTINGS_DATA::ID => Answer::accepted(vec![self.settings(s, i)]),
+            CAMERA_FOV_STATUS_DATA::ID => Answer::accepted(vec![self.fov_status(s, i)]),
             STORAGE_INFORMATION_DATA::ID => Answer::accepted(vec![self.storage()]),
             CAMERA_CAPTURE_STATUS_DATA::ID => Answer::accepted(vec![self.capture_status(i)]),
             VIDEO_STREAM_INFORMATION_DATA::ID | VIDEO_STREAM_STATUS_DATA::ID => {

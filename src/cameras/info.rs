@@ -3,13 +3,14 @@
 //! VIDEO_STREAM_INFORMATION and VIDEO_STREAM_STATUS, and the view's orientation.
 
 use super::{Cameras, Streams, boot_ms, zoom};
+use crate::geometry::ground::ground_point;
 use crate::state::State;
 use glam::DQuat;
 use mavlink::dialects::common::{
-    CAMERA_CAPTURE_STATUS_DATA, CAMERA_INFORMATION_DATA, CAMERA_SETTINGS_DATA, CameraCapFlags,
-    CameraMode, MavMessage, STORAGE_INFORMATION_DATA, StorageStatus, StorageType,
-    VIDEO_STREAM_INFORMATION_DATA, VIDEO_STREAM_STATUS_DATA, VideoStreamEncoding,
-    VideoStreamStatusFlags, VideoStreamType,
+    CAMERA_CAPTURE_STATUS_DATA, CAMERA_FOV_STATUS_DATA, CAMERA_INFORMATION_DATA,
+    CAMERA_SETTINGS_DATA, CameraCapFlags, CameraMode, MavMessage, STORAGE_INFORMATION_DATA,
+    StorageStatus, StorageType, VIDEO_STREAM_INFORMATION_DATA, VIDEO_STREAM_STATUS_DATA,
+    VideoStreamEncoding, VideoStreamStatusFlags, VideoStreamType,
 };
 use std::path::Path;
 
@@ -93,6 +94,35 @@ impl Cameras {
         let mut all = vec![self.information(state, i)];
         all.extend(self.stream_information(state, i, 0));
         all
+    }
+
+    /// CAMERA_FOV_STATUS: where the vehicle (the camera) is, where the view's centre ray
+    /// meets the ground (INT32_MAX when it does not, within 10 km), the view's orientation
+    /// and its horizontal and vertical fov, all from one state.
+    pub(super) fn fov_status(&self, state: &State, i: usize) -> MavMessage {
+        let cam = &state.cameras[i];
+        let v = &state.vehicle;
+        let world_from_view = cam
+            .steering()
+            .world_from_view(v.attitude.euler(), &v.position);
+        let e7 = |deg: f64| (deg * 1e7).round() as i32;
+        let mm = |m: f64| (m * 1e3).round() as i32;
+        let centre = ground_point(&v.position, world_from_view * glam::DVec3::X);
+        let (w, h) = (self.cfg.width as f64, self.cfg.height as f64);
+        let vfov = 2.0 * ((cam.fov / 2.0).tan() * h / w).atan();
+        MavMessage::CAMERA_FOV_STATUS(CAMERA_FOV_STATUS_DATA {
+            time_boot_ms: boot_ms(),
+            lat_camera: e7(v.position.lat),
+            lon_camera: e7(v.position.lon),
+            alt_camera: mm(v.position.alt),
+            lat_image: centre.map_or(i32::MAX, |(g, _)| e7(g.lat)),
+            lon_image: centre.map_or(i32::MAX, |(g, _)| e7(g.lon)),
+            alt_image: centre.map_or(i32::MAX, |(g, _)| mm(g.alt)),
+            q: view_quaternion(state, i),
+            hfov: cam.fov.to_degrees() as f32,
+            vfov: vfov.to_degrees() as f32,
+            camera_device_id: 0,
+        })
     }
 
     pub(super) fn settings(&self, state: &State, i: usize) -> MavMessage {

@@ -8,7 +8,12 @@ use crate::common;
 use common::autopilot::free_udp_port;
 use common::peers::run_peer;
 use common::serve::Serve;
+use digiview::control::client::Client;
+use digiview::geometry::ground::{GeoPoint, to_ned};
+use digiview::protocol::Param;
+use digiview::protocol::params::CamTarget;
 use serde_json::Value;
+use std::time::Duration;
 
 #[test]
 fn pymavlink_gets_the_streams_with_nan_or_zero_and_each_command_the_same_long_or_int() {
@@ -51,6 +56,43 @@ fn pymavlink_gets_the_streams_with_nan_or_zero_and_each_command_the_same_long_or
             "the command changed something: {c}"
         );
     }
+
+    // CAMERA_FOV_STATUS's image centre is where the DigiView protocol says the centre of the
+    // view meets the ground (CAM_TARGET of the pixel a thousandth of the width off centre,
+    // some 0.2 m away there), and its hfov is CAM_FOV's (which the protocol rounds).
+    let fov = events.iter().find(|e| e["event"] == "fov").expect("fov");
+    assert_eq!(fov["result"], "MAV_RESULT_ACCEPTED", "{fov}");
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(3)).unwrap();
+    let asked = Param::CamTarget(CamTarget {
+        cam_id: 1,
+        x: 1e-3,
+        ..Default::default()
+    });
+    let Param::CamTarget(t) = ctl.get_one(asked).unwrap() else {
+        panic!("not a CAM_TARGET")
+    };
+    let said = GeoPoint {
+        lat: fov["lat_image"].as_f64().unwrap(),
+        lon: fov["lon_image"].as_f64().unwrap(),
+        alt: fov["alt_image"].as_f64().unwrap(),
+    };
+    let centre = GeoPoint {
+        lat: t.t_latitude,
+        lon: t.t_longitude,
+        alt: t.t_altitude,
+    };
+    let off = to_ned(centre, said).length();
+    println!("CAMERA_FOV_STATUS's centre is {off:.3} m from CAM_TARGET's: {fov}");
+    assert!(off < 2.0, "{off:.2} m apart: {fov} and {centre:?}");
+    assert!(
+        (fov["lat_camera"].as_f64().unwrap() - 47.0).abs() < 1e-6,
+        "{fov}"
+    );
+    let hfov = common::gcs::fov(&mut ctl, 1);
+    assert!(
+        (fov["hfov"].as_f64().unwrap() - hfov).abs() < 0.05,
+        "{fov}: {hfov}"
+    );
     drop(serve);
 }
 

@@ -6,7 +6,8 @@ tests/it/pymavlink.rs. Against camera 101 of a running `serve` (the demo hoverin
   and with 0, in every unused parameter: the ACK and the stream ids that follow;
 - each gimbal and camera command sent as COMMAND_LONG and, from the same starting state, as
   COMMAND_INT: the ACK of each and what the camera reports after it (the gimbal's attitude
-  quaternion, the zoom level, the camera mode).
+  quaternion, the zoom level, the camera mode);
+- CAMERA_FOV_STATUS with the view turned 45 degrees down, left so for the test.
 
 Prints one JSON object per line. Usage: pymavlink_station.py PORT LAT LON ALT, the point on
 the ground (degrees, metres above sea level) to point a view at.
@@ -119,6 +120,17 @@ def main():
         print(json.dumps({"event": "command", "command": name, "before": before,
                           "long": [long_result, after_long], "int": [int_result, after_int]}),
               flush=True)
+
+    # Where the view looks, 45 degrees down: CAMERA_FOV_STATUS (left so for the test to check).
+    reset()
+    long(mavutil.mavlink.MAV_CMD_SET_CAMERA_ZOOM, 2, 50)
+    long(mavutil.mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -45, 30, NAN, NAN, 0, 0, 0)
+    result, then = long(mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 271)
+    fov = [x for x in then if x.get_type() == "CAMERA_FOV_STATUS"][-1]
+    print(json.dumps({"event": "fov", "result": result, "lat_image": fov.lat_image / 1e7,
+                      "lon_image": fov.lon_image / 1e7, "alt_image": fov.alt_image / 1e3,
+                      "lat_camera": fov.lat_camera / 1e7, "hfov": fov.hfov, "vfov": fov.vfov,
+                      "q": list(fov.q)}), flush=True)
     return 0
 
 
