@@ -1,7 +1,8 @@
 //! A camera's settings as the camera protocol exposes them: PARAM_EXT_* parameters (layout,
 //! overlay, lens, the view's crop mode, lock flags and control mode, the detection's sorting
-//! mode and whether it runs), described for ground stations by a camera definition file
-//! (the protocol's XML) that the head serves over HTTP. Every parameter is read from and
+//! mode and whether it runs, and the camera mode), described for ground stations by a camera
+//! definition file (the protocol's XML) that each camera offers over MAVLink FTP and the head
+//! serves over HTTP. Every parameter is read from and
 //! written to the live state, so a change over the DigiView protocol shows here and one
 //! made here shows there. The file's version is a checksum of its content: it changes
 //! whenever the content does (another lens.cal, another DigiView), and ground stations fetch
