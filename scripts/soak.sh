@@ -70,7 +70,9 @@ chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
 watcher() {  # one view watched all along; a reconnect is counted
   while kill -0 $pid 2>/dev/null; do
     ffmpeg -nostdin -v error -rtsp_transport tcp -i "$url/cam$1" -f null - >>"$work/view$1.log" 2>&1
-    kill -0 $pid 2>/dev/null && echo "reconnect $(date +%s)" >>"$work/view$1.reconnects"
+    # Not counted once the soak is ending: serve is being stopped then.
+    kill -0 $pid 2>/dev/null && [ ! -e "$work/ending" ] &&
+      echo "reconnect $(date +%s)" >>"$work/view$1.reconnects"
     sleep 1
   done
 }
@@ -102,6 +104,7 @@ while [ "$(date +%s)" -lt "$end" ]; do
   fi
   sleep 10
 done
+touch "$work/ending"
 ctl set capture flags=0
 sleep 2
 kill -TERM $pid
@@ -146,7 +149,8 @@ for i in 0 1 2 3; do
   echo "soak: view $i reconnects: $(cat "$work/view$i.reconnects" 2>/dev/null | wc -l)"
 done
 relay_frames=$(cat "$work"/relay.*.progress 2>/dev/null | awk -F= '/^frame=/{f=$2} /^progress=end/{s+=f; f=0} END{print s+f}')
-echo "soak: relay: $(ls "$work"/relay.*.progress 2>/dev/null | wc -l) sessions, $relay_frames frames"
+sessions=$(grep -l '^frame=[1-9]' "$work"/relay.*.progress 2>/dev/null | wc -l)
+echo "soak: relay: $sessions sessions that received frames (a second one is a reconnect), $relay_frames frames"
 echo "soak: ground station: $(tail -1 "$work/gcs.log")"
 echo "soak: the autopilot link, last: $(grep 'mavlink: autopilot' "$work/serve.log" | tail -1 | sed 's/.*mavlink: //')"
 echo "soak: exit status $status, $total recordings, $bad bad, memory check $([ $mem = 0 ] && echo ok || echo FAILED)"

@@ -38,18 +38,19 @@ pub(super) struct Feed {
 
 impl Feed {
     /// Looks at the state every [`LOOK_EVERY`] while a socket is open, and publishes a new
-    /// message when any value changed.
+    /// message when any value changed. The task ends with the feed: a server restarted after
+    /// a failure starts a feed of its own and leaves no task behind.
     pub(super) fn start(web: Web) -> Arc<Feed> {
         let feed = Arc::new(Feed {
             params: watch::channel(Arc::from("")).0,
             look_now: Notify::new(),
         });
-        let looking = feed.clone();
+        let weak = Arc::downgrade(&feed);
         tokio::spawn(async move {
             let mut last: Option<Value> = None;
             let mut look = tokio::time::interval(LOOK_EVERY);
             look.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-            loop {
+            while let Some(looking) = weak.upgrade() {
                 tokio::select! {
                     _ = look.tick() => {}
                     _ = looking.look_now.notified() => {}
