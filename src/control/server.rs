@@ -6,9 +6,14 @@
 //! waits. UDP datagrams
 //! are answered one by one from a single task. A permitted QUIT, SIGINT or SIGTERM stops
 //! everything: the listeners close, every connection sends what it has queued and closes.
+//! The server is supervised as every service of `serve` is (`crate::supervise`, service
+//! `control`): a client's task that panics is reported and only that client is dropped, the
+//! UDP task that panics is reported and started again on the same port, and repeated
+//! failures give the service up, which ends `serve` non-zero.
 
 use super::Controller;
 use crate::protocol::FRAME_LEN;
+use crate::supervise::{self, Failures, Fault, Report};
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
@@ -79,8 +84,9 @@ pub async fn run(
     shutdown: Shutdown,
 ) -> std::io::Result<()> {
     info!("control server on {} (tcp and udp)", tcp.local_addr()?);
-    let udp_task = tokio::spawn(serve_udp(udp, controller.clone(), shutdown.clone()));
+    let udp_task = tokio::spawn(supervise_udp(udp, controller.clone(), shutdown.clone()));
     let mut connections = JoinSet::new();
+    let mut failures = Failures::default();
     loop {
         tokio::select! {
             accepted = tcp.accept() => match accepted {
@@ -96,7 +102,19 @@ pub async fn run(
                 }
             },
             _ = shutdown.wait() => break,
-            Some(_) = connections.join_next(), if !connections.is_empty() => {}
+            Some(joined) = connections.join_next(), if !connections.is_empty() => {
+                // A client's task that panicked: that client is gone, the server goes on.
+                if let Err(e) = joined
+                    && e.is_panic()
+                {
+                    let why = supervise::panic_message(e.into_panic().as_ref());
+                    let live = &*controller.live;
+                    if failures.given_up(live, SERVICE, &format!("a client's task: {why}")) {
+                        break;
+                    }
+                    live.restarted(SERVICE);
+                }
+            }
         }
     }
     drop(tcp);
@@ -122,11 +140,13 @@ async fn serve_tcp(
     let mut rd = BufReader::with_capacity(64 * 1024, rd);
     let mut frame = [0u8; FRAME_LEN];
     let mut bad_in_a_row = 0;
+    let fault = Fault::for_service(SERVICE);
     loop {
         tokio::select! {
             read = rd.read_exact(&mut frame) => if read.is_err() { break },
             _ = shutdown.wait() => break,
         }
+        fault.check(SERVICE);
         let outcome = controller.handle(&frame, peer.ip());
         bad_in_a_row = if outcome.bad_checksum {
             bad_in_a_row + 1
@@ -192,9 +212,47 @@ async fn write_replies(mut wr: OwnedWriteHalf, mut rx: mpsc::Receiver<[u8; FRAME
     let _ = wr.shutdown().await;
 }
 
+/// The service's name in `/api/status`, SYSTEM_STATUS and `DIGIVIEW_FAULT`.
+const SERVICE: &str = "control";
+
+/// Serves UDP on `udp`, and on the same address again after a panic, until stopped or given
+/// up.
+async fn supervise_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Shutdown) {
+    let Ok(address) = udp.local_addr() else {
+        return;
+    };
+    let mut socket = Some(udp);
+    let mut failures = Failures::default();
+    loop {
+        let why = match socket.take() {
+            Some(s) => Ok(s),
+            None => UdpSocket::bind(address).await,
+        }
+        .map_err(|e| format!("cannot listen on {address}: {e}"));
+        let why = match why {
+            Ok(s) => match tokio::spawn(serve_udp(s, controller.clone(), shutdown.clone())).await {
+                Ok(()) => return,
+                Err(e) if e.is_panic() => supervise::panic_message(e.into_panic().as_ref()),
+                Err(e) => e.to_string(),
+            },
+            Err(why) => why,
+        };
+        let live = &*controller.live;
+        if failures.given_up(live, SERVICE, &format!("udp: {why}")) {
+            return;
+        }
+        tokio::time::sleep(supervise::PAUSE).await;
+        if shutdown.is_triggered() {
+            return;
+        }
+        live.restarted(SERVICE);
+    }
+}
+
 async fn serve_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Shutdown) {
     // Larger than a frame, so an oversized datagram is seen as such, not truncated to 80.
     let mut buf = vec![0u8; 64 * 1024];
+    let fault = Fault::for_service(SERVICE);
     loop {
         let (n, peer) = tokio::select! {
             r = udp.recv_from(&mut buf) => match r {
@@ -204,6 +262,7 @@ async fn serve_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Shutdo
             },
             _ = shutdown.wait() => return,
         };
+        fault.check(SERVICE);
         // A datagram of the wrong length decodes to DATA_ERROR with param_type 0.
         let outcome = controller.handle(&buf[..n], peer.ip());
         for reply in &outcome.replies {

@@ -2,13 +2,15 @@
 //! service of that thread name panics once; the panic is logged with its message,
 //! `/api/status` says which service failed and that it was started again, the process goes
 //! on, and a ground station hears the cameras' heartbeats again within 3 s. The HTTP server
-//! (`DIGIVIEW_FAULT=http`) is served again on its address.
+//! (`DIGIVIEW_FAULT=http`) is served again on its address; a control client whose task panics
+//! (`DIGIVIEW_FAULT=control`) is dropped while every other client is served.
 
 use crate::common;
 
 use common::autopilot::free_udp_port;
 use common::gcs::{Gcs, REQUEST, cameras, http_get, params};
 use common::serve::Serve;
+use digiview::control::client::Client;
 use mavlink::dialects::common::*;
 use serde_json::Value;
 use std::time::{Duration, Instant};
@@ -122,4 +124,47 @@ fn the_http_server_is_served_again_after_a_failure() {
             .log()
             .contains("the http service failed (fault injected")
     );
+}
+
+#[test]
+fn a_control_task_that_panics_is_reported_and_everyone_else_is_served() {
+    // Once a TCP client's task panics (that client is dropped), once the UDP task (it is
+    // started again on the same port).
+    for udp in [false, true] {
+        let mut serve = Serve::start_logging("error", Some("control"), &[]);
+        let http = serve.http.clone().unwrap();
+        let addr = serve.addr.to_string();
+        // The fault fires on the first frame a task handles half a second after it started:
+        // that frame is not answered.
+        let mut first = Client::connect(&addr, udp, Duration::from_secs(2)).unwrap();
+        std::thread::sleep(Duration::from_millis(700));
+        assert!(
+            first.ping().is_err(),
+            "udp {udp}: the frame that panicked is answered"
+        );
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let s = loop {
+            let s = status(&http);
+            if s["services"]["control"]["restarts"] == 1 {
+                break s;
+            }
+            assert!(Instant::now() < deadline, "udp {udp}: no restart seen: {s}");
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        let why = s["services"]["control"]["last_failure"].as_str().unwrap();
+        assert!(why.contains("fault injected"), "{s}");
+        // Everyone is served, over TCP and over UDP.
+        for udp in [false, true] {
+            let mut c = Client::connect(&addr, udp, Duration::from_secs(2)).unwrap();
+            c.ping().unwrap_or_else(|e| panic!("udp {udp}: {e}"));
+        }
+        serve.terminate();
+        let code = serve.wait_exit(Duration::from_secs(10));
+        assert_eq!(code.and_then(|c| c.code()), Some(0));
+        let told = [
+            "the control service failed (a client's task: fault",
+            "the control service failed (udp: fault",
+        ];
+        assert!(serve.log().contains(told[udp as usize]), "udp {udp}");
+    }
 }
