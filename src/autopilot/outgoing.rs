@@ -43,7 +43,7 @@ pub(super) fn send(shared: &Shared) {
     let mut lost = false;
     // The first report comes soon after the start, so the log shows the mapping settled.
     let mut next_report = Instant::now() + FIRST_REPORT;
-    let mut reported = (Instant::now(), 0u64);
+    let mut reported = (Instant::now(), 0u64, 0u64);
     let fault = crate::supervise::Fault::for_service("mavlink-tx");
     while !shared.stop.load(Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(100));
@@ -125,12 +125,33 @@ pub(super) fn send(shared: &Shared) {
     }
 }
 
-/// The link's state in one log line: the autopilot, the attitude rate, the clock mapping.
-fn report(status: &LinkStatus, (since, before): (Instant, u64)) -> (Instant, u64) {
+/// The autopilot's clock going back more often than this between two reports is not
+/// reboots: two clocks take turns, most likely two autopilots sending as one system.
+const CLOCKS_TAKING_TURNS: u64 = 3;
+
+/// The link's state in one log line: the autopilot, the attitude rate, the clock mapping;
+/// and a warning when the clock went back too often to be reboots. `before`: when the last
+/// report was, and the attitudes and clock resets counted then.
+fn report(
+    status: &LinkStatus,
+    (since, before, resets): (Instant, u64, u64),
+) -> (Instant, u64, u64) {
     let n = status.attitudes.load(Ordering::Relaxed);
     let hz = (n - before) as f64 / since.elapsed().as_secs_f64();
     let c = *status.clock.lock().unwrap_or_else(|e| e.into_inner());
-    match *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) {
+    let autopilot = *status.autopilot.lock().unwrap_or_else(|e| e.into_inner());
+    let went_back = c.resets.saturating_sub(resets);
+    if went_back > CLOCKS_TAKING_TURNS
+        && let Some((system, _)) = autopilot
+    {
+        warn!(
+            "mavlink: the autopilot's clock went back {went_back} times in {:.0} s: two \
+             autopilots (or simulators) are sending as system {system}, each with its own \
+             clock; give each its own system id, or stop one",
+            since.elapsed().as_secs_f64()
+        );
+    }
+    match autopilot {
         Some((system, component)) => info!(
             "mavlink: autopilot {system}/{component}, attitude {hz:.0} Hz, clock: autopilot + \
              {:.3} s (drift {:+.0} ppm over {:.1} s, {} samples, {} reboots; {}), {} unsigned \
@@ -155,7 +176,7 @@ fn report(status: &LinkStatus, (since, before): (Instant, u64)) -> (Instant, u64
             status.messages.load(Ordering::Relaxed)
         ),
     }
-    (Instant::now(), n)
+    (Instant::now(), n, c.resets)
 }
 
 pub(super) fn heartbeat() -> MavMessage {

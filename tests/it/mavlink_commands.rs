@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use common::autopilot::free_udp_port;
+use common::autopilot::{SimAutopilot, free_udp_port};
 use common::gcs::{Gcs, REQUEST, cameras, euler, params};
 use common::serve::Serve;
 use digiview::control::client::Client;
@@ -124,4 +124,27 @@ fn nan_for_what_is_not_used_and_command_int_decoded_per_command() {
     assert_eq!(r, Some(MavResult::MAV_RESULT_ACCEPTED));
     let r = command_int(&gcs, cam, roi, [nan; 4], (i32::MAX, 85_456_000, 0.0));
     assert_eq!(r, Some(MavResult::MAV_RESULT_DENIED), "latitude 214.7 deg");
+}
+
+#[test]
+fn two_autopilots_sending_as_one_system_are_named_in_a_warning() {
+    // Two simulators as system 1, their clocks 1.5 s apart: the clock mapping sees the
+    // autopilot's clock go back at every turn, which no reboot explains.
+    let port = free_udp_port();
+    let to = format!("udpout:127.0.0.1:{port}");
+    let level = |_: f64| glam::DVec3::ZERO;
+    let _first = SimAutopilot::start(&to, level);
+    std::thread::sleep(Duration::from_millis(1500));
+    let _second = SimAutopilot::start(&to, level);
+    let link = format!("udpin:127.0.0.1:{port}");
+    let mut serve = Serve::start_logging("warn", None, &["--mavlink", &link]);
+    // The link's first report is 3 s after the start.
+    std::thread::sleep(Duration::from_millis(4500));
+    serve.terminate();
+    serve.wait_exit(Duration::from_secs(10));
+    let log = serve.log();
+    assert!(
+        log.contains("two autopilots (or simulators) are sending as system 1"),
+        "{log}"
+    );
 }
