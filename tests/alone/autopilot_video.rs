@@ -122,7 +122,7 @@ fn with_all_axes_locked_the_ground_stays_put_while_the_autopilot_reports_a_spin(
     let (errors, small, fps) = landmark_errors("interpolated", 31, |_| {});
     let (median, worst) = summary("at capture time", &errors, &small, fps);
     let (latest, l_small, l_fps) = landmark_errors("latest", 31, |_| {});
-    let (l_median, _) = summary("newest sample", &latest, &l_small, l_fps);
+    let (_, l_worst) = summary("newest sample", &latest, &l_small, l_fps);
     assert!(
         errors.len() >= 250,
         "only {} landmarks seen in 30 frames",
@@ -136,9 +136,13 @@ fn with_all_axes_locked_the_ground_stays_put_while_the_autopilot_reports_a_spin(
         s_worst <= 2.0,
         "a small landmark {s_worst:.2} px from the truth"
     );
+    // How stale the newest sample is at a frame's capture varies from run to run (its
+    // median error was 0.78 to 2.73 px in four runs), but at 90°/s some frame always shows
+    // the ground jump: its worst landmark (3.98 to 7.83 px) is far beyond the worst at
+    // capture time.
     assert!(
-        l_median > 5.0 * median,
-        "rendered with the newest sample, the ground should visibly move"
+        l_worst > 2.0 && l_worst > 3.0 * worst,
+        "rendered with the newest sample, the ground should visibly move: worst {l_worst:.2} px"
     );
 }
 
