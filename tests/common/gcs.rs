@@ -84,6 +84,52 @@ impl Gcs {
         }
     }
 
+    /// A file read over MAVLink FTP from `component`: OpenFileRO, ReadFile to its size,
+    /// TerminateSession.
+    pub fn ftp_read(&self, system: u8, component: u8, path: &str) -> Vec<u8> {
+        let mut seq = 0u16;
+        let mut ask = |opcode: u8, offset: u32, size: u8, body: &[u8]| -> [u8; 251] {
+            let mut p = [0u8; 251];
+            seq += 1;
+            p[..2].copy_from_slice(&seq.to_le_bytes());
+            (p[3], p[4]) = (opcode, size);
+            p[8..12].copy_from_slice(&offset.to_le_bytes());
+            p[12..12 + body.len()].copy_from_slice(body);
+            self.forget();
+            self.send(&MavMessage::FILE_TRANSFER_PROTOCOL(
+                FILE_TRANSFER_PROTOCOL_DATA {
+                    target_network: 0,
+                    target_system: system,
+                    target_component: component,
+                    payload: p,
+                },
+            ));
+            let reply = self
+                .wait_for(Duration::from_secs(3), |h, m| match m {
+                    MavMessage::FILE_TRANSFER_PROTOCOL(f) if h.component_id == component => {
+                        Some(f.payload)
+                    }
+                    _ => None,
+                })
+                .expect("an FTP answer");
+            assert_eq!(
+                (reply[3], reply[5]),
+                (128, opcode),
+                "ACK of {opcode}: {reply:?}"
+            );
+            reply
+        };
+        let open = ask(4, 0, path.len() as u8, path.as_bytes());
+        let size = u32::from_le_bytes(open[12..16].try_into().unwrap()) as usize;
+        let mut file = vec![];
+        while file.len() < size {
+            let r = ask(5, file.len() as u32, 239, &[]);
+            file.extend_from_slice(&r[12..12 + r[4] as usize]);
+        }
+        ask(1, 0, 0, &[]);
+        file
+    }
+
     pub fn send(&self, msg: &MavMessage) {
         self.link.send(&header(), msg).unwrap();
     }
