@@ -162,10 +162,7 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
             let public = cameras::public_host(&cfg.cameras, &addr.ip().to_string());
             let base = format!("http://{public}:{port}");
             if let Some(c) = &cameras {
-                c.set_http(
-                    format!("{base}{}", crate::http::DEFINITION_PATH),
-                    format!("{base}{}", crate::http::CAPTURES_PATH),
-                );
+                c.set_captures_url(format!("{base}{}", crate::http::CAPTURES_PATH));
             }
             announce.push(format!("http serving {base}/"));
             Some(listener)

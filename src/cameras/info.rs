@@ -29,6 +29,7 @@ fn told(id: u8) -> &'static [u8] {
         _ => &[VIEW_STREAM, COMPOSED_STREAM, VIEW_STREAM],
     }
 }
+
 /// The gimbal of each camera: the camera component is its own gimbal manager and device.
 pub const GIMBAL_DEVICE_ID: u8 = 1;
 

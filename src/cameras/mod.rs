@@ -78,9 +78,8 @@ pub struct Streams {
     /// `rtsp://HOST:PORT/PATH` of the composed frame; a view's is this plus `/camN`.
     pub base: String,
     pub bitrate_kbps: u32,
-    /// Where the HTTP server serves the camera definition file, and the captures (a
-    /// capture's URL is this plus its file name), once it serves.
-    pub definition: Option<String>,
+    /// Where the HTTP server serves the captures (a capture's URL is this plus its file
+    /// name), once it serves.
     pub captures: Option<String>,
 }
 
@@ -177,11 +176,13 @@ impl Cameras {
         (s.base, s.bitrate_kbps) = (base, bitrate_kbps);
     }
 
-    /// Where the HTTP server serves the camera definition file and the captures (a
-    /// capture's URL is `captures` plus its file name), once it serves.
-    pub fn set_http(&self, definition: String, captures: String) {
-        let mut s = self.streams.lock().unwrap_or_else(|e| e.into_inner());
-        (s.definition, s.captures) = (Some(definition), Some(captures));
+    /// Where the HTTP server serves the captures (a capture's URL is `captures` plus its
+    /// file name), once it serves. The camera definition goes over MAVLink FTP (`ftp`).
+    pub fn set_captures_url(&self, captures: String) {
+        self.streams
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .captures = Some(captures);
     }
 
     fn streams(&self) -> Streams {
