@@ -10,6 +10,8 @@
 //! panic once, half a second after it first starts ([`Fault`]).
 
 use std::collections::VecDeque;
+use std::future::Future;
+use std::net::SocketAddr;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -89,6 +91,54 @@ impl Failures {
             );
         }
         give_up
+    }
+}
+
+/// Runs an async service that serves on a socket of `address`: `serve(socket)` in a task of
+/// its own, starting with `first`, and after each failure (an error it returns, `why`, or a
+/// panic) the address bound again with `bind` after [`PAUSE`]. It ends when `serve` ends
+/// well, when `stopped()` says so after a failure, or when the service is given up. `prefix`
+/// goes before every failure's reason (which part of the service failed).
+pub async fn keep_serving<S, B, BF, F, SF>(
+    report: &dyn Report,
+    service: &'static str,
+    prefix: &str,
+    (first, address): (S, SocketAddr),
+    bind: B,
+    serve: F,
+    stopped: impl Fn() -> bool,
+) where
+    B: Fn(SocketAddr) -> BF,
+    BF: Future<Output = std::io::Result<S>>,
+    F: Fn(S) -> SF,
+    SF: Future<Output = Result<(), String>> + Send + 'static,
+{
+    let mut socket = Some(first);
+    let mut failures = Failures::default();
+    loop {
+        let bound = match socket.take() {
+            Some(s) => Ok(s),
+            None => bind(address).await,
+        };
+        let why = match bound {
+            Ok(s) => match tokio::spawn(serve(s)).await {
+                Ok(Ok(())) => return,
+                Ok(Err(why)) => why,
+                Err(e) => match e.try_into_panic() {
+                    Ok(panic) => panic_message(panic.as_ref()),
+                    Err(e) => e.to_string(),
+                },
+            },
+            Err(e) => format!("cannot listen on {address}: {e}"),
+        };
+        if failures.given_up(report, service, &format!("{prefix}{why}")) {
+            return;
+        }
+        tokio::time::sleep(PAUSE).await;
+        if stopped() {
+            return;
+        }
+        report.restarted(service);
     }
 }
 

@@ -210,45 +210,37 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     }
 }
 
-/// The HTTP server, supervised as every service is (`crate::supervise`): one that fails
-/// (an error, or a panic in the server itself) is reported and served again on the same
-/// address after the pause; given up, it stops `serve` through [`watch`].
+/// The HTTP server, supervised as every service is ([`supervise::keep_serving`]): one that
+/// fails (an error, the server ending by itself, or a panic in the server) is reported and
+/// served again on the same address after the pause; given up, it stops `serve` through
+/// [`watch`].
 async fn serve_http(listener: TcpListener, web: crate::http::Web, live: Arc<Live>, stop: Shutdown) {
     let Ok(address) = listener.local_addr() else {
         return;
     };
-    let mut listener = Some(listener);
-    let mut failures = supervise::Failures::default();
-    loop {
-        let served = match listener.take() {
-            Some(l) => Ok(l),
-            None => TcpListener::bind(address).await,
-        };
-        let why = match served {
-            Ok(l) => {
-                let stopped = stop.clone();
-                let until = async move { stopped.wait().await };
-                match tokio::spawn(crate::http::serve(l, web.clone(), until)).await {
-                    Ok(Ok(())) if stop.is_triggered() => return,
-                    Ok(Ok(())) => "the server ended".to_string(),
-                    Ok(Err(e)) => e.to_string(),
-                    Err(e) => match e.try_into_panic() {
-                        Ok(panic) => supervise::panic_message(panic.as_ref()),
-                        Err(e) => e.to_string(),
-                    },
-                }
+    let serve = |l| {
+        let (web, stop) = (web.clone(), stop.clone());
+        async move {
+            let stopped = stop.clone();
+            match crate::http::serve(l, web, async move { stopped.wait().await }).await {
+                Ok(()) if stop.is_triggered() => Ok(()),
+                Ok(()) => Err("the server ended".to_string()),
+                Err(e) => Err(e.to_string()),
             }
-            Err(e) => format!("cannot listen on {address}: {e}"),
-        };
-        if failures.given_up(&*live, "http", &why) {
-            return;
         }
-        tokio::time::sleep(supervise::PAUSE).await;
-        if stop.is_triggered() {
-            return;
-        }
-        supervise::Report::restarted(&*live, "http");
-    }
+    };
+    let stopped = || stop.is_triggered();
+    let bind = TcpListener::bind::<SocketAddr>;
+    supervise::keep_serving(
+        &*live,
+        "http",
+        "",
+        (listener, address),
+        bind,
+        serve,
+        stopped,
+    )
+    .await;
 }
 
 /// Stops everything once a supervised service is given up (`crate::supervise`), and logs

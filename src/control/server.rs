@@ -215,38 +215,23 @@ async fn write_replies(mut wr: OwnedWriteHalf, mut rx: mpsc::Receiver<[u8; FRAME
 /// The service's name in `/api/status`, SYSTEM_STATUS and `DIGIVIEW_FAULT`.
 const SERVICE: &str = "control";
 
-/// Serves UDP on `udp`, and on the same address again after a panic, until stopped or given
-/// up.
+/// Serves UDP on `udp`, and on the same address again after a panic
+/// ([`supervise::keep_serving`]), until stopped or given up.
 async fn supervise_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Shutdown) {
     let Ok(address) = udp.local_addr() else {
         return;
     };
-    let mut socket = Some(udp);
-    let mut failures = Failures::default();
-    loop {
-        let why = match socket.take() {
-            Some(s) => Ok(s),
-            None => UdpSocket::bind(address).await,
+    let serve = |socket| {
+        let (controller, shutdown) = (controller.clone(), shutdown.clone());
+        async move {
+            serve_udp(socket, controller, shutdown).await;
+            Ok(())
         }
-        .map_err(|e| format!("cannot listen on {address}: {e}"));
-        let why = match why {
-            Ok(s) => match tokio::spawn(serve_udp(s, controller.clone(), shutdown.clone())).await {
-                Ok(()) => return,
-                Err(e) if e.is_panic() => supervise::panic_message(e.into_panic().as_ref()),
-                Err(e) => e.to_string(),
-            },
-            Err(why) => why,
-        };
-        let live = &*controller.live;
-        if failures.given_up(live, SERVICE, &format!("udp: {why}")) {
-            return;
-        }
-        tokio::time::sleep(supervise::PAUSE).await;
-        if shutdown.is_triggered() {
-            return;
-        }
-        live.restarted(SERVICE);
-    }
+    };
+    let stopped = || shutdown.is_triggered();
+    let live = &*controller.live;
+    let (first, bind) = ((udp, address), UdpSocket::bind::<SocketAddr>);
+    supervise::keep_serving(live, SERVICE, "udp: ", first, bind, serve, stopped).await;
 }
 
 async fn serve_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Shutdown) {
