@@ -8,6 +8,11 @@
 //! drawn. Run by scripts/latency.sh:
 //!
 //!     cargo run --release --example glass_to_glass -- [--size 1280x720] [--frames 300] [--page|--mse]
+//!         [--decoder avdec_h264]
+//!
+//! The RTSP client decodes with `--decoder` (default `avdec_h264`, FFmpeg's, as most ground
+//! stations' players); `decodebin` picks the best installed (NVDEC's `nvh264dec` on an NVIDIA
+//! GPU).
 
 use digiview::clock::clock_us;
 use digiview::lens::LensCal;
@@ -118,9 +123,11 @@ fn main() {
             true => ("page, MSE", format!("{page}?preview=mse")),
             false => ("page, WebCodecs", page),
         };
-        (client, page_latencies(&page, &cells, w, frames))
+        (client.to_string(), page_latencies(&page, &cells, w, frames))
     } else {
-        ("RTSP", rtsp_latencies(&url, &cells, w, frames))
+        let decoder = arg("--decoder", "avdec_h264");
+        let l = rtsp_latencies(&url, &decoder, &cells, w, frames);
+        (format!("RTSP, {decoder}"), l)
     };
     let _ = serve.kill();
     let _ = serve.wait();
@@ -160,11 +167,17 @@ fn latency(now_ms: u64, stamp: u32) -> Option<f64> {
 }
 
 /// RTSP (rtspsrc, latency 0, TCP) decoded with GStreamer: each frame's latency when decoded.
-fn rtsp_latencies(url: &str, cells: &[Vec<usize>], w: u32, frames: usize) -> (Vec<f64>, usize) {
+fn rtsp_latencies(
+    url: &str,
+    decoder: &str,
+    cells: &[Vec<usize>],
+    w: u32,
+    frames: usize,
+) -> (Vec<f64>, usize) {
     gst::init().unwrap();
     let pipeline = gst::parse::launch(&format!(
         "rtspsrc location={url} latency=0 protocols=tcp ! rtph264depay ! h264parse \
-         ! avdec_h264 ! videoconvert ! video/x-raw,format=GRAY8 ! appsink name=sink sync=false"
+         ! {decoder} ! videoconvert ! video/x-raw,format=GRAY8 ! appsink name=sink sync=false"
     ))
     .unwrap()
     .downcast::<gst::Pipeline>()
@@ -200,6 +213,16 @@ fn rtsp_latencies(url: &str, cells: &[Vec<usize>], w: u32, frames: usize) -> (Ve
             None => unread += 1,
         }
     }
+    // The decoder that ran (decodebin's pick, where it was asked to choose).
+    let decoders: Vec<String> = pipeline
+        .iterate_recurse()
+        .into_iter()
+        .flatten()
+        .filter_map(|e| e.factory())
+        .filter(|f| f.klass().contains("Decoder"))
+        .map(|f| f.name().to_string())
+        .collect();
+    eprintln!("glass_to_glass: decoded with {}", decoders.join(", "));
     let _ = pipeline.set_state(gst::State::Null);
     (latencies, unread)
 }

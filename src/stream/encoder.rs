@@ -14,8 +14,10 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// Hardware encoders tried before x264 when `kind` is "auto", best first.
-pub const HARDWARE: [&str; 3] = ["nvv4l2h264enc", "vaapih264enc", "v4l2h264enc"];
+/// Hardware encoders tried before x264 when `kind` is "auto", best first: Jetson's, NVIDIA's
+/// NVENC on a desktop or server GPU (GStreamer's nvcodec plugin registers it only where the
+/// driver has an encoder: not on an H100, which has none), VA-API's, V4L2's.
+pub const HARDWARE: [&str; 4] = ["nvv4l2h264enc", "nvh264enc", "vaapih264enc", "v4l2h264enc"];
 /// Frames the encoder may hold before new ones are dropped (it has fallen behind).
 const BACKLOG: usize = 3;
 
@@ -78,6 +80,12 @@ fn element_description(name: &str, cfg: &EncoderConfig, fps: u32) -> String {
             "vaapih264enc name=enc rate-control=cbr bitrate={} keyframe-period={key}",
             cfg.bitrate_kbps
         ),
+        // Low-latency preset, constant bitrate, no B-frames, no lookahead.
+        "nvh264enc" => format!(
+            "nvh264enc name=enc preset=low-latency-hq rc-mode=cbr zerolatency=true bitrate={} \
+             gop-size={key}",
+            cfg.bitrate_kbps
+        ),
         "nvv4l2h264enc" => format!(
             "nvv4l2h264enc name=enc bitrate={} iframeinterval={key} insert-sps-pps=true",
             cfg.bitrate_kbps * 1000
@@ -86,11 +94,12 @@ fn element_description(name: &str, cfg: &EncoderConfig, fps: u32) -> String {
     }
 }
 
-fn candidates(kind: &str) -> Vec<String> {
+/// The encoders to try for `kind`, in order; `installed` says whether GStreamer has an element.
+fn candidates(kind: &str, installed: impl Fn(&str) -> bool) -> Vec<String> {
     match kind {
         "auto" => HARDWARE
             .iter()
-            .filter(|n| gst::ElementFactory::find(n).is_some())
+            .filter(|n| installed(n))
             .map(|n| n.to_string())
             .chain(["x264enc".to_string()])
             .collect(),
@@ -109,7 +118,8 @@ impl Encoder {
         super::init()?;
         let sink: Arc<Sink> = Arc::new(Box::new(sink));
         let mut errors = vec![];
-        for name in candidates(&cfg.kind) {
+        let installed = |n: &str| gst::ElementFactory::find(n).is_some();
+        for name in candidates(&cfg.kind, installed) {
             match Self::start(&name, cfg, fps, sink.clone()) {
                 Ok(e) => return Ok(e),
                 Err(e) => errors.push(format!("{name}: {e}")),
@@ -322,4 +332,43 @@ fn bt709() -> gst_video::VideoColorimetry {
         gst_video::VideoTransferFunction::Bt709,
         gst_video::VideoColorPrimaries::Bt709,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_tries_the_installed_hardware_encoders_best_first_then_x264() {
+        let only = |names: &'static [&'static str]| move |n: &str| names.contains(&n);
+        assert_eq!(candidates("auto", only(&[])), ["x264enc"]);
+        // A desktop NVIDIA GPU with NVENC, and VA-API beside it: NVENC first.
+        assert_eq!(
+            candidates("auto", only(&["vaapih264enc", "nvh264enc"])),
+            ["nvh264enc", "vaapih264enc", "x264enc"]
+        );
+        // A Jetson's own encoder before the desktop one.
+        assert_eq!(
+            candidates("auto", only(&["nvh264enc", "nvv4l2h264enc"]))[0],
+            "nvv4l2h264enc"
+        );
+        // A named kind is tried alone, installed or not (its error then says so).
+        assert_eq!(candidates("x264", only(&["nvh264enc"])), ["x264enc"]);
+        assert_eq!(candidates("nvh264enc", only(&[])), ["nvh264enc"]);
+    }
+
+    #[test]
+    fn nvenc_is_told_the_bitrate_in_kbit_and_the_key_interval_in_frames() {
+        let cfg = EncoderConfig {
+            bitrate_kbps: 6000,
+            key_interval_s: 2.0,
+            ..EncoderConfig::default()
+        };
+        let d = element_description("nvh264enc", &cfg, 30);
+        assert!(
+            d.contains("bitrate=6000 ") && d.ends_with("gop-size=60"),
+            "{d}"
+        );
+        assert!(d.contains("zerolatency=true"), "{d}");
+    }
 }
