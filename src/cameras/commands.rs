@@ -95,7 +95,7 @@ pub struct Answer {
 }
 
 impl Answer {
-    fn accepted(then: Vec<MavMessage>) -> Answer {
+    pub(super) fn accepted(then: Vec<MavMessage>) -> Answer {
         Answer {
             result: MavResult::MAV_RESULT_ACCEPTED,
             then,
@@ -133,7 +133,10 @@ fn act_of(command: MavCmd) -> Option<Act> {
         | MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW
         | MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE
         | MAV_CMD_DO_SET_ROI_LOCATION
-        | MAV_CMD_DO_SET_ROI_NONE => Some(Act::Change),
+        | MAV_CMD_DO_SET_ROI_NONE
+        | MAV_CMD_CAMERA_TRACK_POINT
+        | MAV_CMD_CAMERA_TRACK_RECTANGLE
+        | MAV_CMD_CAMERA_STOP_TRACKING => Some(Act::Change),
         MAV_CMD_STORAGE_FORMAT => Some(Act::Delete),
         _ => None,
     }
@@ -251,6 +254,9 @@ impl Cameras {
             | MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE
             | MAV_CMD_DO_SET_ROI_LOCATION
             | MAV_CMD_DO_SET_ROI_NONE => return self.gimbal_command(from, i, cmd),
+            MAV_CMD_CAMERA_TRACK_POINT
+            | MAV_CMD_CAMERA_TRACK_RECTANGLE
+            | MAV_CMD_CAMERA_STOP_TRACKING => self.tracking_command(from, i, cmd),
             _ => return None,
         })
     }
@@ -262,6 +268,12 @@ impl Cameras {
             CAMERA_INFORMATION_DATA::ID => Answer::accepted(self.introduction(s, i)),
             CAMERA_SETTINGS_DATA::ID => Answer::accepted(vec![self.settings(s, i)]),
             CAMERA_FOV_STATUS_DATA::ID => Answer::accepted(vec![self.fov_status(s, i)]),
+            CAMERA_TRACKING_IMAGE_STATUS_DATA::ID => {
+                Answer::accepted(vec![self.tracking_image_status(s, i)])
+            }
+            CAMERA_TRACKING_GEO_STATUS_DATA::ID => {
+                Answer::accepted(vec![self.tracking_geo_status(s, i)])
+            }
             STORAGE_INFORMATION_DATA::ID => Answer::accepted(vec![self.storage()]),
             CAMERA_CAPTURE_STATUS_DATA::ID => Answer::accepted(vec![self.capture_status(i)]),
             VIDEO_STREAM_INFORMATION_DATA::ID | VIDEO_STREAM_STATUS_DATA::ID => {

@@ -147,13 +147,7 @@ fn locks_of(flags: GimbalManagerFlags) -> u8 {
 pub fn turn(c: &mut Camera, dyaw: f64, dpitch: f64) {
     c.yaw = wrap_pi(c.yaw + dyaw);
     c.pitch = (c.pitch + dpitch).clamp(-FRAC_PI_2, FRAC_PI_2);
-    steer_by_hand(c);
-}
-
-fn steer_by_hand(c: &mut Camera) {
-    if matches!(c.control, control::PILOT | control::COORDINATE) {
-        c.control = control::DIRECTIONAL;
-    }
+    c.steer_by_hand();
 }
 
 impl Cameras {
@@ -197,7 +191,7 @@ impl Cameras {
             // Roll within ±90°, as CAM_EULER keeps it.
             let roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
             c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
-            steer_by_hand(c);
+            c.steer_by_hand();
             Ok::<_, Invalid>(())
         })?;
         let rates = match (aim.yaw_rate, aim.pitch_rate) {
@@ -310,6 +304,8 @@ impl Cameras {
             let vehicle = s.vehicle.attitude.euler();
             let position = s.vehicle.position;
             let c = &mut s.cameras[i];
+            // A region of interest, or none, ends following an object.
+            c.follow = None;
             match place {
                 Some(g) => {
                     c.target = Some(g);
@@ -330,7 +326,7 @@ impl Cameras {
     }
 
     /// Whether `from` may point gimbal `i` now.
-    fn in_control(&self, from: &MavHeader, i: usize) -> Result<(), Refused> {
+    pub(super) fn in_control(&self, from: &MavHeader, i: usize) -> Result<(), Refused> {
         match self.periodic().cameras[i].control.allows(from) {
             true => Ok(()),
             false => Err(Refused::NotInControl {

@@ -75,7 +75,10 @@ impl Cameras {
             flags: CameraCapFlags::CAMERA_CAP_FLAGS_CAPTURE_VIDEO
                 | CameraCapFlags::CAMERA_CAP_FLAGS_CAPTURE_IMAGE
                 | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_BASIC_ZOOM
-                | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM,
+                | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM
+                | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_TRACKING_POINT
+                | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_TRACKING_RECTANGLE
+                | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_TRACKING_GEO_STATUS,
             resolution_h: w as u16,
             resolution_v: h as u16,
             cam_definition_version: version,

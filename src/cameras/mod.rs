@@ -5,8 +5,8 @@
 //! view (`gimbal`). What they change goes through the live state, the one the DigiView
 //! protocol changes, and what they report is read from it, so each side sees the other at
 //! once. This module routes the link's messages to the cameras they address and runs what
-//! is periodic: heartbeats, the gimbals' attitude, angular rates and continuous zoom, and
-//! interval shooting.
+//! is periodic: heartbeats, the gimbals' attitude, angular rates and continuous zoom, click
+//! to track's statuses (`tracking`), and interval shooting.
 
 mod commands;
 mod ftp;
@@ -14,6 +14,7 @@ mod gimbal;
 mod images;
 mod info;
 mod settings;
+mod tracking;
 
 pub mod zoom;
 
@@ -142,6 +143,10 @@ struct PerCamera {
     images: Vec<CAMERA_IMAGE_CAPTURED_DATA>,
     /// Images asked for and not written yet.
     pending: u32,
+    /// When the tracking statuses went out last, and whether the camera followed something
+    /// then (one idle status follows the last).
+    tracking_sent: Option<Instant>,
+    was_following: bool,
 }
 
 /// Interval shooting: every `interval`, `left` more (None: until stopped).
@@ -362,6 +367,7 @@ impl Components for Cameras {
                     out.send(component, &self.manager_status(&state, i));
                 }
                 self.report_attitude(out, &state, i, now);
+                self.report_tracking(out, &state, i, now);
             }
         }
     }

@@ -36,14 +36,8 @@ pub fn set_euler(c: &mut Camera, p: &CamEuler) -> Result<(), Refusal> {
     c.yaw = wrap_pi(yaw);
     c.pitch = wrap_pi(pitch);
     c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
-    steer_by_hand(c);
+    c.steer_by_hand();
     Ok(())
-}
-
-fn steer_by_hand(c: &mut Camera) {
-    if matches!(c.control, control::PILOT | control::COORDINATE) {
-        c.control = control::DIRECTIONAL;
-    }
 }
 
 pub fn zoom(c: &Camera, cam_id: u8) -> CamZoom {
@@ -88,6 +82,8 @@ pub fn set_control_mode(c: &mut Camera, p: &CamControlMode) -> Result<(), Refusa
         )),
         0..=control::PASS => {
             c.control = p.mode;
+            // A control mode chosen ends following an object.
+            c.follow = None;
             Ok(())
         }
         m => Err(Refusal::Data(format!(
@@ -168,7 +164,7 @@ pub fn set_offset(live: &Live, s: &mut State, p: &CamOffset) -> Result<(), Refus
     let c = &mut s.cameras[i];
     let a = aim(ray, c.euler(), c.locks(), vehicle);
     (c.yaw, c.pitch) = (a.yaw, a.pitch);
-    steer_by_hand(c);
+    c.steer_by_hand();
     Ok(())
 }
 
@@ -225,5 +221,6 @@ pub fn set_target(live: &Live, s: &mut State, p: &CamTarget) -> Result<(), Refus
     let c = &mut s.cameras[i];
     c.target = Some(point);
     c.control = control::COORDINATE;
+    c.follow = None;
     Ok(())
 }

@@ -15,6 +15,9 @@ use glam::DVec3;
 /// The highest score.
 pub const MAX_SCORE: u8 = 254;
 
+/// The class of an object pointed at before any detector said what it is.
+pub const UNKNOWN_CLASS: u16 = u16::MAX;
+
 /// A detection belongs to an object when their boxes overlap at least this much, or when its
 /// centre is within the larger box's size of the object's (objects move between scans).
 const MATCH_OVERLAP: f64 = 0.1;
@@ -209,6 +212,26 @@ impl Tracker {
         }
         self.objects.retain(|o| o.score > 0);
         changes
+    }
+
+    /// An object pointed at (a ground station's click), at full score, where `bbox` is
+    /// at time `t`: the scans that find something there take it as this object, whatever
+    /// class they give it. Returns its id.
+    pub fn seed(&mut self, bbox: AngularBox, class: u16, t: f64) -> u32 {
+        let id = self.next_id;
+        self.next_id += 1;
+        self.objects.push(Object {
+            id,
+            bbox,
+            class,
+            confidence: 1.0,
+            score: MAX_SCORE,
+            born: t,
+            seen: t,
+            velocity: DVec3::ZERO,
+            trail: vec![(t, bbox.centre)],
+        });
+        id
     }
 
     /// The track step for object `id` at time `t`: `found` is the detector's raw boxes in

@@ -244,10 +244,11 @@ impl Head {
         if let Some(p) = position {
             s.vehicle.position = p;
         }
-        // Tiles follow their objects between scans.
+        // Tiles, and views that follow an object, follow it between scans.
         for o in &mut s.tracked {
             *o = o.at(frame.captured_us);
         }
+        s.aim_followers();
         let size = (frame.layout.width, frame.layout.height);
         let lens = self
             .live

@@ -96,6 +96,7 @@ impl Live {
         // whether or not the detection thread gets the CPU to say so.
         if detecting && !next.detection.run_ai {
             next.tracked.clear();
+            next.drop_lost_followers();
         }
         next.validate(&self.lenses)?;
         self.state.store(Arc::new(next));

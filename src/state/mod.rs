@@ -12,6 +12,7 @@ pub mod capture;
 mod detection;
 pub mod file;
 pub mod flags;
+pub mod follow;
 pub mod live;
 pub mod services;
 mod validate;
@@ -79,6 +80,10 @@ pub struct Camera {
     /// 0 pilot, 1 directional, 2 coordinate (aims at `target`), 3 pass.
     pub control: u8,
     pub target: Option<GeoPoint>,
+    /// The object the view follows (a ground station's click), steering it while set. Not
+    /// in state files.
+    #[serde(skip)]
+    pub follow: Option<follow::Follow>,
 }
 
 impl Camera {
@@ -109,6 +114,7 @@ impl Camera {
             lock: 7,
             control: control::DIRECTIONAL,
             target: None,
+            follow: None,
         }
     }
 }

@@ -18,6 +18,7 @@ mod detect_onnx;
 mod exposure;
 mod serve_video;
 mod services;
+mod tracking;
 
 /// Held by every test here for its length: they run one at a time.
 fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {

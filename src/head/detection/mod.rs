@@ -219,14 +219,19 @@ impl Head {
         let mut labels: Vec<String> = vec![];
         let mut last_sent: Option<f64> = None;
         let fault = crate::supervise::Fault::for_service("detection");
+        let mut adopted = objects::Adopted::new();
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("detection");
             let state = self.live.snapshot();
+            if self.detecting(&state) {
+                self.adopt_clicks(&mut tracker, &state, &mut adopted);
+            }
             if !self.detecting(&state) {
                 if owns_list {
                     // Turning run_ai off emptied the list in the same change.
                     info!("detection: off (run_ai); its objects are dropped");
                     (detector, tracker, owns_list) = (MotionDetector::new(), Tracker::new(), false);
+                    adopted.clear();
                 }
                 std::thread::sleep(Duration::from_millis(100));
                 continue;
@@ -256,7 +261,7 @@ impl Head {
                 if !scan.crops.is_empty() {
                     let t0 = Instant::now();
                     self.track_step(&mut tracker, &state, &scan);
-                    self.show(&mut tracker, &state, &labels);
+                    self.show(&mut tracker, &state, &labels, &mut adopted);
                     owns_list = true;
                     self.scans.took(true, t0);
                     continue;
@@ -293,7 +298,7 @@ impl Head {
                     .any(|v| plan.view_point(v, b.centre).is_some())
             };
             tracker.scan(&state.detection, t, found, covered);
-            self.show(&mut tracker, &state, &labels);
+            self.show(&mut tracker, &state, &labels, &mut adopted);
             owns_list = true;
             self.scans.took(false, t0);
             self.stats

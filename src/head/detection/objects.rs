@@ -4,42 +4,106 @@
 
 use super::super::Head;
 use crate::detect::Detector;
-use crate::detect::Tracker;
 use crate::detect::motion::MOVING;
 use crate::detect::onnx::class_name;
 use crate::detect::scan::{ScanView, crop_view};
+use crate::detect::tracker::UNKNOWN_CLASS;
+use crate::detect::{AngularBox, Tracker};
 use crate::geometry::rotation::{direction, yaw_pitch};
 use crate::layout::layout;
 use crate::lens::Lens;
 use crate::render::FramePlan;
 use crate::state::{Invalid, State, Tracked};
-use tracing::warn;
+use tracing::{info, warn};
 
 /// The track step looks again for this many objects at most, those in the tiles first.
 const MAX_CROPS: usize = 6;
 
+/// Clicks taken on by the detection stage and not yet in the live state: the camera, the
+/// click's time (`Follow::since_us`) and the object it became.
+pub(super) type Adopted = Vec<(usize, u64, u32)>;
+
 impl Head {
-    /// Orders the tracker's objects into the tiles and puts them in the live state.
-    pub(super) fn show(&self, tracker: &mut Tracker, state: &State, labels: &[String]) {
+    /// Takes on each camera's click not taken on yet: the tracked object under it (its box
+    /// reaching the clicked one, the nearest), else a new object seeded there at full score.
+    /// The next [`Head::show`] makes the camera follow it.
+    pub(super) fn adopt_clicks(&self, tracker: &mut Tracker, state: &State, adopted: &mut Adopted) {
+        for (i, cam) in state.cameras.iter().enumerate() {
+            let Some(f) = cam.follow.filter(|f| f.object.is_none()) else {
+                continue;
+            };
+            if adopted
+                .iter()
+                .any(|&(c, since, _)| c == i && since == f.since_us)
+            {
+                continue;
+            }
+            let t = f.since_us as f64 * 1e-6;
+            let clicked = AngularBox::new(f.yaw, f.pitch, f.size, f.size);
+            let under = tracker
+                .objects()
+                .iter()
+                .map(|o| (o.id, o.at(t).angle_to(&clicked), o.bbox.size()))
+                .filter(|&(_, away, size)| away <= (size + f.size) / 2.0)
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(id, ..)| id);
+            let class = match self.cfg.detection.detector {
+                Detector::Motion => MOVING,
+                _ => UNKNOWN_CLASS,
+            };
+            let id = under.unwrap_or_else(|| tracker.seed(clicked, class, t));
+            let how = if under.is_some() {
+                "tracked already"
+            } else {
+                "new"
+            };
+            info!("camera {i}: follows object {id} ({how})");
+            adopted.push((i, f.since_us, id));
+        }
+    }
+
+    /// Orders the tracker's objects into the tiles and puts them in the live state, with
+    /// the clicks `adopted` since the last time.
+    pub(super) fn show(
+        &self,
+        tracker: &mut Tracker,
+        state: &State,
+        labels: &[String],
+        adopted: &mut Adopted,
+    ) {
         let o = &state.output;
         let shown = layout(o.width, o.height, o.layout, o.overlay).map_or(0, |l| l.tiles.len());
         let tiles = tracker.tiles(state.detection.sorting_mode, shown);
         let name = |class: u16| match self.cfg.detection.detector {
             Detector::External => labels.get(class as usize).cloned().unwrap_or_default(),
             Detector::Motion if class == MOVING => "moving".into(),
+            _ if class == UNKNOWN_CLASS => "pointed at".into(),
             _ => class_name(class),
         };
-        self.publish(tracked(tracker, &tiles, name));
+        self.publish(tracked(tracker, &tiles, name), std::mem::take(adopted));
     }
 
-    /// Puts the objects in the live state, unless detection was turned off meanwhile.
-    fn publish(&self, list: Vec<Tracked>) {
+    /// Puts the objects in the live state, unless detection was turned off meanwhile: each
+    /// camera whose click was adopted (and not replaced by another since) follows its
+    /// object, each whose object is gone stops, and the followers are aimed.
+    fn publish(&self, list: Vec<Tracked>, adopted: Adopted) {
         let result = self.live.update(|s| {
-            if s.detection.run_ai {
-                s.tracked = list;
+            if !s.detection.run_ai {
+                return Ok::<_, Invalid>(vec![]);
             }
-            Ok::<_, Invalid>(())
+            s.tracked = list;
+            for (i, since, id) in adopted {
+                if let Some(f) = s.cameras[i].follow.as_mut().filter(|f| f.since_us == since) {
+                    f.object = Some(id);
+                }
+            }
+            let lost = s.drop_lost_followers();
+            s.aim_followers();
+            Ok(lost)
         });
+        for i in result.as_ref().map_or(&[][..], |l| &l[..]) {
+            info!("camera {i}: lost the object it followed; it stays aimed where it last was");
+        }
         if let Err(e) = result {
             warn!("detection: the objects were not taken: {e}");
         }

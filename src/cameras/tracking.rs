@@ -1,0 +1,308 @@
+//! Click to track. CAMERA_TRACK_POINT and CAMERA_TRACK_RECTANGLE name a spot of the camera's
+//! own picture (0..1 from its top left); the camera's view then follows the object there,
+//! one of the detection stage's tracked objects (`state::follow`: seeded where clicked,
+//! found again by each scan), until CAMERA_STOP_TRACKING, a hand on the gimbal, or the object
+//! is lost. While it follows, CAMERA_TRACKING_IMAGE_STATUS (where the object is in the
+//! picture) and CAMERA_TRACKING_GEO_STATUS (where it is on the ground and how it moves) go to
+//! the ground station 5 times a second, and once more, idle, when it stops.
+
+use super::Cameras;
+use super::commands::{Answer, Command};
+use crate::autopilot::Outbox;
+use crate::geometry::ground::{ground_point, to_ned};
+use crate::geometry::rotation::direction;
+use crate::render::FramePlan;
+use crate::state::follow::{Follow, Shape};
+use crate::state::{Invalid, State, moved_on};
+use glam::{DVec2, DVec3};
+use mavlink::dialects::common::*;
+use std::time::{Duration, Instant};
+
+/// How often the statuses go out while a camera follows something.
+const STATUS_EVERY: Duration = Duration::from_millis(200);
+/// The smallest size a click is given (radians): a point with no radius.
+const MIN_SIZE: f64 = 1.0 * std::f64::consts::PI / 180.0;
+
+/// Whether each of `v` is a number in 0..=1.
+fn normalized(v: &[f32]) -> bool {
+    v.iter().all(|x| (0.0..=1.0).contains(x))
+}
+
+impl Cameras {
+    /// CAMERA_TRACK_POINT (x, y, radius), CAMERA_TRACK_RECTANGLE (top left x, y, bottom
+    /// right x, y) and CAMERA_STOP_TRACKING for camera `i`.
+    pub(super) fn tracking_command(
+        &self,
+        from: &mavlink::MavHeader,
+        i: usize,
+        cmd: &Command,
+    ) -> Answer {
+        use MavCmd::*;
+        let p = &cmd.params;
+        if let Err(e) = self.in_control(from, i) {
+            return Answer::denied(e);
+        }
+        let (shape, centre, corners) = match cmd.command {
+            MAV_CMD_CAMERA_STOP_TRACKING => {
+                let stop = self.live.update(|s| {
+                    s.cameras[i].follow = None;
+                    Ok::<_, Invalid>(())
+                });
+                return match stop {
+                    Ok(()) => {
+                        Answer::accepted(vec![self.tracking_image_status(&self.live.snapshot(), i)])
+                    }
+                    Err(e) => Answer::denied(e),
+                };
+            }
+            MAV_CMD_CAMERA_TRACK_POINT => {
+                // MAVSDK and others leave the radius NaN when they have none.
+                let radius = if p[2].is_nan() { 0.0 } else { p[2] };
+                if !normalized(&[p[0], p[1], radius]) {
+                    return Answer::denied(format!(
+                        "track point ({}, {}) radius {}",
+                        p[0], p[1], p[2]
+                    ));
+                }
+                let r = radius as f64;
+                let (x, y) = (p[0] as f64, p[1] as f64);
+                (
+                    Shape::Point,
+                    DVec2::new(x, y),
+                    [DVec2::new(x - r, y), DVec2::new(x + r, y)],
+                )
+            }
+            MAV_CMD_CAMERA_TRACK_RECTANGLE => {
+                if !normalized(&p[..4]) || p[0] >= p[2] || p[1] >= p[3] {
+                    return Answer::denied(format!(
+                        "track rectangle ({}, {}) to ({}, {})",
+                        p[0], p[1], p[2], p[3]
+                    ));
+                }
+                let (a, b) = (
+                    DVec2::new(p[0] as f64, p[1] as f64),
+                    DVec2::new(p[2] as f64, p[3] as f64),
+                );
+                (Shape::Rectangle, (a + b) / 2.0, [a, b])
+            }
+            _ => unreachable!("only the tracking commands come here"),
+        };
+        let snapshot = self.live.snapshot();
+        let rays = match self.picture_rays(&snapshot, i, centre, corners) {
+            Ok(r) => r,
+            Err(e) => return Answer::denied(e),
+        };
+        let (ray, a, b) = rays;
+        let size = match shape {
+            Shape::Point => a.angle_between(b),
+            // The larger side: the corners' rays span the diagonal.
+            Shape::Rectangle => a.angle_between(b) / std::f64::consts::SQRT_2,
+        }
+        .max(MIN_SIZE);
+        let (yaw, pitch) = crate::geometry::rotation::yaw_pitch(ray);
+        let ground = ground_point(&snapshot.vehicle.position, ray).map(|(g, _)| g);
+        let follow = Follow {
+            shape,
+            yaw,
+            pitch,
+            size,
+            ground,
+            since_us: crate::clock::clock_us(),
+            object: None,
+        };
+        let set = self.live.update(|s| {
+            s.cameras[i].steer_by_hand();
+            s.cameras[i].follow = Some(follow);
+            s.aim_followers();
+            Ok::<_, Invalid>(())
+        });
+        if let Err(e) = set {
+            return Answer::denied(e);
+        }
+        self.periodic().cameras[i].rates = None;
+        tracing::info!(
+            "camera {i}: follows what is at ({:.3}, {:.3}) of its picture, {:.1}° across",
+            centre.x,
+            centre.y,
+            size.to_degrees()
+        );
+        Answer::accepted(vec![self.tracking_image_status(&self.live.snapshot(), i)])
+    }
+
+    /// Camera `i`'s own picture as its stream draws it from `s`.
+    fn own_picture(&self, s: &State, i: usize) -> Result<FramePlan, String> {
+        let lens = self
+            .live
+            .lenses()
+            .for_frame(s.lens, (s.sensor.width, s.sensor.height), s.sensor.roi())
+            .map_err(|e| e.to_string())?;
+        Ok(FramePlan::single_view(
+            s,
+            &lens,
+            i,
+            self.cfg.width,
+            self.cfg.height,
+        ))
+    }
+
+    /// The world rays through `centre` and the two `corners` of camera `i`'s picture
+    /// (normalized, from its top left).
+    fn picture_rays(
+        &self,
+        s: &State,
+        i: usize,
+        centre: DVec2,
+        corners: [DVec2; 2],
+    ) -> Result<(DVec3, DVec3, DVec3), String> {
+        let plan = self.own_picture(s, i)?;
+        let view = &plan.views[0];
+        let size = DVec2::new(self.cfg.width as f64, self.cfg.height as f64);
+        let ray = |q: DVec2| {
+            plan.world_ray(view, q * size).ok_or_else(|| {
+                format!(
+                    "({:.3}, {:.3}) of camera {i}'s picture sees nothing (outside the lens)",
+                    q.x, q.y
+                )
+            })
+        };
+        Ok((
+            ray(centre)?,
+            ray(corners[0]).unwrap_or(ray(centre)?),
+            ray(corners[1]).unwrap_or(ray(centre)?),
+        ))
+    }
+
+    /// What camera `i` follows as of now: its direction and angular size, and its motion
+    /// across the sky (world NED per second) where the tracker measured one.
+    fn followed_now(s: &State, i: usize) -> Option<(DVec3, f64, DVec3)> {
+        let f = s.cameras[i].follow?;
+        if let Some(o) = s.followed(i) {
+            let o = o.at(crate::clock::clock_us());
+            let v = DVec3::from_array(o.velocity);
+            return Some((direction(o.yaw, o.pitch), o.size, v));
+        }
+        let ray = f
+            .ground
+            .and_then(|g| crate::geometry::ground::ray_to_target(&s.vehicle.position, g))
+            .unwrap_or_else(|| direction(f.yaw, f.pitch));
+        Some((ray, f.size, DVec3::ZERO))
+    }
+
+    /// CAMERA_TRACKING_IMAGE_STATUS: where what camera `i` follows is in its picture.
+    pub(super) fn tracking_image_status(&self, s: &State, i: usize) -> MavMessage {
+        let mut m = CAMERA_TRACKING_IMAGE_STATUS_DATA {
+            tracking_status: CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_IDLE,
+            tracking_mode: CameraTrackingMode::CAMERA_TRACKING_MODE_NONE,
+            target_data: CameraTrackingTargetData::empty(),
+            point_x: f32::NAN,
+            point_y: f32::NAN,
+            radius: f32::NAN,
+            rec_top_x: f32::NAN,
+            rec_top_y: f32::NAN,
+            rec_bottom_x: f32::NAN,
+            rec_bottom_y: f32::NAN,
+            camera_device_id: 0,
+        };
+        let (Some(f), Some((ray, size, _))) = (s.cameras[i].follow, Self::followed_now(s, i))
+        else {
+            return MavMessage::CAMERA_TRACKING_IMAGE_STATUS(m);
+        };
+        m.tracking_status = CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_ACTIVE;
+        m.target_data = CameraTrackingTargetData::CAMERA_TRACKING_TARGET_DATA_IN_STATUS;
+        // Aimed as the next frame will be.
+        let mut now = s.clone();
+        for o in &mut now.tracked {
+            *o = o.at(crate::clock::clock_us());
+        }
+        now.aim_followers();
+        let (w, h) = (self.cfg.width as f64, self.cfg.height as f64);
+        let Some(p) = self
+            .own_picture(&now, i)
+            .ok()
+            .and_then(|plan| plan.view_point(&plan.views[0], ray))
+        else {
+            return MavMessage::CAMERA_TRACKING_IMAGE_STATUS(m);
+        };
+        let (x, y) = (p.x / w, p.y / h);
+        // Half the size, as parts of the picture's width and height.
+        let cam = &now.cameras[i];
+        let half_w = (size / 2.0) / cam.fov;
+        let half_h = half_w * w / h;
+        match f.shape {
+            Shape::Point => {
+                m.tracking_mode = CameraTrackingMode::CAMERA_TRACKING_MODE_POINT;
+                (m.point_x, m.point_y, m.radius) = (x as f32, y as f32, half_w as f32);
+            }
+            Shape::Rectangle => {
+                m.tracking_mode = CameraTrackingMode::CAMERA_TRACKING_MODE_RECTANGLE;
+                m.rec_top_x = (x - half_w) as f32;
+                m.rec_top_y = (y - half_h) as f32;
+                m.rec_bottom_x = (x + half_w) as f32;
+                m.rec_bottom_y = (y + half_h) as f32;
+            }
+        }
+        MavMessage::CAMERA_TRACKING_IMAGE_STATUS(m)
+    }
+
+    /// CAMERA_TRACKING_GEO_STATUS: where what camera `i` follows is on the ground, how far,
+    /// and how fast it moves there.
+    pub(super) fn tracking_geo_status(&self, s: &State, i: usize) -> MavMessage {
+        let nan = f32::NAN;
+        let mut m = CAMERA_TRACKING_GEO_STATUS_DATA {
+            tracking_status: CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_IDLE,
+            lat: 0,
+            lon: 0,
+            alt: nan,
+            h_acc: nan,
+            v_acc: nan,
+            vel_n: nan,
+            vel_e: nan,
+            vel_d: nan,
+            vel_acc: nan,
+            dist: nan,
+            hdg: nan,
+            hdg_acc: nan,
+            camera_device_id: 0,
+        };
+        let Some((ray, _, velocity)) = Self::followed_now(s, i) else {
+            return MavMessage::CAMERA_TRACKING_GEO_STATUS(m);
+        };
+        m.tracking_status = CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_ACTIVE;
+        let position = &s.vehicle.position;
+        let Some((g, dist)) = ground_point(position, ray) else {
+            return MavMessage::CAMERA_TRACKING_GEO_STATUS(m);
+        };
+        (m.lat, m.lon) = ((g.lat * 1e7).round() as i32, (g.lon * 1e7).round() as i32);
+        (m.alt, m.dist) = (g.alt as f32, dist as f32);
+        // Where its motion across the sky takes it on the ground in a second.
+        if velocity != DVec3::ZERO
+            && let Some((later, _)) = ground_point(position, moved_on(ray, velocity, 1.0))
+        {
+            let v = to_ned(g, later);
+            (m.vel_n, m.vel_e, m.vel_d) = (v.x as f32, v.y as f32, v.z as f32);
+            m.hdg = v.y.atan2(v.x).rem_euclid(std::f64::consts::TAU) as f32;
+        }
+        MavMessage::CAMERA_TRACKING_GEO_STATUS(m)
+    }
+
+    /// Streams camera `i`'s tracking statuses while it follows something, and once more
+    /// when it stops.
+    pub(super) fn report_tracking(&self, out: &Outbox, s: &State, i: usize, now: Instant) {
+        let following = s.cameras[i].follow.is_some();
+        let due = {
+            let mut p = self.periodic();
+            let c = &mut p.cameras[i];
+            let due = (following || c.was_following)
+                && c.tracking_sent.is_none_or(|t| now - t >= STATUS_EVERY);
+            if due {
+                (c.tracking_sent, c.was_following) = (Some(now), following);
+            }
+            due
+        };
+        if due {
+            let component = super::FIRST_COMPONENT + i as u8;
+            out.send(component, &self.tracking_image_status(s, i));
+            out.send(component, &self.tracking_geo_status(s, i));
+        }
+    }
+}
