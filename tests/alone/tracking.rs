@@ -79,6 +79,24 @@ fn a_view_follows_the_mover_a_ground_station_clicks_until_told_to_stop() {
     });
     assert!(tracks, "CAMERA_INFORMATION does not offer point tracking");
 
+    // Clicks outside the picture, or not numbers, are refused.
+    for (command, p) in [
+        (MavCmd::MAV_CMD_CAMERA_TRACK_POINT, &[1.5, 0.5, 0.0][..]),
+        (MavCmd::MAV_CMD_CAMERA_TRACK_POINT, &[f32::NAN, 0.5, 0.0]),
+        (MavCmd::MAV_CMD_CAMERA_TRACK_POINT, &[0.5, 0.5, -0.1]),
+        (
+            MavCmd::MAV_CMD_CAMERA_TRACK_RECTANGLE,
+            &[0.6, 0.4, 0.4, 0.6],
+        ),
+    ] {
+        let answer = gcs.command(system, 100, command, params(p));
+        assert_eq!(
+            answer.map(|a| a.0),
+            Some(MavResult::MAV_RESULT_DENIED),
+            "{command:?} {p:?}"
+        );
+    }
+
     // Find the mover in camera 0's picture, and click on it.
     let viewer = Viewer::open(&format!("{}/cam0", serve.rtsp.clone().unwrap()));
     let start = Instant::now();

@@ -93,6 +93,44 @@ fn pymavlink_gets_the_streams_with_nan_or_zero_and_each_command_the_same_long_or
         (fov["hfov"].as_f64().unwrap() - hfov).abs() < 0.05,
         "{fov}: {hfov}"
     );
+
+    // Click to track, as pymavlink reads it: following the centre of that same picture, the
+    // image status puts it at the centre and the geo status where CAMERA_FOV_STATUS's centre
+    // is; after the stop (as COMMAND_INT) the last status says idle.
+    let track = events
+        .iter()
+        .find(|e| e["event"] == "track")
+        .expect("track");
+    assert_eq!(track["result"], "MAV_RESULT_ACCEPTED", "{track}");
+    assert_eq!(track["stop"], "MAV_RESULT_ACCEPTED", "{track}");
+    let image = track["image"].as_array().unwrap();
+    assert!(!image.is_empty(), "{track}");
+    for i in image {
+        // Active (1), point mode (1), at the centre, radius 0.05 as clicked.
+        let n = |k: usize| i[k].as_f64().unwrap();
+        assert_eq!((n(0), n(1)), (1.0, 1.0), "{i}");
+        assert!(
+            (n(2) - 0.5).abs() < 0.01 && (n(3) - 0.5).abs() < 0.01,
+            "{i}"
+        );
+        assert!((n(4) - 0.05).abs() < 0.005, "{i}");
+    }
+    let geo = track["geo"]
+        .as_array()
+        .unwrap()
+        .last()
+        .cloned()
+        .expect("a geo status");
+    let at = GeoPoint {
+        lat: geo[1].as_f64().unwrap(),
+        lon: geo[2].as_f64().unwrap(),
+        alt: geo[3].as_f64().unwrap(),
+    };
+    let off = to_ned(said, at).length();
+    println!("CAMERA_TRACKING_GEO_STATUS is {off:.3} m from CAMERA_FOV_STATUS's centre: {geo}");
+    assert!(off < 2.0, "{off:.2} m apart: {geo} and {said:?}");
+    let idle = track["idle"].as_array().unwrap().last().cloned();
+    assert_eq!(idle, Some(serde_json::json!([0, 0])), "{track}");
     drop(serve);
 }
 

@@ -249,6 +249,12 @@ fn allow_set_none_reaches_mavlink_and_refusals_do_not_flood_the_log() {
         (MAV_CMD_VIDEO_START_CAPTURE, params(&[])),
         (MAV_CMD_SET_CAMERA_MODE, params(&[0.0, 1.0])),
         (MAV_CMD_STORAGE_FORMAT, params(&[1.0, 1.0])),
+        (MAV_CMD_CAMERA_TRACK_POINT, params(&[0.5, 0.5, 0.1])),
+        (
+            MAV_CMD_CAMERA_TRACK_RECTANGLE,
+            params(&[0.4, 0.4, 0.6, 0.6]),
+        ),
+        (MAV_CMD_CAMERA_STOP_TRACKING, params(&[])),
     ] {
         let r = result(gcs.command(system, 101, command, p), "command");
         assert_eq!(r, MavResult::MAV_RESULT_DENIED, "{command:?}");

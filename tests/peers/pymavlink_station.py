@@ -7,7 +7,9 @@ tests/it/pymavlink.rs. Against camera 101 of a running `serve` (the demo hoverin
 - each gimbal and camera command sent as COMMAND_LONG and, from the same starting state, as
   COMMAND_INT: the ACK of each and what the camera reports after it (the gimbal's attitude
   quaternion, the zoom level, the camera mode);
-- CAMERA_FOV_STATUS with the view turned 45 degrees down, left so for the test.
+- CAMERA_TRACK_POINT on the centre of the picture with the view turned 45 degrees down:
+  the tracking statuses, then CAMERA_STOP_TRACKING;
+- CAMERA_FOV_STATUS with the view turned so again, left so for the test.
 
 Prints one JSON object per line. Usage: pymavlink_station.py PORT LAT LON ALT, the point on
 the ground (degrees, metres above sea level) to point a view at.
@@ -121,6 +123,23 @@ def main():
                           "long": [long_result, after_long], "int": [int_result, after_int]}),
               flush=True)
 
+    # Click to track the centre of the picture of the view turned 45 degrees down, as below
+    # (COMMAND_LONG), the statuses as pymavlink reads them, then stop (COMMAND_INT).
+    reset()
+    long(mavutil.mavlink.MAV_CMD_SET_CAMERA_ZOOM, 2, 50)
+    long(mavutil.mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, -45, 30, NAN, NAN, 0, 0, 0)
+    result, then = long(mavutil.mavlink.MAV_CMD_CAMERA_TRACK_POINT, 0.5, 0.5, 0.05)
+    image = [x for x in then if x.get_type() == "CAMERA_TRACKING_IMAGE_STATUS"]
+    _, then = long(mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 276)
+    geo = [x for x in then if x.get_type() == "CAMERA_TRACKING_GEO_STATUS"]
+    stop, then = int_(mavutil.mavlink.MAV_CMD_CAMERA_STOP_TRACKING, global_frame)
+    idle = [x for x in then if x.get_type() == "CAMERA_TRACKING_IMAGE_STATUS"]
+    print(json.dumps({
+        "event": "track", "result": result, "stop": stop,
+        "image": [[x.tracking_status, x.tracking_mode, x.point_x, x.point_y, x.radius]
+                  for x in image],
+        "geo": [[x.tracking_status, x.lat / 1e7, x.lon / 1e7, x.alt, x.dist] for x in geo],
+        "idle": [[x.tracking_status, x.tracking_mode] for x in idle]}), flush=True)
     # Where the view looks, 45 degrees down: CAMERA_FOV_STATUS (left so for the test to check).
     reset()
     long(mavutil.mavlink.MAV_CMD_SET_CAMERA_ZOOM, 2, 50)
@@ -131,6 +150,7 @@ def main():
                       "lon_image": fov.lon_image / 1e7, "alt_image": fov.alt_image / 1e3,
                       "lat_camera": fov.lat_camera / 1e7, "hfov": fov.hfov, "vfov": fov.vfov,
                       "q": list(fov.q)}), flush=True)
+
     return 0
 
 
