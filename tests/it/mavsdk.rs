@@ -126,6 +126,22 @@ fn mavsdk_lists_the_cameras_with_their_own_streams_and_named_gimbals_and_rates_s
         );
     }
 
+    // After LAYOUT=1 the two cameras that still beat are what an app that connects then
+    // lists. (MAVSDK keeps a camera for as long as its system stays connected: one already
+    // connected goes on listing four, docs/mavlink.md.)
+    let o = common::ctl(
+        &serve.addr.to_string(),
+        &["set", "video_output", "layout_mode=1"],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (listed, later_log) = run_peer("mavsdk_station.py", &[&relay.port.to_string(), "list"]);
+    let listed: Value = serde_json::from_str(listed.trim()).unwrap();
+    assert_eq!(
+        listed["ids"],
+        serde_json::json!([100, 101]),
+        "{listed}\n{later_log}"
+    );
+
     // Nothing asked more than three times over (counted on the wire), no error in MAVSDK's log.
     let sent = relay.sent.lock().unwrap().clone();
     let retried: Vec<_> = sent.iter().filter(|(_, s)| s.retries > 3).collect();

@@ -8,7 +8,9 @@ is up. It prints one JSON object per line, each with `t`, the monotonic clock (t
 own clock too), so the test can line up what the view did with what was asked. MAVSDK's own
 log goes to stderr.
 
-Usage: mavsdk_station.py PORT SECONDS
+With `list` for SECONDS it only connects, waits 3 s and says which cameras it lists.
+
+Usage: mavsdk_station.py PORT SECONDS|list
 """
 
 import json
@@ -28,7 +30,8 @@ def say(event, **fields):
 
 
 def main():
-    port, seconds = int(sys.argv[1]), float(sys.argv[2])
+    port = int(sys.argv[1])
+    seconds = 0.0 if sys.argv[2] == "list" else float(sys.argv[2])
     mavsdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
     start = time.monotonic()
     mavsdk.add_any_connection(f"udpout://127.0.0.1:{port}")
@@ -39,6 +42,10 @@ def main():
         time.sleep(0.02)
     system = mavsdk.get_systems()[0]
     camera, gimbal = Camera(system), Gimbal(system)
+    if sys.argv[2] == "list":
+        time.sleep(3.0)
+        say("listed", ids=sorted(c.component_id for c in camera.camera_list().cameras))
+        return 0
 
     cameras = gimbals = None
     while time.monotonic() - start < 10 and (cameras is None or gimbals is None):
