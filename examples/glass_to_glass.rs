@@ -61,6 +61,9 @@ fn main() {
     let dir = tempfile::tempdir().unwrap();
     let state_file = dir.path().join("state.toml");
     std::fs::write(&state_file, toml::to_string(&state).unwrap()).unwrap();
+    // The head's own figures by stage, every 5 s.
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(&config, "health_interval_s = 5\n").unwrap();
 
     let cal = LensCal::load(std::path::Path::new("lens-cal/lens.cal")).unwrap();
     let lens = cal.entries[0].lens().for_frame(DEMO.0, DEMO.1, None);
@@ -103,9 +106,23 @@ fn main() {
         .args(["--http", "127.0.0.1:0"])
         .args(["--demo-hover", "--demo-stamp", "--demo-size", "1280x720"])
         .args(["--state", state_file.to_str().unwrap()])
+        .args(["--config", config.to_str().unwrap()])
         .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
         .spawn()
         .expect("digiview serve starts");
+    // Its log: the lines saying where the frames' time went, the last kept.
+    let stages = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+    {
+        let (stages, log) = (stages.clone(), serve.stderr.take().unwrap());
+        std::thread::spawn(move || {
+            for line in std::io::BufReader::new(log).lines().map_while(Result::ok) {
+                if let Some(i) = line.find("latency over") {
+                    *stages.lock().unwrap() = line[i..].to_string();
+                }
+            }
+        });
+    }
     // serve announces its control, RTSP and HTTP addresses, one line each, HTTP last.
     let (mut url, mut page) = (String::new(), String::new());
     for line in std::io::BufReader::new(serve.stdout.take().unwrap()).lines() {
@@ -143,6 +160,7 @@ fn main() {
         latencies[0],
         latencies[latencies.len() - 1]
     );
+    println!("head's {}", stages.lock().unwrap());
 }
 
 /// The stamp's value from a frame's luma: each cell's mean against mid-grey.
@@ -176,12 +194,32 @@ fn rtsp_latencies(
 ) -> (Vec<f64>, usize) {
     gst::init().unwrap();
     let pipeline = gst::parse::launch(&format!(
-        "rtspsrc location={url} latency=0 protocols=tcp ! rtph264depay ! h264parse \
+        "rtspsrc location={url} latency=0 protocols=tcp ! rtph264depay ! h264parse name=parse \
          ! {decoder} ! videoconvert ! video/x-raw,format=GRAY8 ! appsink name=sink sync=false"
     ))
     .unwrap()
     .downcast::<gst::Pipeline>()
     .unwrap();
+    // When each access unit was whole here (out of the parser), by its timestamp: the
+    // decoded frame with the same timestamp splits its latency into arriving and decoding.
+    let received = std::sync::Arc::new(std::sync::Mutex::new(
+        std::collections::HashMap::<u64, u64>::new(),
+    ));
+    {
+        let received = received.clone();
+        let pad = pipeline
+            .by_name("parse")
+            .unwrap()
+            .static_pad("src")
+            .unwrap();
+        pad.add_probe(gst::PadProbeType::BUFFER, move |_, info| {
+            if let Some(pts) = info.buffer().and_then(|b| b.pts()) {
+                received.lock().unwrap().insert(pts.nseconds(), clock_us());
+            }
+            gst::PadProbeReturn::Ok
+        });
+    }
+    let mut arrivals = vec![];
     let sink = pipeline
         .by_name("sink")
         .unwrap()
@@ -208,10 +246,29 @@ fn rtsp_latencies(
         let stamp = read_stamp(cells, w, |x, y| {
             data[y as usize * stride + x as usize] as f64
         });
-        match latency(now_ms, stamp) {
-            Some(l) => latencies.push(l),
-            None => unread += 1,
+        let Some(l) = latency(now_ms, stamp) else {
+            unread += 1;
+            continue;
+        };
+        latencies.push(l);
+        let pts = sample.buffer().and_then(|b| b.pts()).map(|p| p.nseconds());
+        if let Some(at) = pts.and_then(|p| received.lock().unwrap().remove(&p)) {
+            arrivals.push(l - (now_ms as f64 - at as f64 / 1000.0));
         }
+    }
+    arrivals.sort_by(f64::total_cmp);
+    if !arrivals.is_empty() {
+        eprintln!(
+            "glass_to_glass: whole at the client (out of h264parse) {:.1} ms after capture, \
+             decoded and converted {:.1} ms after that (medians, {} frames)",
+            arrivals[arrivals.len() / 2],
+            {
+                let mut d = latencies.clone();
+                d.sort_by(f64::total_cmp);
+                d[d.len() / 2] - arrivals[arrivals.len() / 2]
+            },
+            arrivals.len()
+        );
     }
     // The decoder that ran (decodebin's pick, where it was asked to choose).
     let decoders: Vec<String> = pipeline

@@ -7,3 +7,18 @@
 pub fn clock_us() -> u64 {
     gstreamer::get_timestamp().useconds()
 }
+
+/// When one frame passed each stage on its way to the stream, on [`clock_us`] (0 for a stage
+/// not reached): captured (the source's stamp), in the slot, taken by the frame loop,
+/// rendered and read back, handed to the encoder, out of the encoder, handed to the RTSP
+/// clients, page viewers, recorder and relays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stamps {
+    pub captured: u64,
+    pub arrived: u64,
+    pub taken: u64,
+    pub rendered: u64,
+    pub encoder_in: u64,
+    pub encoded: u64,
+    pub sent: u64,
+}

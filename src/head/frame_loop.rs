@@ -7,6 +7,7 @@ use super::pacing::Pacer;
 use super::supervise::Fault;
 use super::views::ViewOutputs;
 use super::{Head, HeadError, no_signal};
+use crate::clock::{Stamps, clock_us};
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
 use crate::head::capture::Still;
 use crate::lens::Lens;
@@ -54,6 +55,12 @@ impl Head {
                 if p.push(&au) {
                     head.key_wanted.store(true, Ordering::Relaxed);
                 }
+            }
+            if let Some(s) = au.stamps {
+                head.latency.record(Stamps {
+                    sent: clock_us(),
+                    ..s
+                });
             }
             if let Some(t) = au.encode_time {
                 head.stats.encoded.fetch_add(1, Ordering::Relaxed);
@@ -107,6 +114,16 @@ impl Head {
             if let Some((f, _)) = &fresh {
                 self.observe_exposure(f, &state);
             }
+            // A fresh frame's way out, stamped stage by stage.
+            let mut stamps = fresh.as_ref().map(|(f, arrived)| {
+                let now = clock_us();
+                Stamps {
+                    captured: f.captured_us,
+                    arrived: now.saturating_sub(arrived.elapsed().as_micros() as u64),
+                    taken: now,
+                    ..Stamps::default()
+                }
+            });
             let arrived = fresh.map(|(f, arrived)| {
                 last_frame = Some(f);
                 arrived.saturating_duration_since(start)
@@ -129,7 +146,10 @@ impl Head {
                             (data, layout)
                         })
                 }
-                _ => Ok(no_signal::frame(state.output.width, state.output.height)),
+                _ => {
+                    stamps = None;
+                    Ok(no_signal::frame(state.output.width, state.output.height))
+                }
             };
             let (data, layout) = match rendered {
                 Ok(r) => r,
@@ -156,12 +176,15 @@ impl Head {
                 .render_us
                 .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
             self.stats.out.fetch_add(1, Ordering::Relaxed);
+            if let Some(s) = &mut stamps {
+                s.rendered = clock_us();
+            }
             self.offer_still(&data, layout, last_frame.as_ref());
             if self.key_wanted.swap(false, Ordering::Relaxed) | self.capture.take_key_request() {
                 encoder.force_key_unit();
             }
             let dropped_before = encoder.dropped;
-            if let Err(e) = encoder.push(data, &layout, pts, state.output.fps) {
+            if let Err(e) = encoder.push_stamped(data, &layout, pts, state.output.fps, stamps) {
                 error!("{e}; rebuilding the encoder");
                 self.live.set_failure(Failure::Encoder);
                 healthy = Some(false);

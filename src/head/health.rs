@@ -36,12 +36,16 @@ pub struct Health {
     /// Crops the track step looked at again, a second.
     pub crops: f64,
     pub tracked: usize,
+    /// Where the frames' time went, capture to sent (None while none went out).
+    pub latency: Option<super::latency::Stages>,
 }
 
 /// The counters at one moment.
 #[derive(Clone, Copy)]
 struct Sample {
     at: Instant,
+    /// `at` on `crate::clock::clock_us`.
+    clock_us: u64,
     received: u64,
     dropped: u64,
     out: u64,
@@ -112,6 +116,7 @@ impl Head {
         let slot = self.slot.stats();
         Sample {
             at: Instant::now(),
+            clock_us: crate::clock::clock_us(),
             received: slot.received,
             dropped: slot.dropped,
             out: s.out.load(Ordering::Relaxed),
@@ -157,6 +162,7 @@ impl Head {
             ),
             crops: (b.crops - a.crops) as f64 / secs,
             tracked: self.live.snapshot().tracked.len(),
+            latency: self.latency.since(a.clock_us),
         }
     }
 
@@ -184,7 +190,11 @@ impl Head {
                 last = now;
             }
             if log_every.is_some_and(|e| now.at - logged.at >= e) {
-                info!("{}", self.health_between(&logged, &now));
+                let health = self.health_between(&logged, &now);
+                info!("{health}");
+                if let Some(l) = health.latency {
+                    info!("{l}");
+                }
                 logged = now;
             }
         }

@@ -20,6 +20,7 @@ mod exposure;
 mod external;
 mod frame_loop;
 pub mod health;
+pub mod latency;
 mod no_signal;
 pub mod pacing;
 mod source_thread;
@@ -100,6 +101,8 @@ pub struct Head {
     /// Why the source is down, while it is.
     source_error: Mutex<Option<String>>,
     stats: Stats,
+    /// Where the frames' time goes, stage by stage.
+    latency: latency::Latency,
     /// The figures over the last second.
     health: Mutex<health::Health>,
     exposure: exposure::ExposureStage,
@@ -175,6 +178,7 @@ impl Head {
             key_wanted,
             source_error: Mutex::new(None),
             stats: Stats::default(),
+            latency: latency::Latency::default(),
             health: Mutex::default(),
             exposure,
             scans: detection::ScanSlot::default(),

@@ -4,6 +4,7 @@
 //! rate is a caps change on the appsrc: the encoder reconfigures in place, the stream goes on.
 
 use super::{H264_CAPS, StreamError};
+use crate::clock::{Stamps, clock_us};
 use crate::frame::{PixelFormat, PlaneLayout};
 use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
 use gstreamer as gst;
@@ -52,9 +53,14 @@ pub struct AccessUnit {
     pub key: bool,
     /// From push to this unit leaving the encoder.
     pub encode_time: Option<Duration>,
+    /// The frame's stamps as pushed, with `encoded` set as it left the encoder.
+    pub stamps: Option<Stamps>,
 }
 
 type Sink = Box<dyn Fn(AccessUnit) + Send + Sync>;
+
+/// The frames in the encoder, oldest first: when each was pushed, and its stamps.
+type Pending = Arc<Mutex<VecDeque<(Instant, Option<Stamps>)>>>;
 
 pub struct Encoder {
     pipeline: gst::Pipeline,
@@ -62,7 +68,7 @@ pub struct Encoder {
     element: gst::Element,
     name: String,
     caps: Option<(u32, u32, u32)>,
-    pending: Arc<Mutex<VecDeque<Instant>>>,
+    pending: Pending,
     /// Frames refused because the encoder was behind.
     pub dropped: u64,
     /// Wait for the encoder instead of dropping (offline rendering).
@@ -146,7 +152,7 @@ impl Encoder {
         let src: gst_app::AppSrc = element(&pipeline, "src")?;
         let encoder: gst::Element = element(&pipeline, "enc")?;
         let appsink: gst_app::AppSink = element(&pipeline, "sink")?;
-        let pending: Arc<Mutex<VecDeque<Instant>>> = Arc::default();
+        let pending: Pending = Arc::default();
         let waiting = pending.clone();
         appsink.set_callbacks(
             gst_app::AppSinkCallbacks::builder()
@@ -157,16 +163,21 @@ impl Encoder {
                     };
                     // One unit per frame, in order (no B-frames; the encoder shifts
                     // timestamps, so they cannot be matched).
-                    let encode_time = waiting
+                    let pushed = waiting
                         .lock()
                         .unwrap_or_else(|e| e.into_inner())
-                        .pop_front()
-                        .map(|at| at.elapsed());
+                        .pop_front();
+                    let encode_time = pushed.map(|(at, _)| at.elapsed());
+                    let stamps = pushed.and_then(|(_, s)| s).map(|s| Stamps {
+                        encoded: clock_us(),
+                        ..s
+                    });
                     let key = !buffer.flags().contains(gst::BufferFlags::DELTA_UNIT);
                     sink(AccessUnit {
                         buffer,
                         key,
                         encode_time,
+                        stamps,
                     });
                     Ok(gst::FlowSuccess::Ok)
                 })
@@ -224,6 +235,19 @@ impl Encoder {
         pts: Duration,
         fps: u32,
     ) -> Result<(), StreamError> {
+        self.push_stamped(data, layout, pts, fps, None)
+    }
+
+    /// As [`Encoder::push`], the frame's stamps carried to its access unit (with
+    /// `encoder_in` set now).
+    pub fn push_stamped(
+        &mut self,
+        data: Vec<u8>,
+        layout: &PlaneLayout,
+        pts: Duration,
+        fps: u32,
+        stamps: Option<Stamps>,
+    ) -> Result<(), StreamError> {
         if let Some(e) = bus_error(&self.pipeline) {
             return Err(self.failed(e));
         }
@@ -234,7 +258,11 @@ impl Encoder {
         loop {
             let mut q = self.pending.lock().unwrap_or_else(|e| e.into_inner());
             if q.len() < BACKLOG {
-                q.push_back(Instant::now());
+                let stamps = stamps.map(|s| Stamps {
+                    encoder_in: clock_us(),
+                    ..s
+                });
+                q.push_back((Instant::now(), stamps));
                 break;
             }
             if !self.blocking {
