@@ -238,6 +238,25 @@ impl Config {
                 self.encoder.bitrate_kbps
             ));
         }
+        let named = match self.encoder.kind.as_str() {
+            "x264" | "x265" => Some(&self.encoder.kind[..]),
+            k if k.contains("h264") => Some("x264"),
+            k if k.contains("h265") => Some("x265"),
+            _ => None,
+        };
+        let wanted = match self.encoder.codec {
+            crate::stream::Codec::H264 => "x264",
+            crate::stream::Codec::H265 => "x265",
+        };
+        if named.is_some_and(|n| n != wanted) {
+            return out_of_range(format!(
+                "encoder kind {} does not encode {} (codec = \"{}\"): use \"auto\" or an {} encoder",
+                self.encoder.kind,
+                self.encoder.codec.name(),
+                format!("{:?}", self.encoder.codec).to_lowercase(),
+                self.encoder.codec.name()
+            ));
+        }
         if !(0.1..=60.0).contains(&self.encoder.key_interval_s) {
             return out_of_range(format!(
                 "encoder key_interval_s {} is outside 0.1..=60",

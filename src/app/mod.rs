@@ -88,7 +88,10 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
         .parse()
         .map_err(|e| ServeError::ControlListen(cfg.control.listen.clone(), e))?;
 
-    let capture = Arc::new(Capture::new(cfg.capture.clone()));
+    let capture = Arc::new(Capture::new(crate::head::capture::CaptureConfig {
+        codec: cfg.encoder.codec,
+        ..cfg.capture.clone()
+    }));
     let hook: Box<dyn Capturer> = match no_video {
         true => Box::new(NoVideo),
         false => Box::new(capture.clone()),
@@ -268,7 +271,12 @@ fn start_head(
 ) -> Result<(Arc<Head>, String), ServeError> {
     let key_wanted = Arc::new(AtomicBool::new(false));
     let wanted = key_wanted.clone();
-    let rtsp = Rtsp::start(&cfg.rtsp, move || wanted.store(true, Ordering::Relaxed))?;
+    let codec = cfg.encoder.codec;
+    let rtsp_cfg = crate::stream::RtspConfig {
+        codec,
+        ..cfg.rtsp.clone()
+    };
+    let rtsp = Rtsp::start(&rtsp_cfg, move || wanted.store(true, Ordering::Relaxed))?;
     let host = match cfg.rtsp.address.as_str() {
         "0.0.0.0" | "::" => "127.0.0.1",
         a => a,
@@ -277,12 +285,13 @@ fn start_head(
     if let Some(c) = cameras {
         let public = cameras::public_host(&cfg.cameras, &cfg.rtsp.address);
         let base = format!("rtsp://{public}:{}{}", rtsp.port(), rtsp.path());
-        c.set_streams(base, cfg.encoder.bitrate_kbps);
+        c.set_streams(base, cfg.encoder.bitrate_kbps, codec);
     }
     let publishers = cfg
         .publish_targets()?
         .into_iter()
-        .map(|target| {
+        .map(|mut target| {
+            target.codec = codec;
             let wanted = key_wanted.clone();
             info!("publishing to {}", target.url);
             let report: Arc<dyn crate::supervise::Report> = live.clone();

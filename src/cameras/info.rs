@@ -220,7 +220,14 @@ impl Cameras {
                     mavtype: VideoStreamType::VIDEO_STREAM_TYPE_RTSP,
                     name: name.as_str().into(),
                     uri: uri.as_str().into(),
-                    encoding: VideoStreamEncoding::VIDEO_STREAM_ENCODING_H264,
+                    encoding: match streams.codec {
+                        crate::stream::Codec::H264 => {
+                            VideoStreamEncoding::VIDEO_STREAM_ENCODING_H264
+                        }
+                        crate::stream::Codec::H265 => {
+                            VideoStreamEncoding::VIDEO_STREAM_ENCODING_H265
+                        }
+                    },
                     camera_device_id: 0,
                 })
             })

@@ -79,6 +79,8 @@ pub struct Streams {
     /// `rtsp://HOST:PORT/PATH` of the composed frame; a view's is this plus `/camN`.
     pub base: String,
     pub bitrate_kbps: u32,
+    /// The streams' coding (VIDEO_STREAM_INFORMATION's `encoding`).
+    pub codec: crate::stream::Codec,
     /// Where the HTTP server serves the captures (a capture's URL is this plus its file
     /// name), once it serves.
     pub captures: Option<String>,
@@ -176,9 +178,9 @@ impl Cameras {
     }
 
     /// Where the streams are, once the RTSP server serves.
-    pub fn set_streams(&self, base: String, bitrate_kbps: u32) {
+    pub fn set_streams(&self, base: String, bitrate_kbps: u32, codec: crate::stream::Codec) {
         let mut s = self.streams.lock().unwrap_or_else(|e| e.into_inner());
-        (s.base, s.bitrate_kbps) = (base, bitrate_kbps);
+        (s.base, s.bitrate_kbps, s.codec) = (base, bitrate_kbps, codec);
     }
 
     /// Where the HTTP server serves the captures (a capture's URL is `captures` plus its

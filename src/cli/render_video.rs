@@ -12,7 +12,7 @@ use crate::render::{Filter, FramePlan};
 use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
 use crate::stream::encoder::AccessUnit;
-use crate::stream::{Encoder, EncoderConfig, Recorder};
+use crate::stream::{Codec, Encoder, EncoderConfig, Recorder};
 use anyhow::{Context, Result, anyhow, bail};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -109,11 +109,12 @@ impl Sink {
             Target::Images(pattern) => return Ok(Sink::Images(pattern)),
             Target::Mp4(out) => out,
         };
-        let recorder = Arc::new(Mutex::new(Some(Recorder::start(out.temp())?)));
+        let recorder = Arc::new(Mutex::new(Some(Recorder::start(out.temp(), Codec::H264)?)));
         let feed = recorder.clone();
         let fps = fps.round().clamp(1.0, 240.0) as u32;
         let cfg = EncoderConfig {
             kind: "x264".into(),
+            codec: Codec::H264,
             bitrate_kbps: job.bitrate_kbps,
             key_interval_s: 2.0,
         };

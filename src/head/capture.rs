@@ -44,6 +44,9 @@ pub struct CaptureConfig {
     pub raw: bool,
     /// A capture is refused while the disk has less free space than this.
     pub min_free_mb: u64,
+    /// The recordings' coding: the encoder's (`[encoder] codec`), not a key of `[capture]`.
+    #[serde(skip)]
+    pub codec: crate::stream::Codec,
 }
 
 impl Default for CaptureConfig {
@@ -53,6 +56,7 @@ impl Default for CaptureConfig {
             still_format: StillFormat::Jpeg,
             raw: false,
             min_free_mb: 200,
+            codec: crate::stream::Codec::H264,
         }
     }
 }
@@ -293,7 +297,7 @@ impl Capture {
             return Ok(());
         }
         self.ready()?;
-        let r = Recorder::start(&self.name(&format!("-cam{i}.mp4")))
+        let r = Recorder::start(&self.name(&format!("-cam{i}.mp4")), self.cfg.codec)
             .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
         info!("recording camera {i} to {}", r.path().display());
         recorders[i] = Some(r);
@@ -352,7 +356,7 @@ impl Capturer for Capture {
                 return Ok(());
             }
             self.ready()?;
-            let r = Recorder::start(&self.name(".mp4"))
+            let r = Recorder::start(&self.name(".mp4"), self.cfg.codec)
                 .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
             info!("recording to {}", r.path().display());
             *recorder = Some(r);

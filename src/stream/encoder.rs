@@ -3,7 +3,7 @@
 //! frame, and an appsink handing each access unit to the caller. A new output size or frame
 //! rate is a caps change on the appsrc: the encoder reconfigures in place, the stream goes on.
 
-use super::{H264_CAPS, StreamError};
+use super::{Codec, StreamError};
 use crate::clock::{Stamps, clock_us};
 use crate::frame::{PixelFormat, PlaneLayout};
 use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
@@ -15,10 +15,21 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// Hardware encoders tried before x264 when `kind` is "auto", best first: Jetson's, NVIDIA's
-/// NVENC on a desktop or server GPU (GStreamer's nvcodec plugin registers it only where the
-/// driver has an encoder: not on an H100, which has none), VA-API's, V4L2's.
+/// Hardware encoders tried before the software one when `kind` is "auto", best first:
+/// Jetson's, NVIDIA's NVENC on a desktop or server GPU (GStreamer's nvcodec plugin registers
+/// it only where the driver has an encoder: not on an H100 or H200, which have none),
+/// VA-API's, V4L2's.
 pub const HARDWARE: [&str; 4] = ["nvv4l2h264enc", "nvh264enc", "vaapih264enc", "v4l2h264enc"];
+/// The same for H.265.
+pub const HARDWARE_H265: [&str; 4] = ["nvv4l2h265enc", "nvh265enc", "vaapih265enc", "v4l2h265enc"];
+
+/// The hardware encoders for `codec`, best first, and the software one.
+pub fn encoders(codec: Codec) -> (&'static [&'static str; 4], &'static str) {
+    match codec {
+        Codec::H264 => (&HARDWARE, "x264enc"),
+        Codec::H265 => (&HARDWARE_H265, "x265enc"),
+    }
+}
 /// Frames the encoder may hold before new ones are dropped (it has fallen behind).
 const BACKLOG: usize = 3;
 
@@ -29,9 +40,11 @@ pub const BITRATE_KBPS: (u32, u32) = (100, 100_000);
 #[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EncoderConfig {
-    /// "auto" (a hardware encoder if one is installed, else x264), "x264", or an element
-    /// name such as "vaapih264enc".
+    /// "auto" (a hardware encoder if one is installed, else x264 or x265), "x264", "x265",
+    /// or an element name such as "vaapih264enc".
     pub kind: String,
+    /// "h264" (the default) or "h265".
+    pub codec: Codec,
     pub bitrate_kbps: u32,
     /// Seconds between key frames (clients joining also get one at once).
     pub key_interval_s: f64,
@@ -41,6 +54,7 @@ impl Default for EncoderConfig {
     fn default() -> Self {
         EncoderConfig {
             kind: "auto".into(),
+            codec: Codec::H264,
             bitrate_kbps: 4000,
             key_interval_s: 2.0,
         }
@@ -78,38 +92,40 @@ pub struct Encoder {
 fn element_description(name: &str, cfg: &EncoderConfig, fps: u32) -> String {
     let key = ((cfg.key_interval_s * fps as f64).round() as u32).max(1);
     match name {
-        "x264enc" => format!(
-            "x264enc name=enc tune=zerolatency speed-preset=ultrafast bitrate={} key-int-max={key}",
+        "x264enc" | "x265enc" => format!(
+            "{name} name=enc tune=zerolatency speed-preset=ultrafast bitrate={} key-int-max={key}",
             cfg.bitrate_kbps
         ),
-        "vaapih264enc" => format!(
-            "vaapih264enc name=enc rate-control=cbr bitrate={} keyframe-period={key}",
+        "vaapih264enc" | "vaapih265enc" => format!(
+            "{name} name=enc rate-control=cbr bitrate={} keyframe-period={key}",
             cfg.bitrate_kbps
         ),
         // Low-latency preset, constant bitrate, no B-frames, no lookahead.
-        "nvh264enc" => format!(
-            "nvh264enc name=enc preset=low-latency-hq rc-mode=cbr zerolatency=true bitrate={} \
+        "nvh264enc" | "nvh265enc" => format!(
+            "{name} name=enc preset=low-latency-hq rc-mode=cbr zerolatency=true bitrate={} \
              gop-size={key}",
             cfg.bitrate_kbps
         ),
-        "nvv4l2h264enc" => format!(
-            "nvv4l2h264enc name=enc bitrate={} iframeinterval={key} insert-sps-pps=true",
+        "nvv4l2h264enc" | "nvv4l2h265enc" => format!(
+            "{name} name=enc bitrate={} iframeinterval={key} insert-sps-pps=true",
             cfg.bitrate_kbps * 1000
         ),
         other => format!("{other} name=enc"),
     }
 }
 
-/// The encoders to try for `kind`, in order; `installed` says whether GStreamer has an element.
-fn candidates(kind: &str, installed: impl Fn(&str) -> bool) -> Vec<String> {
+/// The encoders to try for `kind` and `codec`, in order; `installed` says whether GStreamer
+/// has an element.
+fn candidates(kind: &str, codec: Codec, installed: impl Fn(&str) -> bool) -> Vec<String> {
+    let (hardware, software) = encoders(codec);
     match kind {
-        "auto" => HARDWARE
+        "auto" => hardware
             .iter()
             .filter(|n| installed(n))
             .map(|n| n.to_string())
-            .chain(["x264enc".to_string()])
+            .chain([software.to_string()])
             .collect(),
-        "x264" => vec!["x264enc".into()],
+        "x264" | "x265" => vec![format!("{kind}enc")],
         other => vec![other.to_string()],
     }
 }
@@ -125,7 +141,7 @@ impl Encoder {
         let sink: Arc<Sink> = Arc::new(Box::new(sink));
         let mut errors = vec![];
         let installed = |n: &str| gst::ElementFactory::find(n).is_some();
-        for name in candidates(&cfg.kind, installed) {
+        for name in candidates(&cfg.kind, cfg.codec, installed) {
             match Self::start(&name, cfg, fps, sink.clone()) {
                 Ok(e) => return Ok(e),
                 Err(e) => errors.push(format!("{name}: {e}")),
@@ -144,9 +160,11 @@ impl Encoder {
             return Err(StreamError::NotInstalled);
         }
         let description = format!(
-            "appsrc name=src is-live=true format=time ! {} ! h264parse config-interval=-1 \
-             ! {H264_CAPS} ! appsink name=sink sync=false",
-            element_description(name, cfg, fps)
+            "appsrc name=src is-live=true format=time ! {} ! {} config-interval=-1 \
+             ! {} ! appsink name=sink sync=false",
+            element_description(name, cfg, fps),
+            cfg.codec.parser(),
+            cfg.codec.caps()
         );
         let pipeline = launch(&description)?;
         let src: gst_app::AppSrc = element(&pipeline, "src")?;
@@ -369,20 +387,28 @@ mod tests {
     #[test]
     fn auto_tries_the_installed_hardware_encoders_best_first_then_x264() {
         let only = |names: &'static [&'static str]| move |n: &str| names.contains(&n);
-        assert_eq!(candidates("auto", only(&[])), ["x264enc"]);
+        let h264 = Codec::H264;
+        assert_eq!(candidates("auto", h264, only(&[])), ["x264enc"]);
         // A desktop NVIDIA GPU with NVENC, and VA-API beside it: NVENC first.
         assert_eq!(
-            candidates("auto", only(&["vaapih264enc", "nvh264enc"])),
+            candidates("auto", h264, only(&["vaapih264enc", "nvh264enc"])),
             ["nvh264enc", "vaapih264enc", "x264enc"]
         );
         // A Jetson's own encoder before the desktop one.
         assert_eq!(
-            candidates("auto", only(&["nvh264enc", "nvv4l2h264enc"]))[0],
+            candidates("auto", h264, only(&["nvh264enc", "nvv4l2h264enc"]))[0],
             "nvv4l2h264enc"
         );
         // A named kind is tried alone, installed or not (its error then says so).
-        assert_eq!(candidates("x264", only(&["nvh264enc"])), ["x264enc"]);
-        assert_eq!(candidates("nvh264enc", only(&[])), ["nvh264enc"]);
+        assert_eq!(candidates("x264", h264, only(&["nvh264enc"])), ["x264enc"]);
+        assert_eq!(candidates("nvh264enc", h264, only(&[])), ["nvh264enc"]);
+        // H.265: its own hardware encoders, then x265; the H.264 ones are not taken.
+        let h265 = Codec::H265;
+        assert_eq!(
+            candidates("auto", h265, only(&["nvh264enc", "nvh265enc"])),
+            ["nvh265enc", "x265enc"]
+        );
+        assert_eq!(candidates("auto", h265, only(&[])), ["x265enc"]);
     }
 
     #[test]

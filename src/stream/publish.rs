@@ -6,7 +6,7 @@
 //! path only hands units over (it never waits on a relay), and the built-in RTSP server is
 //! not touched by any of it.
 
-use super::{AccessUnit, H264_CAPS, Restamp, StreamError};
+use super::{AccessUnit, Codec, Restamp, StreamError};
 use crate::gst::{GstError, element, element_error, launch};
 use crate::supervise::{self, Fault, Report};
 use gstreamer as gst;
@@ -34,6 +34,8 @@ const MAX_QUEUED: u64 = 30;
 pub struct PublishTarget {
     pub url: String,
     kind: Kind,
+    /// The stream's coding, the encoder's.
+    pub codec: Codec,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -79,6 +81,7 @@ impl std::str::FromStr for PublishTarget {
         Ok(PublishTarget {
             url: url.to_string(),
             kind,
+            codec: Codec::H264,
         })
     }
 }
@@ -94,8 +97,9 @@ impl PublishTarget {
 
     fn description(&self) -> String {
         let src = format!(
-            "appsrc name=src is-live=true format=time max-buffers={MAX_QUEUED} caps={H264_CAPS} \
-             ! h264parse"
+            "appsrc name=src is-live=true format=time max-buffers={MAX_QUEUED} caps={} ! {}",
+            self.codec.caps(),
+            self.codec.parser()
         );
         match self.kind {
             Kind::Rtsp => format!("{src} ! rtspclientsink name=sink latency=0 protocols=tcp"),

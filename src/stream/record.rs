@@ -1,10 +1,10 @@
-//! Recording the encoded stream to fragmented MP4: h264parse → mp4mux with one-second
+//! Recording the encoded stream to fragmented MP4: h264parse (h265parse) → mp4mux with one-second
 //! fragments written as they complete (`streamable`, nothing rewritten at the end), so a
 //! power cut loses at most the last second and the file plays up to there. A recording
 //! starts at a key frame; its timestamps start at zero. The file is written unbuffered and
 //! opened O_SYNC, so what mp4mux has written is on the disk, not in a cache.
 
-use super::{H264_CAPS, StreamError};
+use super::{Codec, StreamError};
 use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
 use gstreamer as gst;
 use gstreamer::prelude::*;
@@ -19,11 +19,13 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    pub fn start(path: &Path) -> Result<Recorder, StreamError> {
+    pub fn start(path: &Path, codec: Codec) -> Result<Recorder, StreamError> {
         let pipeline = launch(&format!(
-            "appsrc name=src format=time caps={H264_CAPS} ! h264parse \
+            "appsrc name=src format=time caps={} ! {} \
              ! mp4mux fragment-duration=1000 streamable=true \
-             ! filesink name=file buffer-mode=unbuffered o-sync=true"
+             ! filesink name=file buffer-mode=unbuffered o-sync=true",
+            codec.caps(),
+            codec.parser()
         ))?;
         let src: gst_app::AppSrc = element(&pipeline, "src")?;
         element::<gst::Element>(&pipeline, "file")?

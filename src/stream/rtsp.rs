@@ -7,7 +7,7 @@
 //! each view has a mount of its own (`PATH/cam0` .. `cam3`, the MAVLink cameras' streams),
 //! fed only while someone watches it.
 
-use super::{H264_CAPS, Restamp, StreamError};
+use super::{Codec, Restamp, StreamError};
 use gstreamer as gst;
 use gstreamer::glib;
 use gstreamer::prelude::*;
@@ -30,6 +30,9 @@ pub struct RtspConfig {
     /// Basic authentication: both set, or neither (open).
     pub user: Option<String>,
     pub password: Option<String>,
+    /// The streams' coding: the encoder's (`[encoder] codec`), not a key of `[rtsp]`.
+    #[serde(skip)]
+    pub codec: Codec,
 }
 
 impl Default for RtspConfig {
@@ -40,6 +43,7 @@ impl Default for RtspConfig {
             path: "/digiview".into(),
             user: None,
             password: None,
+            codec: Codec::H264,
         }
     }
 }
@@ -229,8 +233,10 @@ fn factory(
     // before each slice of a key frame that has several (x264's sliced threads make two),
     // and FFmpeg, VLC and most players then take each slice for a frame of its own.
     factory.set_launch(&format!(
-        "( appsrc name=digiview_h264 is-live=true format=time min-latency=0 caps={H264_CAPS} \
-         ! rtph264pay name=pay0 pt=96 )"
+        "( appsrc name=digiview_h264 is-live=true format=time min-latency=0 caps={} \
+         ! {} name=pay0 pt=96 )",
+        cfg.codec.caps(),
+        cfg.codec.payloader()
     ));
     // A media per client: each starts at its own key frame (a shared one would send a
     // joining client the delta frames before it, which players report as errors).

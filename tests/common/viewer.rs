@@ -17,10 +17,15 @@ pub struct Viewer {
 
 impl Viewer {
     pub fn open(url: &str) -> Viewer {
+        Viewer::open_with(url, "rtph264depay ! h264parse ! avdec_h264")
+    }
+
+    /// A client whose depayloader, parser and decoder are `chain`.
+    pub fn open_with(url: &str, chain: &str) -> Viewer {
         gst::init().unwrap();
         let pipeline = gst::parse::launch(&format!(
-            "rtspsrc location={url} latency=0 protocols=tcp ! rtph264depay ! h264parse \
-             ! avdec_h264 ! videoconvert ! video/x-raw,format=RGB ! appsink name=sink sync=false"
+            "rtspsrc location={url} latency=0 protocols=tcp ! {chain} ! videoconvert \
+             ! video/x-raw,format=RGB ! appsink name=sink sync=false"
         ))
         .unwrap()
         .downcast::<gst::Pipeline>()

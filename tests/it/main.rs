@@ -18,6 +18,7 @@ mod entry_paths;
 mod fuzz_corpus;
 mod gpu_frames;
 mod gpu_render;
+mod h265;
 mod lens_calibrate;
 mod lens_calibrate_video;
 mod locate;

@@ -19,22 +19,22 @@ use std::process::{Command, Stdio};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-const SIZE: (u32, u32) = (640, 480);
+pub(crate) const SIZE: (u32, u32) = (640, 480);
 const FRAMES: usize = 90;
 
 /// What one FFmpeg client got: its first and last decoded frames, how many, and its stderr.
-struct Pulled {
-    first: RgbImage,
-    last: RgbImage,
-    frames: usize,
-    log: String,
+pub(crate) struct Pulled {
+    pub first: RgbImage,
+    pub last: RgbImage,
+    pub frames: usize,
+    pub log: String,
 }
 
 /// `ffmpeg` decoding `FRAMES` frames from `url` over `transport`, every decoded frame as it
 /// is, as raw RGB on its stdout. The frames keep the stream's own timestamps (no frame rate
 /// conversion, the RTP clock's 90 kHz), so a timestamp that does not increase is the
 /// stream's, not an artefact of rounding to a coarser output clock.
-fn pull(url: String, transport: &'static str) -> JoinHandle<Pulled> {
+pub(crate) fn pull(url: String, transport: &'static str) -> JoinHandle<Pulled> {
     std::thread::spawn(move || {
         let mut child = Command::new("ffmpeg")
             .args([
@@ -81,7 +81,7 @@ fn pull(url: String, transport: &'static str) -> JoinHandle<Pulled> {
 
 /// The lines of FFmpeg's log that report damage: a corrupt or undecodable frame, an error of
 /// any kind, or timestamps that do not increase.
-fn complaints(log: &str) -> Vec<&str> {
+pub(crate) fn complaints(log: &str) -> Vec<&str> {
     log.split(['\n', '\r'])
         .filter(|l| {
             let l = l.to_lowercase();
@@ -97,11 +97,21 @@ fn complaints(log: &str) -> Vec<&str> {
         .collect()
 }
 
-/// SYSTEM_STATUS's status and error.
-fn running(ctl: &mut Client) -> (u8, u8) {
-    match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
-        Param::SystemStatus(s) => (s.status, s.error),
-        other => panic!("{other:?}"),
+/// Waits (20 s at most) until SYSTEM_STATUS says `serve` runs, with no error: its picture
+/// is flowing, not its NO SIGNAL card.
+pub(crate) fn until_running(serve: &Serve) {
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let t = Instant::now();
+    loop {
+        let status = match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
+            Param::SystemStatus(s) => (s.status, s.error),
+            other => panic!("{other:?}"),
+        };
+        if status == (RunStatus::Running as u8, 0) {
+            return;
+        }
+        assert!(t.elapsed() < Duration::from_secs(20), "the head never runs");
+        std::thread::sleep(Duration::from_millis(50));
     }
 }
 
@@ -119,33 +129,31 @@ fn digiview(dir: &Path, args: &[&str]) {
     );
 }
 
-#[test]
-fn ffmpeg_decodes_every_frame_clean_over_tcp_and_udp_from_the_start_and_joining_late() {
-    let dir = tempfile::tempdir().unwrap();
+/// A synthetic 1280x720 fisheye still in `dir` as an image source, and the offline render of
+/// it at [`SIZE`] that every player must show.
+pub(crate) fn still_and_render(dir: &Path) -> (String, RgbImage) {
     let size = format!("{}x{}", SIZE.0, SIZE.1);
+    digiview(dir, &["synth", "--out", "fish.png", "--sensor", "1280x720"]);
     digiview(
-        dir.path(),
-        &["synth", "--out", "fish.png", "--sensor", "1280x720"],
-    );
-    digiview(
-        dir.path(),
+        dir,
         &[
             "render", "--input", "fish.png", "--out", "want.png", "--size", &size,
         ],
     );
-    let want = image::open(dir.path().join("want.png")).unwrap().to_rgb8();
-    let fish = dir.path().join("fish.png");
-    let source = format!("image:{}", fish.display());
+    let want = image::open(dir.join("want.png")).unwrap().to_rgb8();
+    (format!("image:{}", dir.join("fish.png").display()), want)
+}
+
+#[test]
+fn ffmpeg_decodes_every_frame_clean_over_tcp_and_udp_from_the_start_and_joining_late() {
+    let dir = tempfile::tempdir().unwrap();
+    let size = format!("{}x{}", SIZE.0, SIZE.1);
+    let (source, want) = still_and_render(dir.path());
     let serve = Serve::start_video(&["--source", &source, "--size", &size]);
     let url = serve.rtsp.clone().unwrap();
     // "From the start" is from the first frame of the picture: before it the head shows its
     // NO SIGNAL card, as it should.
-    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
-    let t = Instant::now();
-    while running(&mut ctl) != (RunStatus::Running as u8, 0) {
-        assert!(t.elapsed() < Duration::from_secs(20), "the head never runs");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    until_running(&serve);
 
     let mut clients = vec![
         ("TCP from the start", pull(url.clone(), "tcp")),

@@ -74,13 +74,17 @@ fn needed(cfg: &Config) -> Vec<(&'static str, &'static str)> {
         ("appsrc", "gstreamer1.0-plugins-base"),
         ("appsink", "gstreamer1.0-plugins-base"),
         ("videoconvert", "gstreamer1.0-plugins-base"),
-        ("h264parse", "gstreamer1.0-plugins-bad"),
-        ("rtph264pay", "gstreamer1.0-plugins-good"),
+        (cfg.encoder.codec.parser(), "gstreamer1.0-plugins-bad"),
+        (cfg.encoder.codec.payloader(), "gstreamer1.0-plugins-good"),
         ("mp4mux", "gstreamer1.0-plugins-good"),
         ("filesink", "libgstreamer1.0-0"),
     ];
-    if cfg.encoder.kind != "auto" || !crate::stream::encoder::HARDWARE.iter().any(|n| present(n)) {
-        out.push(("x264enc", "gstreamer1.0-plugins-ugly"));
+    let (hardware, software) = crate::stream::encoder::encoders(cfg.encoder.codec);
+    if cfg.encoder.kind != "auto" || !hardware.iter().any(|n| present(n)) {
+        out.push(match software {
+            "x265enc" => ("x265enc", "gstreamer1.0-plugins-bad"),
+            _ => ("x264enc", "gstreamer1.0-plugins-ugly"),
+        });
     }
     match cfg.source.parse::<SourceSpec>() {
         Ok(SourceSpec::V4l2(_)) => out.push(("v4l2src", "gstreamer1.0-plugins-good")),
@@ -123,14 +127,18 @@ pub fn gstreamer(cfg: &Config) -> Outcome {
         .filter(|(name, _)| !present(name))
         .map(|(name, package)| format!("{name} (install {package})"))
         .collect();
-    let hardware: Vec<&str> = crate::stream::encoder::HARDWARE
-        .iter()
-        .copied()
-        .filter(|n| present(n))
-        .collect();
+    let (codec, (hardware, software)) = (
+        cfg.encoder.codec,
+        crate::stream::encoder::encoders(cfg.encoder.codec),
+    );
+    let hardware: Vec<&str> = hardware.iter().copied().filter(|n| present(n)).collect();
     let encoders = match hardware.as_slice() {
-        [] => "no hardware H.264 encoder (x264 encodes on the CPU)".to_string(),
-        found => format!("hardware H.264 encoders: {}", found.join(", ")),
+        [] => format!(
+            "no hardware {} encoder ({} encodes on the CPU)",
+            codec.name(),
+            software.trim_end_matches("enc")
+        ),
+        found => format!("hardware {} encoders: {}", codec.name(), found.join(", ")),
     };
     if missing.is_empty() {
         Outcome::pass(

@@ -1,4 +1,4 @@
-// The live picture: the encoder's own H.264 over a WebSocket, decoded by the browser and drawn
+// The live picture: the encoder's own H.264 (H.265 is said, not shown) over a WebSocket, decoded by the browser and drawn
 // on a canvas. Each message is one access unit: a flags byte (bit 0: key frame), the
 // presentation time in µs (u64, little-endian), then Annex B bytes. WebCodecs decodes it where
 // the browser offers it (a secure context: https, or localhost); elsewhere (plain http from
@@ -213,6 +213,13 @@ export class Preview extends EventTarget {
       return;
     }
     const units = key || this.mode === 'mse' ? nalUnits(data) : null;
+    // H.265 (its VPS leads each key frame): the page previews H.264 only, which every
+    // browser decodes; the RTSP streams carry the H.265.
+    if (key && units.some((n) => n[0] === 0x40 && n[1] === 0x01)) {
+      this.show('the stream is H.265, which this page does not preview: play the RTSP stream');
+      this.waitingForKey = true;
+      return;
+    }
     if (!this.sink.push(key, timestamp, data, units)) this.waitingForKey = true;
   }
 
