@@ -18,7 +18,7 @@ plugins=/usr/lib/$multiarch/gstreamer-1.0
 scanner=/usr/lib/$multiarch/gstreamer1.0/gstreamer-1.0/gst-plugin-scanner
 # The elements `serve` (image source, x264 or NVENC, RTSP, recordings, motion detection) and
 # the latency client (RTSP, a hardware or software H.264 decoder) use.
-wanted=(coreelements app videoconvertscale x264 nvcodec openh264
+wanted=(coreelements app videoconvertscale x264 x265 nvcodec openh264
   videoparsersbad rtp rtpmanager rtsp udp tcp isomp4 typefindfunctions playback png
   imagefreeze multifile jpeg)
 

@@ -5,7 +5,8 @@
 #    mip and bilinear, two interleaved rounds;
 # 2. `digiview serve` on a 3840x2160 still (image source), 1920x1080 out, motion detection
 #    on: the health lines with nobody watching a view, then with all four views' streams
-#    (1280x720) pulled by RTSP clients, for the encoder `auto` picks and for x264;
+#    (1280x720) pulled by RTSP clients, for the encoder `auto` picks and for x264, and for
+#    H.265 (`auto`: a hardware H.265 encoder, else x265);
 # 3. glass-to-glass latency at 1280x720 over RTSP (examples/glass_to_glass.rs), three runs.
 # Logs go to LOG_DIR (default: a new temporary folder); the table is printed last.
 #
@@ -52,13 +53,14 @@ done
 still=$logs/fisheye-3840x2160.png
 "$dv" synth --out "$still" >/dev/null 2>>"$logs/synth.log" || echo "gpu_figures: synth failed" >&2
 port=18554
-serve_phases() { # encoder kind
-  local kind=$1 log=$logs/serve-$1.log cfg=$logs/serve-$1.toml pids=()
+serve_phases() { # encoder kind, codec
+  local kind=$1 codec=$2 log=$logs/serve-$1-$2.log cfg=$logs/serve-$1-$2.toml pids=()
   cat >"$cfg" <<EOF
 source = "image:$still"
 health_interval_s = 5
 [encoder]
 kind = "$kind"
+codec = "$codec"
 [control]
 listen = "127.0.0.1:0"
 [rtsp]
@@ -84,8 +86,9 @@ EOF
   wait $serve 2>/dev/null
   port=$((port + 1))
 }
-serve_phases auto
-grep -q 'encoder: x264enc' "$logs/serve-auto.log" || serve_phases x264
+serve_phases auto h264
+grep -q 'encoder: x264enc' "$logs/serve-auto-h264.log" || serve_phases x264 h264
+serve_phases auto h265
 
 # 3. Glass to glass.
 # The best decoder installed (decodebin's pick: NVDEC where the GPU has one), then the
@@ -127,9 +130,13 @@ for fmt in ("nv12", "i420", "rgba"):
 print("\n| serve, 3840x2160 still to 1920x1080, detection on | encoder | out fps | render ms | encode ms | views fps | view render ms | dropped (renderer) |")
 print("|---|---|---:|---:|---:|---:|---:|---:|")
 num = lambda pat, l: float(m.group(1)) if (m := re.search(pat, l)) else None
+last_stages = []
 for log in sorted(glob.glob(f"{logs}/serve-*.log")):
     text = open(log).read()
     enc = (re.search(r"encoder: ([a-z0-9_]+enc)\b", text) or [None, "?"])[1]
+    stages = re.findall(r"latency over .*", text)
+    if stages:
+        last_stages.append(f"{enc}: {stages[-1]}")
     unwatched, watched = (text.split("=== watched") + [""])[:2]
     for name, part in (("nobody watching a view", unwatched), ("four views watched", watched)):
         # The first line of each phase is start-up or the clients joining: left out.
@@ -139,6 +146,8 @@ for log in sorted(glob.glob(f"{logs}/serve-*.log")):
               f"{spread(col(r'render ([0-9.]+) ms'))} | {spread(col(r'encode ([0-9.]+) ms'))} | "
               f"{spread(col(r'views alone ([0-9.]+) fps'))} | {spread(col(r'fps, ([0-9.]+) ms each'))} | "
               f"{spread(col(r'dropped ([0-9]+) '))} |")
+for l in last_stages:
+    print(f"\n{l}")
 print("\n| glass to glass, 1280x720 over RTSP |")
 print("|---|")
 for l in open(os.path.join(logs, "latency.txt")) if os.path.exists(os.path.join(logs, "latency.txt")) else []:

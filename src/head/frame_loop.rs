@@ -94,6 +94,8 @@ impl Head {
         // The status last reported: None idle, Some(running or not).
         let mut healthy: Option<bool> = None;
         let fault = Fault::for_stage("frames");
+        // Frames the source replaced in the slot before they were taken, as of the last take.
+        let mut replaced_then = self.slot.stats().dropped;
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("frames");
             let state = self.live.snapshot();
@@ -105,6 +107,8 @@ impl Head {
             let fresh = self
                 .slot
                 .take_until(start + pacer.wait_until(start.elapsed(), period));
+            let replaced_now = self.slot.stats().dropped;
+            let replaced = std::mem::replace(&mut replaced_then, replaced_now) != replaced_now;
             let signal = self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
             if fresh.is_some() && self.source_error().is_some() {
                 self.set_source_error(None);
@@ -128,7 +132,7 @@ impl Head {
                 last_frame = Some(f);
                 arrived.saturating_duration_since(start)
             });
-            pacer.taken(due, arrived, start.elapsed(), period);
+            pacer.taken(due, arrived, replaced, start.elapsed(), period);
             let moved = !shown.as_ref().is_some_and(|s| Arc::ptr_eq(s, &state));
             if !pacer.worth_rendering(is_fresh, signal, moved, start.elapsed()) {
                 continue;
