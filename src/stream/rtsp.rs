@@ -253,6 +253,7 @@ fn factory(
         else {
             return;
         };
+        unsynchronised_sinks(m);
         lock(&medias).push(Media {
             src: src.clone(),
             clock: Restamp::default(),
@@ -271,6 +272,38 @@ fn factory(
         );
     }
     factory
+}
+
+/// Makes the sinks a media sends through (an appsink per TCP client, a multiudpsink for
+/// UDP) send each packet as it comes. gst-rtsp-server synchronises them to the clock, so
+/// every unit waited in the sink for its running time plus the pipeline's latency, holding
+/// the media's one streaming thread: about 14 ms a unit here (glass to glass 44 ms, 25 ms
+/// without; docs/performance.md). The units come paced by the head already. The server sets
+/// the property after adding the sink, so it is turned off at the sink's first buffer.
+fn unsynchronised_sinks(media: &rtsp::RTSPMedia) {
+    let mut top = media.element().upcast::<gst::Object>();
+    while let Some(parent) = top.parent() {
+        top = parent;
+    }
+    let Ok(pipeline) = top.downcast::<gst::Bin>() else {
+        return;
+    };
+    pipeline.connect_deep_element_added(|_, _, e| {
+        let sink = e
+            .factory()
+            .is_some_and(|f| matches!(f.name().as_str(), "appsink" | "multiudpsink"));
+        let Some(pad) = e.static_pad("sink").filter(|_| sink) else {
+            return;
+        };
+        let e = e.clone();
+        pad.add_probe(
+            gst::PadProbeType::BUFFER | gst::PadProbeType::BUFFER_LIST,
+            move |_, _| {
+                e.set_property("sync", false);
+                gst::PadProbeReturn::Remove
+            },
+        );
+    });
 }
 
 /// One access unit to every client of a mount that has had its key frame (or gets one now).
