@@ -376,6 +376,31 @@ async fn over_plain_http_from_elsewhere_the_preview_plays_through_mse() {
     b.close().await;
 }
 
+/// With the streams in H.265, which the page does not preview, it says so (and decodes
+/// nothing) rather than staying blank.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_h265_stream_is_said_not_previewed() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(&config, "[encoder]\ncodec = \"h265\"\n").unwrap();
+    let config = config.to_str().unwrap();
+    let serve = Serve::start_video(&["--config", config, "--size", "640x480", "--demo-hover"]);
+    let b = Browser::start(1280, 900).await;
+    b.client.goto(serve.http.as_ref().unwrap()).await.unwrap();
+    b.until(
+        "the preview says it does not show H.265",
+        Duration::from_secs(20),
+        "return !!window.digiview && window.digiview.preview.note.textContent.includes('H.265')",
+    )
+    .await;
+    let frames = b.js("return window.digiview.preview.frames", vec![]).await;
+    assert_eq!(frames, json!(0), "frames decoded");
+    let console = b.console().await;
+    let errors: Vec<_> = console.iter().filter(|(l, _)| l == "SEVERE").collect();
+    assert!(errors.is_empty(), "console errors: {errors:?}");
+    b.close().await;
+}
+
 /// An HTTP/1.1 WebSocket upgrade to `/api/events` with `origin`; the status line's code.
 fn upgrade_status(http: &str, origin: &str) -> u16 {
     let host = http.trim_start_matches("http://").trim_end_matches('/');
