@@ -87,6 +87,10 @@ const MIN_RADIUS: f64 = 4.0;
 /// For each tracked object (in DETECTED_ROI 255's order), every view of the layout showing its
 /// centre. Empty lists when the lens or the layout cannot be planned.
 pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
+    // Placed as the frame last rendered shows them: with the vehicle's attitude then (a
+    // view that turns with the vehicle, as the fisheye layout's, shows the world turned),
+    // each object where it had got to by that frame's capture time.
+    let state = &live.as_rendered(state);
     let sensor = (state.sensor.width, state.sensor.height);
     let plan = live
         .lenses()
@@ -127,4 +131,65 @@ pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
                 .collect()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lens::LensCal;
+    use crate::state::capture::NoVideo;
+
+    /// Where `state`'s plan puts object 0 in its first view, in output pixels.
+    fn placed(live: &Live, state: &State) -> DVec2 {
+        let lens = live
+            .lenses()
+            .for_frame(state.lens, (state.sensor.width, state.sensor.height), None)
+            .unwrap();
+        let plan = FramePlan::new(state, &lens).unwrap();
+        let t = &state.tracked[0];
+        let view = &plan.views[0];
+        plan.view_point(view, direction(t.yaw, t.pitch)).unwrap()
+            + DVec2::new(view.rect.x as f64, view.rect.y as f64)
+    }
+
+    #[test]
+    fn rings_are_placed_with_the_vehicle_of_the_frame_they_are_drawn_over() {
+        let cal = LensCal::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal"),
+        )
+        .unwrap();
+        let live = Live::new(State::default(), &cal, Box::new(NoVideo)).unwrap();
+        // The fisheye layout: its view turns with the vehicle.
+        let mut state = State::default();
+        (state.output.layout, state.output.overlay) = (6, 0);
+        state.tracked = vec![Tracked {
+            id: 1,
+            yaw: 0.5,
+            pitch: -1.0,
+            size: 0.05,
+            velocity: [0.0, 0.1, 0.0],
+            seen_us: 1_000_000,
+            ..Tracked::default()
+        }];
+        let ring = |live: &Live| {
+            let s = &seen(live, &state)[0][0];
+            DVec2::new(s.x, s.y)
+        };
+        // Before any frame: the state as it is.
+        assert!(ring(&live).distance(placed(&live, &state)) < 1e-6);
+        // A frame rendered 2 s after the sighting with the vehicle turned 40° and tilted.
+        let mut then = state.clone();
+        then.vehicle.attitude.yaw = 40f64.to_radians();
+        then.vehicle.attitude.roll = 5f64.to_radians();
+        live.set_rendered(3_000_000, then.vehicle.clone());
+        then.tracked[0] = then.tracked[0].at(3_000_000);
+        let want = placed(&live, &then);
+        assert!(
+            ring(&live).distance(want) < 1e-6,
+            "{} against {want}",
+            ring(&live)
+        );
+        // Which is not where the state's own attitude would put it.
+        assert!(want.distance(placed(&live, &state)) > 20.0);
+    }
 }

@@ -276,6 +276,8 @@ impl Head {
             *o = o.at(frame.captured_us);
         }
         s.aim_followers();
+        // What the web page and the services draw over this frame is placed with this.
+        self.live.set_rendered(frame.captured_us, s.vehicle.clone());
         let size = (frame.layout.width, frame.layout.height);
         let lens = self
             .live

@@ -57,6 +57,10 @@ pub struct Live {
     sensor_refusal: Mutex<Option<String>>,
     /// The supervised services that have failed.
     pub services: Services,
+    /// The vehicle as the last frame rendered saw it, and that frame's capture time: what is
+    /// drawn over that frame is placed with it (the state's own attitude is not the
+    /// autopilot's, which only the telemetry follows).
+    rendered: Mutex<Option<(u64, super::Vehicle)>>,
 }
 
 impl Live {
@@ -74,7 +78,33 @@ impl Live {
             capture,
             sensor_refusal: Mutex::new(None),
             services: Services::default(),
+            rendered: Mutex::new(None),
         })
+    }
+
+    /// The frame captured at `captured_us` was rendered with `vehicle`.
+    pub fn set_rendered(&self, captured_us: u64, vehicle: super::Vehicle) {
+        *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some((captured_us, vehicle));
+    }
+
+    /// `state` as the last frame rendered showed it: the vehicle as it was then, the tracked
+    /// objects moved on to that frame's capture time, the following views aimed. `state`
+    /// as it is before any frame was rendered.
+    pub fn as_rendered(&self, state: &State) -> State {
+        let mut s = state.clone();
+        let rendered = self
+            .rendered
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        if let Some((captured_us, vehicle)) = rendered {
+            s.vehicle = vehicle;
+            for o in &mut s.tracked {
+                *o = o.at(captured_us);
+            }
+            s.aim_followers();
+        }
+        s
     }
 
     /// The state now: what the renderer uses for one frame.
