@@ -10,7 +10,6 @@ use super::Cameras;
 use super::commands::{Answer, Command};
 use crate::autopilot::Outbox;
 use crate::geometry::ground::{ground_point, to_ned};
-use crate::geometry::rotation::direction;
 use crate::render::FramePlan;
 use crate::state::follow::{Follow, Shape};
 use crate::state::{Invalid, State, moved_on};
@@ -165,27 +164,27 @@ impl Cameras {
                 )
             })
         };
+        let c = ray(centre)?;
         Ok((
-            ray(centre)?,
-            ray(corners[0]).unwrap_or(ray(centre)?),
-            ray(corners[1]).unwrap_or(ray(centre)?),
+            c,
+            ray(corners[0]).unwrap_or(c),
+            ray(corners[1]).unwrap_or(c),
         ))
     }
 
-    /// What camera `i` follows as of now: its direction and angular size, and its motion
-    /// across the sky (world NED per second) where the tracker measured one.
-    fn followed_now(s: &State, i: usize) -> Option<(DVec3, f64, DVec3)> {
-        let f = s.cameras[i].follow?;
-        if let Some(o) = s.followed(i) {
-            let o = o.at(crate::clock::clock_us());
-            let v = DVec3::from_array(o.velocity);
-            return Some((direction(o.yaw, o.pitch), o.size, v));
-        }
-        let ray = f
-            .ground
-            .and_then(|g| crate::geometry::ground::ray_to_target(&s.vehicle.position, g))
-            .unwrap_or_else(|| direction(f.yaw, f.pitch));
-        Some((ray, f.size, DVec3::ZERO))
+    /// `s` as of now, and what camera `i` follows in it: its direction and angular size,
+    /// and its motion across the sky (world NED per second) where the tracker measured one.
+    fn followed_now(s: &State, i: usize) -> (State, Option<(DVec3, f64, DVec3)>) {
+        let mut now = s.clone();
+        now.moved_on_to(crate::clock::clock_us());
+        let followed = now.cameras[i]
+            .follow
+            .zip(now.followed_ray(i))
+            .map(|(f, ray)| match now.followed(i) {
+                Some(o) => (ray, o.size, DVec3::from_array(o.velocity)),
+                None => (ray, f.size, DVec3::ZERO),
+            });
+        (now, followed)
     }
 
     /// CAMERA_TRACKING_IMAGE_STATUS: where what camera `i` follows is in its picture.
@@ -203,18 +202,13 @@ impl Cameras {
             rec_bottom_y: f32::NAN,
             camera_device_id: 0,
         };
-        let (Some(f), Some((ray, size, _))) = (s.cameras[i].follow, Self::followed_now(s, i))
-        else {
+        // Aimed as the next frame will be.
+        let (now, followed) = Self::followed_now(s, i);
+        let (Some(f), Some((ray, size, _))) = (now.cameras[i].follow, followed) else {
             return MavMessage::CAMERA_TRACKING_IMAGE_STATUS(m);
         };
         m.tracking_status = CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_ACTIVE;
         m.target_data = CameraTrackingTargetData::CAMERA_TRACKING_TARGET_DATA_IN_STATUS;
-        // Aimed as the next frame will be.
-        let mut now = s.clone();
-        for o in &mut now.tracked {
-            *o = o.at(crate::clock::clock_us());
-        }
-        now.aim_followers();
         let (w, h) = (self.cfg.width as f64, self.cfg.height as f64);
         let Some(p) = self
             .own_picture(&now, i)
@@ -264,7 +258,7 @@ impl Cameras {
             hdg_acc: nan,
             camera_device_id: 0,
         };
-        let Some((ray, _, velocity)) = Self::followed_now(s, i) else {
+        let Some((ray, _, velocity)) = Self::followed_now(s, i).1 else {
             return MavMessage::CAMERA_TRACKING_GEO_STATUS(m);
         };
         m.tracking_status = CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_ACTIVE;

@@ -272,10 +272,7 @@ impl Head {
             s.vehicle.position = p;
         }
         // Tiles, and views that follow an object, follow it between scans.
-        for o in &mut s.tracked {
-            *o = o.at(frame.captured_us);
-        }
-        s.aim_followers();
+        s.moved_on_to(frame.captured_us);
         // What the web page and the services draw over this frame is placed with this.
         self.live.set_rendered(frame.captured_us, s.vehicle.clone());
         let size = (frame.layout.width, frame.layout.height);

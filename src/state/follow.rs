@@ -9,6 +9,7 @@ use crate::geometry::GeoPoint;
 use crate::geometry::ground::ray_to_target;
 use crate::geometry::rotation::direction;
 use crate::geometry::view::{aim, control};
+use glam::DVec3;
 
 /// What was clicked: a point (with a radius) or a rectangle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,20 +55,36 @@ impl State {
         self.tracked.iter().find(|o| o.id == id)
     }
 
-    /// Aims every following camera at what it follows: its object where the tracked list
-    /// has it (the caller moves the list on to the frame's time first), else the clicked
-    /// ground point, else the clicked direction. Its roll, fov and lock flags are kept.
+    /// The world direction camera `i` follows: its object's where the tracked list has it,
+    /// else the clicked ground point's from the vehicle, else the clicked direction. None
+    /// when it follows nothing.
+    pub fn followed_ray(&self, i: usize) -> Option<DVec3> {
+        let f = self.cameras[i].follow?;
+        Some(match (self.followed(i), f.ground) {
+            (Some(o), _) => direction(o.yaw, o.pitch),
+            (None, Some(g)) => ray_to_target(&self.vehicle.position, g)
+                .unwrap_or_else(|| direction(f.yaw, f.pitch)),
+            (None, None) => direction(f.yaw, f.pitch),
+        })
+    }
+
+    /// The state as a frame captured at `t_us` shows it: each tracked object moved on to
+    /// then, and the following views aimed at what they follow.
+    pub fn moved_on_to(&mut self, t_us: u64) {
+        for o in &mut self.tracked {
+            *o = o.at(t_us);
+        }
+        self.aim_followers();
+    }
+
+    /// Aims every following camera along [`State::followed_ray`] (the caller moves the
+    /// tracked list on to the frame's time first: [`State::moved_on_to`]). Its roll, fov and
+    /// lock flags are kept.
     pub fn aim_followers(&mut self) {
         let vehicle = self.vehicle.attitude.euler();
         for i in 0..self.cameras.len() {
-            let Some(f) = self.cameras[i].follow else {
+            let Some(ray) = self.followed_ray(i) else {
                 continue;
-            };
-            let ray = match (self.followed(i), f.ground) {
-                (Some(o), _) => direction(o.yaw, o.pitch),
-                (None, Some(g)) => ray_to_target(&self.vehicle.position, g)
-                    .unwrap_or_else(|| direction(f.yaw, f.pitch)),
-                (None, None) => direction(f.yaw, f.pitch),
             };
             let c = &mut self.cameras[i];
             let a = aim(ray, c.euler(), c.locks(), vehicle);

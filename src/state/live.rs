@@ -99,10 +99,7 @@ impl Live {
             .clone();
         if let Some((captured_us, vehicle)) = rendered {
             s.vehicle = vehicle;
-            for o in &mut s.tracked {
-                *o = o.at(captured_us);
-            }
-            s.aim_followers();
+            s.moved_on_to(captured_us);
         }
         s
     }
