@@ -43,7 +43,7 @@ done | sort -u | while read -r lib; do
 done
 vulkan=$(ldconfig -p | awk '/libvulkan\.so\.1 .*x86-64/ && !f {f = $NF} END {print f}')
 [[ -n $vulkan ]] && cp -L "$vulkan" "$b/lib/"
-cp -r lens-cal scripts/gpu_figures.sh "$b/"
+cp -r lens-cal scripts/gpu_figures.sh scripts/serve_views.sh "$b/"
 cat >"$b/run.sh" <<'EOF'
 #!/usr/bin/env bash
 # Runs gpu_figures.sh on this bundle's binaries, libraries and plugins alone.

@@ -54,36 +54,10 @@ still=$logs/fisheye-3840x2160.png
 "$dv" synth --out "$still" >/dev/null 2>>"$logs/synth.log" || echo "gpu_figures: synth failed" >&2
 port=18554
 serve_phases() { # encoder kind, codec
-  local kind=$1 codec=$2 log=$logs/serve-$1-$2.log cfg=$logs/serve-$1-$2.toml pids=()
-  cat >"$cfg" <<EOF
-source = "image:$still"
-health_interval_s = 5
-[encoder]
-kind = "$kind"
-codec = "$codec"
-[control]
-listen = "127.0.0.1:0"
-[rtsp]
-address = "127.0.0.1"
-port = $port
-[mavlink]
-endpoint = "off"
-EOF
-  # Appending, as the phase markers below are: both writers keep their lines.
+  local log=$logs/serve-$1-$2.log
   : >"$log"
-  "$dv" serve --config "$cfg" --size 1920x1080 --http off >/dev/null 2>>"$log" &
-  local serve=$!
-  sleep 27
-  echo "=== watched" >>"$log"
-  for cam in 0 1 2 3; do
-    gst-launch-1.0 -q rtspsrc location="rtsp://127.0.0.1:$port/digiview/cam$cam" \
-      protocols=tcp latency=0 ! fakesink sync=false >/dev/null 2>&1 &
-    pids+=($!)
-  done
-  sleep 32
-  kill "${pids[@]}" 2>/dev/null
-  kill -INT $serve 2>/dev/null
-  wait $serve 2>/dev/null
+  # The bundle has GStreamer and no FFmpeg: gst-launch pulls the views.
+  "$(dirname "$0")/serve_views.sh" "$dv" "$still" "$log" $port "$1" "$2" gst
   port=$((port + 1))
 }
 serve_phases auto h264

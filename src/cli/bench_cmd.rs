@@ -6,7 +6,7 @@
 use super::{Backend, StateArgs, spinner};
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
 use crate::lens::{LensCal, Lenses};
-use crate::render::gpu::{Gpu, Renderer, StageTimes};
+use crate::render::gpu::{Gpu, OutputId, Renderer, StageTimes};
 use crate::render::{Filter, FramePlan, cpu};
 use crate::scene::GridWorld;
 use crate::scene::synth::fisheye;
@@ -38,6 +38,14 @@ pub struct BenchArgs {
     filter: Filter,
     #[arg(long, value_enum, default_value = "gpu")]
     backend: Backend,
+    /// Also draw this many views alone (0 to 4, as the per-view streams do) after each
+    /// staged frame: from the frame's upload, and, interleaved, each on a renderer of its
+    /// own (uploading the frame again), to time both.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=4))]
+    views: u8,
+    /// The views' size (`[cameras]` width and height).
+    #[arg(long, default_value = "1280x720", value_parser = crate::units::parse_size)]
+    view_size: (u32, u32),
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
@@ -67,6 +75,22 @@ struct Measured {
     pipelined_fps: f64,
     /// Median from a frame's upload starting to its bytes being readable, pipelined.
     pipelined_latency_ms: f64,
+    /// With `--views`: what drawing them took.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    views: Option<ViewTimes>,
+}
+
+/// Medians per frame of drawing `--views` views alone, each way.
+#[derive(Serialize)]
+struct ViewTimes {
+    count: u8,
+    size: String,
+    /// All of them from the composed frame's upload, one submission, read back, each with
+    /// the cheaper filter where it draws alike (as the video head draws them).
+    shared_ms: f64,
+    /// Each on a renderer of its own with `--filter`: upload, draw, readback (as the video
+    /// head drew them before they shared the upload).
+    alone_ms: f64,
 }
 
 #[derive(Serialize)]
@@ -134,13 +158,22 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
     // Every frame's plan, built up front (as the video head builds one per frame) and timed.
     let mut plan_times = vec![];
     let mut plans = vec![];
+    // With --views, each frame's views alone too.
+    let mut view_plans = vec![];
     for i in 0..total {
         let t = Instant::now();
-        plans.push(FramePlan::new(&attitude_at(&base, i), &lens)?);
+        let state = attitude_at(&base, i);
+        plans.push(FramePlan::new(&state, &lens)?);
         plan_times.push(ms(t.elapsed()));
+        let (w, h) = args.view_size;
+        view_plans.push(
+            (0..args.views as usize)
+                .map(|v| FramePlan::single_view(&state, &lens, v, w, h))
+                .collect::<Vec<_>>(),
+        );
     }
     let measured = match args.backend {
-        Backend::Gpu => bench_gpu(&args, &input, &input_layout, &plans)?,
+        Backend::Gpu => bench_gpu(&args, &input, &input_layout, &plans, &view_plans)?,
         Backend::Cpu => bench_cpu(&args, &fish, &plans),
     };
     let report = Report {
@@ -184,6 +217,12 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
         "pipelined    {:8.1} fps, latency {:.2} ms median (upload start → bytes readable)",
         r.pipelined_fps, r.pipelined_latency_ms
     );
+    if let Some(v) = &r.views {
+        println!(
+            "{} views alone at {}: {:.2} ms from the frame's upload, {:.2} ms each uploading it again",
+            v.count, v.size, v.shared_ms, v.alone_ms
+        );
+    }
     Ok(())
 }
 
@@ -202,6 +241,7 @@ fn bench_gpu(
     input: &[u8],
     input_layout: &PlaneLayout,
     plans: &[FramePlan],
+    view_plans: &[Vec<FramePlan>],
 ) -> Result<Measured> {
     let gpu = Gpu::new()?;
     let mut renderer = Renderer::new(&gpu, args.output_format, args.filter)?;
@@ -212,9 +252,11 @@ fn bench_gpu(
     }
     let bar = progress(args.frames, "staged");
     let mut stages: Vec<StageTimes> = vec![];
-    for plan in timed {
+    let mut views = ViewBench::new(&gpu, &mut renderer, args)?;
+    for (plan, view_plans) in timed.iter().zip(&view_plans[args.warmup as usize..]) {
         let (_, times) = renderer.render_staged(input, input_layout, plan)?;
         stages.push(times);
+        views.time(&mut renderer, input, input_layout, view_plans)?;
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -244,7 +286,76 @@ fn bench_gpu(
         },
         pipelined_fps: args.frames as f64 / elapsed.as_secs_f64(),
         pipelined_latency_ms: median(latencies),
+        views: views.report(args),
     })
+}
+
+/// `--views`: the views' outputs of the renderer, a renderer of their own, and the times.
+struct ViewBench {
+    outputs: Vec<OutputId>,
+    /// With the mip filter, each view drawn from the upload takes the cheaper filter where
+    /// it draws alike, as the video head's do (`FramePlan::cheapest_filter`).
+    choose_filter: bool,
+    alone: Option<Renderer>,
+    shared: Vec<f64>,
+    alone_ms: Vec<f64>,
+}
+
+impl ViewBench {
+    fn new(gpu: &Gpu, renderer: &mut Renderer, args: &BenchArgs) -> Result<ViewBench> {
+        let outputs = (0..args.views)
+            .map(|_| renderer.add_output(args.output_format, args.filter))
+            .collect::<Result<_, _>>()?;
+        let alone = match args.views {
+            0 => None,
+            _ => Some(Renderer::new(gpu, args.output_format, args.filter)?),
+        };
+        Ok(ViewBench {
+            outputs,
+            choose_filter: args.filter == Filter::Mip,
+            alone,
+            shared: vec![],
+            alone_ms: vec![],
+        })
+    }
+
+    /// Draws the views of the frame just rendered (`plans`) both ways, timing each.
+    fn time(
+        &mut self,
+        renderer: &mut Renderer,
+        input: &[u8],
+        layout: &PlaneLayout,
+        plans: &[FramePlan],
+    ) -> Result<()> {
+        let Some(alone) = &mut self.alone else {
+            return Ok(());
+        };
+        let jobs: Vec<_> = self.outputs.iter().copied().zip(plans).collect();
+        if self.choose_filter {
+            for &(id, plan) in &jobs {
+                renderer.set_filter(id, plan.cheapest_filter())?;
+            }
+        }
+        let t = Instant::now();
+        renderer.redraw(&jobs)?;
+        self.shared.push(ms(t.elapsed()));
+        let t = Instant::now();
+        for plan in plans {
+            alone.render(input, layout, plan)?;
+        }
+        self.alone_ms.push(ms(t.elapsed()));
+        Ok(())
+    }
+
+    fn report(self, args: &BenchArgs) -> Option<ViewTimes> {
+        self.alone.as_ref()?;
+        Some(ViewTimes {
+            count: args.views,
+            size: format!("{}x{}", args.view_size.0, args.view_size.1),
+            shared_ms: median(self.shared),
+            alone_ms: median(self.alone_ms),
+        })
+    }
 }
 
 /// The CPU reference at the same job, for scale (no upload or readback: it renders the RGB
@@ -271,5 +382,6 @@ fn bench_cpu(args: &BenchArgs, fish: &RgbImage, plans: &[FramePlan]) -> Measured
         },
         pipelined_fps: 1e3 / m,
         pipelined_latency_ms: m,
+        views: None,
     }
 }

@@ -81,8 +81,7 @@ impl Head {
     }
 
     pub(super) fn frame_loop(self: &Arc<Head>) -> Result<(), HeadError> {
-        let mut gpu = Gpu::new()?;
-        let mut renderer = self.renderer(&gpu)?;
+        let mut renderer = self.renderer(&Gpu::new()?)?;
         let mut views = ViewOutputs::default();
         let mut scans = super::detection::ScanRenderer::default();
         let mut encoder = self.encoder(self.live.snapshot().output.fps)?;
@@ -107,6 +106,7 @@ impl Head {
             let fresh = self
                 .slot
                 .take_until(start + pacer.wait_until(start.elapsed(), period));
+            let taken = Instant::now();
             let replaced_now = self.slot.stats().dropped;
             let replaced = std::mem::replace(&mut replaced_then, replaced_now) != replaced_now;
             let signal = self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
@@ -167,8 +167,8 @@ impl Head {
                     self.live.set_failure(Failure::Gpu);
                     healthy = Some(false);
                     std::thread::sleep(Duration::from_secs(1));
-                    match Gpu::new().and_then(|g| Ok((self.renderer(&g)?, g))) {
-                        Ok((r, g)) => (renderer, gpu) = (r, g),
+                    match Gpu::new().and_then(|g| self.renderer(&g)) {
+                        Ok(r) => renderer = r,
                         Err(e) => error!("GPU: {e}"),
                     }
                     views.reset_gpu();
@@ -199,14 +199,12 @@ impl Head {
             self.stats
                 .encoder_dropped
                 .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
-            let context = match (&last_frame, &framed) {
-                (Some(f), Some((s, lens))) => Some((f, s, lens)),
-                _ => None,
-            };
-            self.render_views(&mut views, &gpu, context, pts, state.output.fps);
-            if let Some((frame, s, lens)) = context {
-                self.offer_scan(&mut scans, &gpu, frame, s, lens);
+            let context = framed.as_ref().map(|(s, lens)| (s, lens));
+            self.render_views(&mut views, &mut renderer, context, pts, state.output.fps);
+            if let (Some(frame), Some((s, lens))) = (&last_frame, context) {
+                self.offer_scan(&mut scans, &mut renderer, frame, s, lens);
             }
+            views.frame_done(taken.elapsed());
             let now_ok = health(signal, self.source_error().is_some(), last_frame.is_some());
             if now_ok != healthy {
                 match now_ok {

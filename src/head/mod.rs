@@ -25,6 +25,7 @@ mod no_signal;
 pub mod pacing;
 mod source_thread;
 mod supervise;
+mod view_pacing;
 mod views;
 
 pub use detection::DetectorError;

@@ -1,15 +1,17 @@
 //! The views alone, beside the composed frame: each view's own stream (`PATH/camN`, what the
 //! MAVLink cameras give ground stations), rendered and encoded only while someone watches or
-//! its camera records it, and the stills the cameras take of their view. Both render the view by itself at the
-//! `[cameras]` size from the same fisheye frame and state as the composed frame, on a
-//! renderer of their own (its output size never changes), after the composed frame is
-//! handed to its encoder.
+//! its camera records it, and the stills the cameras take of their view. Both draw the view by
+//! itself at the `[cameras]` size from the fisheye frame the composed frame was just rendered
+//! from, with the same state, as further outputs of the frame loop's renderer: the frame is
+//! uploaded once, and every view wanted is drawn in one submission after the composed frame
+//! is handed to its encoder.
 
+use super::view_pacing::ViewPacing;
 use super::{Head, no_signal};
-use crate::frame::Frame;
+use crate::frame::{PixelFormat, PlaneLayout};
 use crate::lens::Lens;
-use crate::render::FramePlan;
-use crate::render::gpu::{Gpu, GpuError, Renderer};
+use crate::render::gpu::{GpuError, OutputId, Renderer};
+use crate::render::{Filter, FramePlan};
 use crate::state::State;
 use crate::state::capture::CaptureError;
 use crate::stream::Encoder;
@@ -33,31 +35,43 @@ enum NoPicture {
     Gpu(Arc<GpuError>),
 }
 
+/// A view's picture: its bytes and their layout.
+type Picture = Result<(Vec<u8>, PlaneLayout), NoPicture>;
+
 /// What the views' outputs keep from frame to frame.
 #[derive(Default)]
 pub(super) struct ViewOutputs {
-    renderer: Option<Renderer>,
+    /// Which watched views are drawn with each frame.
+    pacing: ViewPacing,
+    /// Each view's output of the frame loop's renderer, once it was drawn.
+    outputs: [Option<OutputId>; VIEW_MOUNTS],
     encoders: [Option<Encoder>; VIEW_MOUNTS],
     failed: [Option<Instant>; VIEW_MOUNTS],
 }
 
 impl ViewOutputs {
-    /// Forgets the renderer (the GPU was rebuilt).
+    /// Forgets the outputs (the GPU and its renderer were rebuilt).
     pub(super) fn reset_gpu(&mut self) {
-        self.renderer = None;
+        self.outputs = Default::default();
+    }
+
+    /// The frame loop spent `took` on this frame, views included.
+    pub(super) fn frame_done(&mut self, took: Duration) {
+        self.pacing.frame_done(took);
     }
 }
 
-/// The frame just rendered: the fisheye frame and the state and lens it was rendered with
-/// (None while the source is down).
-pub(super) type Rendered<'a> = Option<(&'a Frame, &'a State, &'a Lens)>;
+/// The state and lens the frame last uploaded to the renderer was rendered with (None while
+/// the source is down).
+pub(super) type Rendered<'a> = Option<(&'a State, &'a Lens)>;
 
 impl Head {
-    /// Feeds each watched view's stream and takes the stills asked for, from `rendered`.
+    /// Feeds the watched views' streams that are due (`ViewPacing`) and takes the stills
+    /// asked for, drawn from the frame `renderer` rendered last.
     pub(super) fn render_views(
         self: &Arc<Head>,
         outs: &mut ViewOutputs,
-        gpu: &Gpu,
+        renderer: &mut Renderer,
         rendered: Rendered,
         pts: Duration,
         fps: u32,
@@ -72,31 +86,43 @@ impl Head {
             self.capture.put_back_view_stills(waiting);
             stills = late;
         }
-        let (w, h) = self.cfg.view_size;
-        for i in 0..VIEW_MOUNTS {
-            // Watched, or recorded by its camera: its stream is encoded.
-            let watched = self.rtsp.view_watched(i) || self.capture.view_recording(i);
-            if !watched {
+        // Watched, or recorded by its camera: its stream is encoded.
+        let watched: [bool; VIEW_MOUNTS] =
+            std::array::from_fn(|i| self.rtsp.view_watched(i) || self.capture.view_recording(i));
+        for (i, watched) in watched.into_iter().enumerate() {
+            if !watched && outs.encoders[i].take().is_some() {
                 // Nobody watches: no render, no encoder.
-                outs.encoders[i] = None;
+                outs.pacing.forget(i);
             }
+        }
+        let now = Instant::now();
+        let due = outs
+            .pacing
+            .pick(watched, Duration::from_secs_f64(1.0 / fps as f64), now);
+        let wanted: Vec<usize> = (0..VIEW_MOUNTS)
+            .filter(|&i| due[i] || stills.iter().any(|s| s.0 == i))
+            .collect();
+        if wanted.is_empty() {
+            return;
+        }
+        let pictures = match rendered {
+            Some((state, lens)) => {
+                let pictures = draw_views(outs, renderer, state, lens, &wanted, self.cfg.view_size);
+                let took = now.elapsed();
+                outs.pacing.drawn(&wanted, took, now);
+                self.stats
+                    .view_us
+                    .fetch_add(took.as_micros() as u64, Ordering::Relaxed);
+                self.stats
+                    .views
+                    .fetch_add(wanted.len() as u64, Ordering::Relaxed);
+                pictures
+            }
+            None => wanted.iter().map(|_| Err(NoPicture::NoSignal)).collect(),
+        };
+        for (i, picture) in wanted.into_iter().zip(pictures) {
             let asked: Vec<_>;
             (asked, stills) = stills.into_iter().partition(|s| s.0 == i);
-            if !watched && asked.is_empty() {
-                continue;
-            }
-            let picture = match rendered {
-                Some((frame, state, lens)) => {
-                    let t0 = Instant::now();
-                    let r = self.render_view(outs, gpu, frame, state, lens, i, w, h);
-                    self.stats
-                        .view_us
-                        .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
-                    self.stats.views.fetch_add(1, Ordering::Relaxed);
-                    r
-                }
-                None => Err(NoPicture::NoSignal),
-            };
             for (_, _, done) in asked {
                 match &picture {
                     Ok((data, layout)) => {
@@ -105,35 +131,12 @@ impl Head {
                     Err(e) => done(Err(CaptureError::Still(Box::new(e.clone())))),
                 }
             }
-            if watched {
+            if due[i] {
+                let (w, h) = self.cfg.view_size;
                 let (data, layout) = picture.unwrap_or_else(|_| no_signal::frame(w, h));
                 self.feed_view(outs, i, data, &layout, pts, fps);
             }
         }
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn render_view(
-        &self,
-        outs: &mut ViewOutputs,
-        gpu: &Gpu,
-        frame: &Frame,
-        state: &State,
-        lens: &Lens,
-        i: usize,
-        w: u32,
-        h: u32,
-    ) -> Result<(Vec<u8>, crate::frame::PlaneLayout), NoPicture> {
-        let gpu_error = |e| NoPicture::Gpu(Arc::new(e));
-        if outs.renderer.is_none() {
-            outs.renderer = Some(self.renderer(gpu).map_err(gpu_error)?);
-        }
-        let renderer = outs.renderer.as_mut().expect("made above");
-        let plan = FramePlan::single_view(state, lens, i, w, h);
-        let out = renderer
-            .render(&frame.data, &frame.layout, &plan)
-            .map_err(gpu_error)?;
-        Ok((out.data, out.layout))
     }
 
     /// Hands view `i`'s picture to its encoder, starting one for a new watcher.
@@ -142,7 +145,7 @@ impl Head {
         outs: &mut ViewOutputs,
         i: usize,
         data: Vec<u8>,
-        layout: &crate::frame::PlaneLayout,
+        layout: &PlaneLayout,
         pts: Duration,
         fps: u32,
     ) {
@@ -174,6 +177,43 @@ impl Head {
         if let Err(e) = encoder.push(data, layout, pts, fps) {
             error!("camera {i}'s stream: {e}; starting its encoder again");
             outs.encoders[i] = None;
+        }
+    }
+}
+
+/// Views `wanted`, each alone at `size`, drawn with `state` and `lens` from the frame last
+/// uploaded to `renderer`, in one submission: I420, with the mip filter as the composed frame
+/// where a view is minified, else bilinear (`FramePlan::cheapest_filter`).
+fn draw_views(
+    outs: &mut ViewOutputs,
+    renderer: &mut Renderer,
+    state: &State,
+    lens: &Lens,
+    wanted: &[usize],
+    (w, h): (u32, u32),
+) -> Vec<Picture> {
+    let plans: Vec<_> = wanted
+        .iter()
+        .map(|&i| FramePlan::single_view(state, lens, i, w, h))
+        .collect();
+    let mut jobs = Vec::with_capacity(wanted.len());
+    let drawn = wanted.iter().zip(&plans).try_for_each(|(&i, plan)| {
+        let id = match outs.outputs[i] {
+            Some(id) => id,
+            None => *outs.outputs[i].insert(renderer.add_output(PixelFormat::I420, Filter::Mip)?),
+        };
+        renderer.set_filter(id, plan.cheapest_filter())?;
+        jobs.push((id, plan));
+        Ok(())
+    });
+    match drawn.and_then(|()| renderer.redraw(&jobs)) {
+        Ok(frames) => frames.into_iter().map(|f| Ok((f.data, f.layout))).collect(),
+        Err(e) => {
+            let e = Arc::new(e);
+            wanted
+                .iter()
+                .map(|_| Err(NoPicture::Gpu(e.clone())))
+                .collect()
         }
     }
 }

@@ -7,11 +7,15 @@ use crate::geometry::view::{crop, lens_from_world};
 use crate::geometry::{Euler, Projection, rotation::direction};
 use crate::layout::{Layout, LayoutError, Rect, Slot, layout};
 use crate::lens::Lens;
+use crate::render::mip::{Filter, MAX_LEVELS};
 use crate::state::{State, Tracked};
 use glam::{DMat3, DVec2, DVec3};
 
 /// The most samples per axis a minified view takes per output pixel.
 pub const MAX_SAMPLES: u32 = 8;
+/// The least and most pixels of one mip level that an output pixel may span for
+/// [`FramePlan::cheapest_filter`] to draw from that level alone.
+pub const ONE_LEVEL_FOOTPRINT: (f64, f64) = (0.6, 2.0);
 /// Margin around a tracked object's angular size in its tile.
 pub const TILE_MARGIN: f64 = 1.6;
 /// The side of the square a camera that the layout does not show is measured in.
@@ -265,8 +269,20 @@ impl FramePlan {
 
     /// Fisheye pixels per output pixel, worst case over a grid of the view, rounded up.
     fn samples_for(&self, view: &PlannedView) -> u32 {
+        (self.footprint(view).ceil() as u32).clamp(1, MAX_SAMPLES)
+    }
+
+    /// The most fisheye pixels one output pixel of `view` spans, across or down, over a 9x9
+    /// grid of its pixels (0 where none images the fisheye).
+    pub fn footprint(&self, view: &PlannedView) -> f64 {
+        self.footprints(view).1
+    }
+
+    /// The least and the most fisheye pixels one output pixel of `view` spans, across or
+    /// down, over a 9x9 grid of its pixels ((∞, 0) where none images the fisheye).
+    pub fn footprints(&self, view: &PlannedView) -> (f64, f64) {
         let r = view.rect;
-        let mut worst: f64 = 0.0;
+        let (mut least, mut most) = (f64::INFINITY, 0.0f64);
         for i in 0..=8 {
             for j in 0..=8 {
                 let p = DVec2::new(
@@ -280,10 +296,39 @@ impl FramePlan {
                 ) else {
                     continue;
                 };
-                worst = worst.max((bx - a).length()).max((by - a).length());
+                let wide = (bx - a).length().max((by - a).length());
+                (least, most) = (least.min(wide), most.max(wide));
             }
         }
-        (worst.ceil() as u32).clamp(1, MAX_SAMPLES)
+        (least, most)
+    }
+
+    /// The cheaper way to draw the plan alike, where there is one: the bilinear filter from
+    /// one level `k` of the mip chain when every view's pixels span between
+    /// [`ONE_LEVEL_FOOTPRINT`]'s bounds of that level's pixels (at level 0, no lower bound:
+    /// magnified pixels are what trilinear draws there too); else the mip filter. Trilinear
+    /// draws a pixel at its own level of detail, blending two levels, from the wider of its
+    /// footprint's two sides (so it blurs along the other); one level drawn this way is at
+    /// most one level sharper (aliasing only detail finer than 2 of its pixels, which a lens
+    /// and demosaic rarely pass) or 0.74 blurrier. Against ground truth it scores as well or
+    /// better (tests/it/view_filters.rs); on a software rasterizer it draws in half the time.
+    pub fn cheapest_filter(&self) -> (Filter, u32) {
+        let (least, most) = self
+            .views
+            .iter()
+            .map(|v| self.footprints(v))
+            .fold((f64::INFINITY, 0.0f64), |(l, m), (vl, vm)| {
+                (l.min(vl), m.max(vm))
+            });
+        let (low, high) = ONE_LEVEL_FOOTPRINT;
+        if most <= high {
+            return (Filter::Bilinear, 0);
+        }
+        let k = (most / high).log2().ceil();
+        match least / k.exp2() >= low && k < MAX_LEVELS as f64 {
+            true => (Filter::Bilinear, k as u32),
+            false => (Filter::Mip, 0),
+        }
     }
 }
 

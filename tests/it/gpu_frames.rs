@@ -352,3 +352,67 @@ fn lens_models_named_ahead_are_drawn_from_the_first_frame_without_a_build() {
     draw(&mut r, &lenses[2].1, &state);
     assert!(r.pipelines() > built);
 }
+
+/// One upload, every output: after each frame is rendered, two more outputs drawn from its
+/// upload (a view alone, I420 with the mip filter, as a per-view stream is; and an RGBA scan
+/// with the bilinear filter, as a model's scan is) come back byte for byte as a renderer of
+/// their own draws them from the same frame, frame after frame. Drawing before any upload,
+/// with a lens that images the frame otherwise, or one output twice is refused, and drawing
+/// goes on after.
+#[test]
+fn outputs_drawn_again_from_one_upload_match_each_rendered_alone() {
+    let lens = small_lens("CIL216");
+    let world = GridWorld::default();
+    let mut r = renderer(PixelFormat::I420, Filter::Mip);
+    let view = r.add_output(PixelFormat::I420, Filter::Mip).unwrap();
+    let scan = r.add_output(PixelFormat::Rgba, Filter::Bilinear).unwrap();
+    let err = r
+        .redraw(&[(
+            view,
+            &FramePlan::single_view(&base_state(), &lens, 0, 320, 180),
+        )])
+        .unwrap_err();
+    assert!(err.to_string().contains("no frame"), "{err}");
+    let mut alone_view = renderer(PixelFormat::I420, Filter::Mip);
+    let mut alone_scan = renderer(PixelFormat::Rgba, Filter::Bilinear);
+    let mut last: Option<(Vec<u8>, PlaneLayout)> = None;
+    for (i, yaw) in [0.0, 35.0, -70.0].into_iter().enumerate() {
+        let mut state = base_state();
+        state.vehicle.attitude.yaw = yaw * DEG;
+        let (data, layout) = as_format(&fisheye(&world, &lens, &state), PixelFormat::I420);
+        r.render(&data, &layout, &FramePlan::new(&state, &lens).unwrap())
+            .unwrap();
+        let view_plan = FramePlan::single_view(&state, &lens, i, 320, 180);
+        let mut scanned = state.clone();
+        (scanned.output.width, scanned.output.height) = (256, 128);
+        let scan_plan = FramePlan::new(&scanned, &lens).unwrap();
+        let got = r.redraw(&[(view, &view_plan), (scan, &scan_plan)]).unwrap();
+        let want = [
+            alone_view.render(&data, &layout, &view_plan).unwrap(),
+            alone_scan.render(&data, &layout, &scan_plan).unwrap(),
+        ];
+        for (got, want) in got.iter().zip(&want) {
+            assert_eq!(got.layout, want.layout, "frame {i}");
+            assert!(got.data == want.data, "frame {i}: {:?}", got.layout.format);
+        }
+        // Drawn from the frame before, the view would differ: the comparison tells.
+        if let Some((data, layout)) = last.replace((data, layout)) {
+            let stale = alone_view.render(&data, &layout, &view_plan).unwrap();
+            assert!(stale.data != got[0].data, "frame {i}");
+        }
+    }
+    let other = small_lens("CIL216").for_frame(640, 360, None);
+    let err = r
+        .redraw(&[(
+            view,
+            &FramePlan::single_view(&base_state(), &other, 0, 320, 180),
+        )])
+        .unwrap_err();
+    assert!(err.to_string().contains("otherwise"), "{err}");
+    let plan = FramePlan::single_view(&base_state(), &lens, 0, 320, 180);
+    let err = r.redraw(&[(view, &plan), (view, &plan)]).unwrap_err();
+    assert!(err.to_string().contains("twice"), "{err}");
+    assert_eq!(r.redraw(&[(view, &plan)]).unwrap().len(), 1);
+    let mut bilinear = renderer(PixelFormat::I420, Filter::Bilinear);
+    assert!(bilinear.add_output(PixelFormat::I420, Filter::Mip).is_err());
+}

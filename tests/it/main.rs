@@ -38,5 +38,6 @@ mod render_video;
 mod services;
 mod trust_mavlink;
 mod trust_web;
+mod view_filters;
 mod web;
 mod web_api;

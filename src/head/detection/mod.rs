@@ -23,7 +23,7 @@ use crate::geometry::GeoPoint;
 use crate::geometry::ground::to_ned;
 use crate::lens::Lens;
 use crate::render::Filter;
-use crate::render::gpu::{Gpu, GpuError, Renderer};
+use crate::render::gpu::{GpuError, OutputId, Renderer};
 use crate::state::State;
 use glam::DVec3;
 use handover::Scan;
@@ -33,18 +33,20 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tracing::{info, warn};
 
-/// What the frame loop keeps for the scans and crops.
+/// What the frame loop keeps for the scans and crops: their outputs of its renderer (drawn
+/// from the frame's one upload), and when each was last offered.
 #[derive(Default)]
 pub(super) struct ScanRenderer {
-    renderer: Option<Renderer>,
+    scan: Option<OutputId>,
+    crops: Option<OutputId>,
     last: Option<Instant>,
     last_crops: Option<Instant>,
 }
 
 impl ScanRenderer {
-    /// Forgets the renderer (the GPU was rebuilt).
+    /// Forgets the outputs (the GPU and its renderer were rebuilt).
     pub(super) fn reset_gpu(&mut self) {
-        self.renderer = None;
+        (self.scan, self.crops) = (None, None);
     }
 }
 
@@ -111,23 +113,22 @@ impl Head {
         ready && state.detection.run_ai
     }
 
-    /// The renderer for the scans: luma for the motion detector, colour for a model.
-    fn scan_renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
-        if self.cfg.detection.detector != Detector::Onnx {
-            return self.renderer(gpu);
+    /// An output of the frame loop's renderer for the scans or crops: I420 for the motion
+    /// detector (as the composed frame), colour (RGBA, bilinear) for a model.
+    fn scan_output(&self, renderer: &mut Renderer) -> Result<OutputId, GpuError> {
+        match self.cfg.detection.detector {
+            Detector::Onnx => renderer.add_output(PixelFormat::Rgba, Filter::Bilinear),
+            _ => renderer.add_output(PixelFormat::I420, Filter::Mip),
         }
-        let mut renderer = Renderer::new(gpu, PixelFormat::Rgba, Filter::Bilinear)?;
-        renderer.expect_lens_models(self.live.lenses().models());
-        Ok(renderer)
     }
 
-    /// Renders the scan views of `frame` (rendered with `state` and `lens`) when a scan is
-    /// due, else the crops of a track step when one is, and hands them to the detection
-    /// thread.
+    /// Draws the scan views of `frame` (just rendered by `renderer` with `state` and `lens`)
+    /// from its upload when a scan is due, else the crops of a track step when one is, and
+    /// hands them to the detection thread.
     pub(super) fn offer_scan(
         &self,
         scans: &mut ScanRenderer,
-        gpu: &Gpu,
+        renderer: &mut Renderer,
         frame: &Frame,
         state: &State,
         lens: &Lens,
@@ -174,16 +175,21 @@ impl Head {
         if views.is_empty() {
             return;
         }
-        if scans.renderer.is_none() {
-            match self.scan_renderer(gpu) {
-                Ok(r) => scans.renderer = Some(r),
-                Err(e) => return warn!("detection: no renderer for the scan: {e}"),
-            }
-        }
-        let renderer = scans.renderer.as_mut().expect("made above");
+        let output = if crops.is_empty() {
+            &mut scans.scan
+        } else {
+            &mut scans.crops
+        };
+        let output = match *output {
+            Some(id) => id,
+            None => match self.scan_output(renderer) {
+                Ok(id) => *output.insert(id),
+                Err(e) => return warn!("detection: no output for the scan: {e}"),
+            },
+        };
         let t0 = Instant::now();
-        let out = match renderer.render(&frame.data, &frame.layout, &plan) {
-            Ok(out) => out,
+        let out = match renderer.redraw(&[(output, &plan)]) {
+            Ok(mut out) => out.remove(0),
             Err(e) => return warn!("detection: the scan did not render: {e}"),
         };
         if crops.is_empty() {

@@ -25,6 +25,8 @@ use wgpu::util::DeviceExt;
 struct Plane {
     texture: wgpu::Texture,
     view: wgpu::TextureView,
+    /// Each level alone, for an output drawn with the bilinear filter from one level.
+    levels: Vec<wgpu::TextureView>,
 }
 
 /// One mip pass: its bind group and dispatch size (words across, rows).
@@ -153,9 +155,20 @@ impl Input {
         }
     }
 
-    /// Plane `i`'s texture, all levels (RGBA's one plane for any `i`).
-    pub fn plane_view(&self, i: usize) -> &wgpu::TextureView {
-        &self.planes[i.min(self.planes.len() - 1)].view
+    /// Plane `i`'s texture as an output drawn with `filter` samples it: every level, or for
+    /// the bilinear filter one level alone, the frame's level `level` (RGBA's one plane for
+    /// any `i`; 4:2:0's chroma plane starts at the frame's level 1, so it gives its level
+    /// `level - 1`, or 0).
+    pub fn plane_view(&self, i: usize, filter: Filter, level: u32) -> &wgpu::TextureView {
+        let plane = &self.planes[i.min(self.planes.len() - 1)];
+        let level = match i {
+            1 if self.planes.len() == 2 => level.saturating_sub(1),
+            _ => level,
+        };
+        match filter {
+            Filter::Mip => &plane.view,
+            Filter::Bilinear => &plane.levels[(level as usize).min(plane.levels.len() - 1)],
+        }
     }
 
     /// Copies the frame's bytes into upload buffer `slot` (waiting until it is free), rows
@@ -288,7 +301,7 @@ impl Input {
 }
 
 /// A plane's texture with its whole chain, level 0 black (it is copied over the imaged box
-/// only), and the view the draw pass samples: level 0 alone for the bilinear filter, so a
+/// only), and the views the draw pass samples: one level alone for the bilinear filter, so a
 /// software rasterizer can leave out the per-pixel choice of levels.
 fn plane(setup: &InputSetup, spec: &PlaneSpec) -> Plane {
     let texture = setup.gpu.device.create_texture(&wgpu::TextureDescriptor {
@@ -307,10 +320,16 @@ fn plane(setup: &InputSetup, spec: &PlaneSpec) -> Plane {
     });
     fill_level0(&setup.gpu.queue, &texture, spec);
     Plane {
-        view: texture.create_view(&wgpu::TextureViewDescriptor {
-            mip_level_count: (setup.filter == Filter::Bilinear).then_some(1),
-            ..Default::default()
-        }),
+        view: texture.create_view(&wgpu::TextureViewDescriptor::default()),
+        levels: (0..spec.levels)
+            .map(|level| {
+                texture.create_view(&wgpu::TextureViewDescriptor {
+                    base_mip_level: level,
+                    mip_level_count: Some(1),
+                    ..Default::default()
+                })
+            })
+            .collect(),
         texture,
     }
 }

@@ -21,7 +21,7 @@ pub mod shaders;
 mod twins;
 
 pub use device::Gpu;
-pub use renderer::{RenderedFrame, Renderer, StageTimes};
+pub use renderer::{OutputId, RenderedFrame, Renderer, StageTimes};
 
 use crate::frame::FrameError;
 
@@ -50,6 +50,10 @@ pub enum GpuError {
     InputTooSmall(u32, u32),
     #[error("the plan's lens is for a {0}x{1} frame but the input is {2}x{3}")]
     LensSize(u32, u32, u32, u32),
+    #[error("no frame has been uploaded to draw again")]
+    NothingUploaded,
+    #[error("the plan's lens images the frame otherwise than the upload's")]
+    OtherLens,
     #[error("the GPU failed: {0}")]
     Failed(String),
 }

@@ -313,14 +313,19 @@ impl Pipelines {
     /// the frame after they are ready. Software rasterizers compile a pipeline when it is
     /// first dispatched, on the queue's one thread, so there the frame stream would wait
     /// anyway (1.2 s on lavapipe with a cold shader cache): they keep drawing with the
-    /// generic ones.
-    pub fn draw(&mut self, wanted: DrawKey) -> Result<DrawKey, GpuError> {
+    /// generic ones. An output's first frame (`new_output`: a view's stream that starts)
+    /// waits for its specialised pair, as the very first frame does.
+    pub fn draw(&mut self, wanted: DrawKey, new_output: bool) -> Result<DrawKey, GpuError> {
         self.collect_built(false);
         if self.built.contains_key(&PipelineKey::Draw(wanted)) {
             return Ok(wanted);
         }
         let generic = wanted.generic();
         let first = !self.built.keys().any(|k| matches!(k, PipelineKey::Draw(_)));
+        if new_output && !first {
+            self.draw_pair(wanted)?;
+            return Ok(wanted);
+        }
         if !self.kinds_change || first {
             self.draw_pair(wanted)?;
             if self.kinds_change {

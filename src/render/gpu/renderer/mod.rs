@@ -7,17 +7,16 @@
 //! (RGBA, I420 or NV12) into a storage buffer, which is copied into a readback buffer of the
 //! ring (`ring`). The draw pass is two dispatches: blocks inside one view, then the few that
 //! straddle an edge (the block map, rebuilt when the rectangles change). [`Renderer::push`]
-//! hands back frame N-1 while frame N renders.
+//! hands back frame N-1 while frame N renders. Further outputs (`output`) are drawn from the
+//! same upload by [`Renderer::redraw`]: one upload for every output.
 
-use super::blocks::{BLOCK_H, BLOCK_W};
-use super::draw::{BlockBuffer, Target};
 use super::input::{Input, InputSetup};
-use super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params};
-use super::pipelines::{DrawKey, MIXED_WORKGROUP, PipelineKey, Pipelines, bind, groups};
+use super::pipelines::{PipelineKey, Pipelines};
 use super::planes::INGEST_BLOCK;
 use super::ring::{MapSlot, RING};
 use super::{Gpu, GpuError};
 
+mod output;
 mod staged;
 
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
@@ -25,6 +24,8 @@ use crate::lens::Model;
 use crate::render::mip::{Filter, ImagedBox};
 use crate::render::plan::FramePlan;
 use image::RgbImage;
+use output::Output;
+pub use output::OutputId;
 pub use staged::StageTimes;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -58,20 +59,13 @@ struct InFlight {
 
 pub struct Renderer {
     gpu: Gpu,
-    output_format: PixelFormat,
     filter: Filter,
-    params: wgpu::Buffer,
-    views: wgpu::Buffer,
-    sampler: wgpu::Sampler,
     pipelines: Pipelines,
     input: Option<Input>,
-    target: Option<Target>,
-    draw_group: Option<wgpu::BindGroup>,
-    blocks: Option<BlockBuffer>,
-    /// The draw pipelines drawing the frame last prepared, and that frame's own view kinds
-    /// (they differ while it is drawn generically).
-    draw_key: Option<DrawKey>,
-    frame_kinds: u32,
+    /// What each upload is drawn into.
+    main: Output,
+    /// What [`Renderer::redraw`] draws into.
+    more: Vec<Output>,
     /// See [`Renderer::make_levels_on_host`].
     levels_on_host: bool,
     next_id: u64,
@@ -85,47 +79,17 @@ impl Renderer {
         let device = &gpu.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let pipelines = Pipelines::new(gpu);
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame params"),
-            size: size_of::<GpuParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let views = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame views"),
-            size: (size_of::<GpuView>() * MAX_VIEWS) as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        // Bilinear filtering samples level 0 alone: a sampler and views (`Input`) that say so
-        // let a software rasterizer leave out the per-pixel choice of levels.
-        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("trilinear"),
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: match filter {
-                Filter::Mip => wgpu::MipmapFilterMode::Linear,
-                Filter::Bilinear => wgpu::MipmapFilterMode::Nearest,
-            },
-            ..Default::default()
-        });
+        let main = Output::new(device, output_format, filter);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Failed(format!("setting up the renderer: {e}")));
         }
         Ok(Renderer {
             gpu: gpu.clone(),
-            output_format,
             filter,
-            params,
-            views,
-            sampler,
             pipelines,
             input: None,
-            target: None,
-            draw_group: None,
-            blocks: None,
-            draw_key: None,
-            frame_kinds: 0,
+            main,
+            more: Vec::new(),
             levels_on_host: gpu.is_software(),
             next_id: 0,
             in_flight: VecDeque::new(),
@@ -133,7 +97,48 @@ impl Renderer {
     }
 
     pub fn output_format(&self) -> PixelFormat {
-        self.output_format
+        self.main.format
+    }
+
+    /// Adds an output that [`Renderer::redraw`] draws from each upload, in `format` with
+    /// `filter` (the mip filter only where the renderer's own filter is mip: the bilinear
+    /// filter makes no levels).
+    pub fn add_output(
+        &mut self,
+        format: PixelFormat,
+        filter: Filter,
+    ) -> Result<OutputId, GpuError> {
+        self.check_filter(filter, 0)?;
+        self.more
+            .push(Output::new(&self.gpu.device, format, filter));
+        Ok(OutputId(self.more.len() - 1))
+    }
+
+    /// Draws output `id` from the next [`Renderer::redraw`] on with `filter`, the bilinear
+    /// filter from the frame's mip level `level` (0: the frame itself; the level is clamped
+    /// to the chain). The mip filter, and a level past 0, only where the renderer's own filter
+    /// is mip: the bilinear filter makes no levels.
+    pub fn set_filter(
+        &mut self,
+        id: OutputId,
+        (filter, level): (Filter, u32),
+    ) -> Result<(), GpuError> {
+        self.check_filter(filter, level)?;
+        self.more
+            .get_mut(id.0)
+            .ok_or_else(|| GpuError::Failed(format!("no output {}", id.0)))?
+            .set_filter(filter, level);
+        Ok(())
+    }
+
+    fn check_filter(&self, filter: Filter, level: u32) -> Result<(), GpuError> {
+        if self.filter == Filter::Bilinear && (filter == Filter::Mip || level > 0) {
+            return Err(GpuError::Failed(
+                "an output with the mip filter or a mip level needs a renderer that makes levels"
+                    .into(),
+            ));
+        }
+        Ok(())
     }
 
     pub fn gpu(&self) -> &Gpu {
@@ -180,7 +185,7 @@ impl Renderer {
         if on != self.levels_on_host {
             self.levels_on_host = on;
             self.input = None;
-            self.draw_group = None;
+            self.forget_input();
         }
     }
 
@@ -193,15 +198,24 @@ impl Renderer {
     /// (else by the generic ones, while the specialised ones are built or on a software
     /// rasterizer).
     pub fn drew_specialised(&self) -> bool {
-        self.draw_key
-            .is_none_or(|key| key.view_kinds == self.frame_kinds)
+        let main = &self.main;
+        main.draw_key
+            .is_none_or(|key| key.view_kinds == main.frame_kinds)
+    }
+
+    /// Forgets every output's bindings that name the input.
+    fn forget_input(&mut self) {
+        for output in std::iter::once(&mut self.main).chain(&mut self.more) {
+            output.forget_input();
+        }
     }
 
     fn input_setup(&self) -> InputSetup<'_> {
         InputSetup {
             gpu: &self.gpu,
             layouts: &self.pipelines.layouts,
-            params: &self.params,
+            // The ingest reads the input's part of them, which every output shares.
+            params: &self.main.params,
             filter: self.filter,
             levels_on_host: self.levels_on_host,
         }
@@ -218,45 +232,7 @@ impl Renderer {
             return;
         }
         self.input = Some(Input::new(&self.input_setup(), layout, imaged));
-        self.draw_group = None;
-    }
-
-    /// Makes the output-side resources match a `width` × `height` frame.
-    fn ensure_target(&mut self, width: u32, height: u32) -> Result<(), GpuError> {
-        let layout = PlaneLayout::aligned(self.output_format, width, height, OUTPUT_ALIGN)?;
-        if self.target.as_ref().is_some_and(|t| t.layout == layout) {
-            return Ok(());
-        }
-        self.target = Some(Target::new(&self.gpu.device, layout));
-        self.draw_group = None;
-        Ok(())
-    }
-
-    fn ensure_draw_group(&mut self) {
-        if self.draw_group.is_some() {
-            return;
-        }
-        let (input, target) = (self.input.as_ref().unwrap(), self.target.as_ref().unwrap());
-        let blocks = &self.blocks.as_ref().unwrap().buffer;
-        // RGBA has one plane: bound twice, the second never sampled.
-        let plane = |i| wgpu::BindingResource::TextureView(input.plane_view(i));
-        self.draw_group = Some(
-            self.gpu
-                .device
-                .create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("draw"),
-                    layout: &self.pipelines.layouts.draw,
-                    entries: &[
-                        bind(0, self.params.as_entire_binding()),
-                        bind(1, self.views.as_entire_binding()),
-                        bind(2, plane(0)),
-                        bind(3, wgpu::BindingResource::Sampler(&self.sampler)),
-                        bind(4, target.buffer.as_entire_binding()),
-                        bind(5, blocks.as_entire_binding()),
-                        bind(6, plane(1)),
-                    ],
-                }),
-        );
+        self.forget_input();
     }
 
     /// Checks a frame against the plan, sets up what it needs, and writes its parameters.
@@ -286,71 +262,14 @@ impl Renderer {
                 .ensure(PipelineKey::Ingest { input: upload })?;
             self.pipelines.ensure(PipelineKey::Mip)?;
         }
-        self.ensure_target(plan.layout.width, plan.layout.height)?;
-        let rects: Vec<_> = plan.views.iter().map(|v| v.rect).collect();
-        let size = (plan.layout.width, plan.layout.height);
-        let gpu = &self.gpu;
-        if BlockBuffer::follow(&mut self.blocks, &gpu.device, &gpu.queue, size, &rects) {
-            self.draw_group = None;
-        }
-        self.ensure_draw_group();
         let input = self.input.as_ref().unwrap();
-        let target = self.target.as_ref().unwrap();
-        let mixed = self.mixed_blocks();
-        let (params, views) =
-            frame_params(plan, &input.padded, &target.layout, input.levels, mixed)?;
-        // The draw pipeline leaves out the code of view kinds the frame lacks.
-        let kinds = views.iter().fold(0, |kinds, v| kinds | 1 << v.kind[0]);
-        let wanted = DrawKey {
-            lens_model: plan.lens.radial.model.code(),
-            output: self.output_format,
-            filter: self.filter,
-            input: upload,
-            view_kinds: kinds,
-        };
-        self.draw_key = Some(self.pipelines.draw(wanted)?);
-        self.frame_kinds = kinds;
-        let queue = &self.gpu.queue;
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        if !views.is_empty() {
-            queue.write_buffer(&self.views, 0, bytemuck::cast_slice(&views));
-        }
-        Ok(())
-    }
-
-    /// Blocks the draw pass's per-pixel dispatch draws.
-    fn mixed_blocks(&self) -> u32 {
-        self.blocks.as_ref().map_or(0, BlockBuffer::mixed)
+        self.main
+            .prepare(&self.gpu, &mut self.pipelines, input, plan)
     }
 
     fn encode_draw(&mut self, encoder: &mut wgpu::CommandEncoder) {
         let warm_up = self.pipelines.take_warm_up();
-        let target = self.target.as_ref().unwrap();
-        let key = self.draw_key.expect("a prepared frame");
-        let pipelines = &self.pipelines;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("draw"),
-            timestamp_writes: None,
-        });
-        pass.set_bind_group(0, self.draw_group.as_ref().unwrap(), &[]);
-        // One workgroup of each generic pipeline, drawing what the full dispatch then draws
-        // again, so they are compiled now rather than when a frame first needs them (a pair
-        // for another lens model reads this frame's lens as one of its own: what it draws is
-        // nonsense, drawn over the same way).
-        for generic in warm_up {
-            for pipeline in [PipelineKey::Draw(generic), PipelineKey::DrawMixed(generic)] {
-                pass.set_pipeline(pipelines.get(pipeline));
-                pass.dispatch_workgroups(1, 1, 1);
-            }
-        }
-        pass.set_pipeline(pipelines.get(PipelineKey::Draw(key)));
-        let (w, h) = (target.layout.width, target.layout.height);
-        pass.dispatch_workgroups(groups(w.div_ceil(BLOCK_W)), groups(h.div_ceil(BLOCK_H)), 1);
-        let mixed = self.mixed_blocks();
-        if mixed > 0 {
-            pass.set_pipeline(pipelines.get(PipelineKey::DrawMixed(key)));
-            pass.dispatch_workgroups(mixed.div_ceil(MIXED_WORKGROUP), 1, 1);
-        }
+        self.main.encode_draw(encoder, &self.pipelines, &warm_up);
     }
 
     fn encode_upload(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
@@ -392,13 +311,11 @@ impl Renderer {
         let mut encoder = self.encoder();
         self.encode_upload(&mut encoder, slot);
         self.encode_draw(&mut encoder);
-        self.target
-            .as_ref()
-            .unwrap()
-            .encode_readback(&mut encoder, slot);
+        let target = self.main.target.as_ref().unwrap();
+        target.encode_readback(&mut encoder, slot);
         self.submit(encoder);
         self.next_id += 1;
-        let (input, target) = (self.input.as_ref().unwrap(), self.target.as_ref().unwrap());
+        let input = self.input.as_ref().unwrap();
         input.uploads[slot].request(wgpu::MapMode::Write);
         let readback = target.readbacks[slot].clone();
         readback.request(wgpu::MapMode::Read);
@@ -427,6 +344,62 @@ impl Renderer {
             data,
             latency: frame.started.elapsed(),
         }))
+    }
+
+    /// Draws each `(output, plan)` from the frame last pushed, without uploading it again:
+    /// one submission of each output's draw pass and readback, waited for. Each plan's lens
+    /// must image the frame as the pushed frame's plan did (its size and imaged box), and an
+    /// output is drawn at most once per call. With frames in flight ([`Renderer::push`]),
+    /// the frame drawn is the newest pushed.
+    pub fn redraw(
+        &mut self,
+        jobs: &[(OutputId, &FramePlan)],
+    ) -> Result<Vec<RenderedFrame>, GpuError> {
+        let started = Instant::now();
+        let input = self.input.as_ref().ok_or(GpuError::NothingUploaded)?;
+        for (n, &(id, plan)) in jobs.iter().enumerate() {
+            if (plan.lens.width, plan.lens.height) != (input.layout.width, input.layout.height)
+                || plan.lens.imaged_box() != input.imaged
+            {
+                return Err(GpuError::OtherLens);
+            }
+            if jobs[..n].iter().any(|&(other, _)| other == id) {
+                return Err(GpuError::Failed(format!("output {} drawn twice", id.0)));
+            }
+            let output = self
+                .more
+                .get_mut(id.0)
+                .ok_or_else(|| GpuError::Failed(format!("no output {}", id.0)))?;
+            output.prepare(&self.gpu, &mut self.pipelines, input, plan)?;
+        }
+        let mut encoder = self.encoder();
+        let mut readbacks = Vec::with_capacity(jobs.len());
+        for &(id, _) in jobs {
+            let output = &mut self.more[id.0];
+            output.encode_draw(&mut encoder, &self.pipelines, &[]);
+            let slot = (output.drawn % RING as u64) as usize;
+            output.drawn += 1;
+            let target = output.target.as_ref().unwrap();
+            target.encode_readback(&mut encoder, slot);
+            readbacks.push((target.readbacks[slot].clone(), target.layout));
+        }
+        self.submit(encoder);
+        for (readback, _) in &readbacks {
+            readback.request(wgpu::MapMode::Read);
+        }
+        let id = self.next_id.saturating_sub(1);
+        readbacks
+            .into_iter()
+            .map(|(readback, layout)| {
+                readback.wait(&self.gpu.device)?;
+                Ok(RenderedFrame {
+                    id,
+                    layout,
+                    data: readback.read_out(layout.size as usize)?,
+                    latency: started.elapsed(),
+                })
+            })
+            .collect()
     }
 
     /// Renders one frame and waits for it.

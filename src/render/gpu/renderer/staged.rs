@@ -54,7 +54,7 @@ impl Renderer {
         wait(self.submit(encoder))?;
         let t2 = Instant::now();
         let mut encoder = self.encoder();
-        let target = self.target.as_ref().unwrap();
+        let target = self.main.target.as_ref().unwrap();
         target.encode_readback(&mut encoder, slot);
         self.submit(encoder);
         let readback = &target.readbacks[slot];

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# One `digiview serve` on a still, in two phases, its log (stderr) appended to LOG: nobody
+# watching a view for 22 s, then "=== watched" and each of the four views' streams pulled by
+# one RTSP client for 32 s. 1920x1080 out, motion detection on, health lines every 5 s.
+# Used by scripts/views_cost.sh and scripts/gpu_figures.sh.
+#
+# Usage: scripts/serve_views.sh DIGIVIEW STILL LOG PORT [KIND [CODEC [CLIENT]]]
+#   KIND: the encoder (default auto); CODEC: h264 (default) or h265;
+#   CLIENT: ffmpeg (default) or gst (gst-launch-1.0's rtspsrc).
+set -uo pipefail
+dv=$1 still=$2 log=$3 port=$4 kind=${5:-auto} codec=${6:-h264} client=${7:-ffmpeg}
+cfg=$(mktemp --suffix=.toml)
+trap 'rm -f "$cfg"' EXIT
+cat >"$cfg" <<TOML
+source = "image:$still"
+health_interval_s = 5
+[encoder]
+kind = "$kind"
+codec = "$codec"
+[control]
+listen = "127.0.0.1:0"
+[rtsp]
+address = "127.0.0.1"
+port = $port
+[mavlink]
+endpoint = "off"
+TOML
+# Appending, as the phase marker below is: both writers keep their lines.
+RUST_LOG=${RUST_LOG:-info} "$dv" serve --config "$cfg" --size 1920x1080 --http off >/dev/null 2>>"$log" &
+serve=$!
+sleep 22
+echo "=== watched" >>"$log"
+pids=()
+for cam in 0 1 2 3; do
+  uri="rtsp://127.0.0.1:$port/digiview/cam$cam"
+  if [[ $client == gst ]]; then
+    gst-launch-1.0 -q rtspsrc location="$uri" protocols=tcp latency=0 ! fakesink sync=false \
+      >/dev/null 2>&1 &
+  else
+    ffmpeg -nostdin -loglevel error -rtsp_transport tcp -i "$uri" -f null - >/dev/null 2>&1 &
+  fi
+  pids+=($!)
+done
+sleep 32
+kill "${pids[@]}" 2>/dev/null
+kill -INT $serve 2>/dev/null
+wait $serve 2>/dev/null

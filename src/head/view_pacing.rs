@@ -1,0 +1,155 @@
+//! Which watched views alone are drawn with this frame. The composed stream comes first: the
+//! views share the frame loop's time left in each period after the composed frame, the
+//! scans and crops (what a view costs and what the rest takes are followed as running
+//! means). That time is saved up from frame to frame as a credit, and once it covers every
+//! watched view they are drawn together, in one submission: the views show the same instant,
+//! and only the first shares the machine with the composed frame's encoding. Where the
+//! machine has time for every view every frame (a GPU), every view is drawn every frame;
+//! where it has not (a software rasterizer on two cores), the views' own streams run at a
+//! lower rate, but a view is never left undrawn for longer than [`MAX_GAP`].
+
+use crate::stream::rtsp::VIEW_MOUNTS;
+use std::time::{Duration, Instant};
+
+/// A watched view is drawn at least this often, whatever the budget.
+pub const MAX_GAP: Duration = Duration::from_millis(250);
+/// The share of each period the frame loop may fill, views included; the rest absorbs
+/// what varies from frame to frame.
+const BUSY_SHARE: f64 = 0.97;
+/// Weight of the newest figure in the running means.
+const NEWEST: f64 = 0.2;
+
+#[derive(Default)]
+pub(super) struct ViewPacing {
+    /// When each view was last drawn.
+    last: [Option<Instant>; VIEW_MOUNTS],
+    /// The frame loop's time per frame besides the views, ms (running mean).
+    busy_ms: Option<f64>,
+    /// One view's drawing time, ms (running mean).
+    view_ms: Option<f64>,
+    /// The views' drawing time in the frame under way.
+    this_frame: Duration,
+    /// Time saved up for views, ms (negative: owed, after views drawn for `MAX_GAP`).
+    credit: f64,
+}
+
+fn mean(old: Option<f64>, new: f64) -> Option<f64> {
+    Some(old.map_or(new, |o| o + NEWEST * (new - o)))
+}
+
+impl ViewPacing {
+    /// Of the views `watched`, those to draw with this frame, `period` long, at `now`.
+    pub fn pick(
+        &mut self,
+        watched: [bool; VIEW_MOUNTS],
+        period: Duration,
+        now: Instant,
+    ) -> [bool; VIEW_MOUNTS] {
+        let waited = |i: usize| self.last[i].map_or(Duration::MAX, |t| now - t);
+        let mut order: Vec<usize> = (0..VIEW_MOUNTS).filter(|&i| watched[i]).collect();
+        order.sort_by_key(|&i| std::cmp::Reverse(waited(i)));
+        let mut draw = [false; VIEW_MOUNTS];
+        // Until both costs are known, every watched view is drawn (and measured).
+        let (Some(busy), Some(view)) = (self.busy_ms, self.view_ms) else {
+            order.into_iter().for_each(|i| draw[i] = true);
+            return draw;
+        };
+        let period_ms = period.as_secs_f64() * 1e3;
+        // Saved up to a frame's worth of views; owed at most a period.
+        let left = BUSY_SHARE * period_ms - busy;
+        self.credit = (self.credit + left).clamp(-period_ms, view * VIEW_MOUNTS as f64);
+        // All together when the credit covers them all (one submission; the first drawn
+        // shares the machine with the composed frame's encoding, the rest do not), else
+        // those that waited MAX_GAP.
+        let all = self.credit >= view * order.len() as f64;
+        for i in order {
+            if all || waited(i) >= MAX_GAP {
+                draw[i] = true;
+                self.credit -= view;
+            }
+        }
+        draw
+    }
+
+    /// `views` were drawn at `now`, in `took`.
+    pub fn drawn(&mut self, views: &[usize], took: Duration, now: Instant) {
+        if views.is_empty() {
+            return;
+        }
+        for &i in views {
+            self.last[i] = Some(now);
+        }
+        self.this_frame += took;
+        self.view_ms = mean(self.view_ms, took.as_secs_f64() * 1e3 / views.len() as f64);
+    }
+
+    /// The frame loop spent `took` on this frame, views included.
+    pub fn frame_done(&mut self, took: Duration) {
+        let besides = took.saturating_sub(std::mem::take(&mut self.this_frame));
+        self.busy_ms = mean(self.busy_ms, besides.as_secs_f64() * 1e3);
+    }
+
+    /// Forgets when views were drawn, for a view that stops being watched (its next watcher
+    /// gets a picture at once).
+    pub fn forget(&mut self, i: usize) {
+        self.last[i] = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PERIOD: Duration = Duration::from_millis(33);
+
+    fn paced(busy_ms: u64, view_ms: u64) -> ViewPacing {
+        let mut p = ViewPacing::default();
+        let t = Instant::now();
+        p.drawn(&[0], Duration::from_millis(view_ms), t);
+        p.frame_done(Duration::from_millis(busy_ms + view_ms));
+        p.last = [None; VIEW_MOUNTS];
+        p
+    }
+
+    #[test]
+    fn every_view_is_drawn_where_the_period_has_room_for_them_all() {
+        let mut p = paced(5, 2);
+        assert_eq!(p.pick([true; 4], PERIOD, Instant::now()), [true; 4]);
+        assert_eq!(
+            p.pick([false, true, false, true], PERIOD, Instant::now()),
+            [false, true, false, true]
+        );
+    }
+
+    #[test]
+    fn short_of_time_the_views_are_drawn_together_as_often_as_the_time_left_allows() {
+        // 32.3 ms of a 33 ms period may be filled: 23 ms besides the views leaves 9.3 ms a
+        // frame, four 6 ms views every 2.6 frames.
+        let mut p = paced(23, 6);
+        let start = Instant::now();
+        p.last = [Some(start); VIEW_MOUNTS];
+        let mut drawn = [0; VIEW_MOUNTS];
+        for frame in 0..30u32 {
+            let now = start + PERIOD * frame;
+            let pick = p.pick([true; 4], PERIOD, now);
+            let views: Vec<usize> = (0..VIEW_MOUNTS).filter(|&i| pick[i]).collect();
+            assert!(matches!(views.len(), 0 | 4), "frame {frame}: {pick:?}");
+            views.iter().for_each(|&i| drawn[i] += 1);
+            p.drawn(&views, Duration::from_millis(6 * views.len() as u64), now);
+            p.frame_done(Duration::from_millis(23 + 6 * views.len() as u64));
+        }
+        assert!((10..=12).contains(&drawn[0]), "{drawn:?}");
+        assert!(drawn.iter().all(|&n| n == drawn[0]), "{drawn:?}");
+    }
+
+    #[test]
+    fn with_no_time_left_a_view_still_gets_a_frame_every_max_gap() {
+        let mut p = paced(40, 6);
+        let start = Instant::now();
+        assert_eq!(p.pick([true; 4], PERIOD, start), [true; 4], "never drawn");
+        p.drawn(&[0, 1, 2, 3], Duration::from_millis(24), start);
+        p.frame_done(Duration::from_millis(64));
+        assert_eq!(p.pick([true; 4], PERIOD, start + PERIOD), [false; 4]);
+        assert_eq!(p.pick([true; 4], PERIOD, start + MAX_GAP), [true; 4]);
+    }
+}
