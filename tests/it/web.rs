@@ -481,3 +481,60 @@ async fn sets_without_permission_and_other_sites_pages_are_refused() {
     assert_eq!(upgrade_status(&http, &format!("http://{host}")), 101);
     b.close().await;
 }
+
+/// On a phone (390x844), with the demo's movers tracked: the status panel gives the
+/// detection's scans a second and the objects tracked, and every label over the picture
+/// ("cam N", "#n") is at least 11 CSS pixels tall and clear of every other (read from where
+/// the page drew them). A screenshot goes to target/web-phone-390x844.png (docs/web.md's).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn on_a_phone_the_labels_are_legible_and_apart_and_the_panel_says_what_detection_does() {
+    let serve = Serve::start_video(&["--size", "1280x720", "--demo-hover", "--detector", "motion"]);
+    let b = Browser::start(390, 844).await;
+    b.client.goto(serve.http.as_ref().unwrap()).await.unwrap();
+    let figures = b
+        .until(
+            "the panel's detection figures, with objects tracked",
+            Duration::from_secs(30),
+            "const f = document.getElementById('figures').textContent;
+             const n = /tracked\\s*(\\d+)/.exec(f);
+             return /\\d+\\.\\d scans\\/s/.test(f) && n && +n[1] > 0 ? f : null",
+        )
+        .await;
+    eprintln!("{figures}");
+    // The labels' boxes and text heights as the page drew them, in canvas pixels, and the
+    // canvas's CSS pixels per canvas pixel as the browser lays it out.
+    let labels = b
+        .until(
+            "rings labelled over the picture",
+            Duration::from_secs(20),
+            "const c = document.getElementById('overlay');
+             const l = JSON.parse(c.dataset.labels || '[]');
+             return l.length > 4 ? [c.getBoundingClientRect().width / c.width, l] : null",
+        )
+        .await;
+    let css = labels[0].as_f64().unwrap();
+    let boxes: Vec<[f64; 5]> = labels[1]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| ["x", "y", "w", "h", "font"].map(|k| l[k].as_f64().unwrap() * css))
+        .collect();
+    eprintln!("{} labels, CSS px: {boxes:.1?}", boxes.len());
+    for (i, a) in boxes.iter().enumerate() {
+        assert!(a[4] >= 11.0, "label {i}'s text is {:.1} CSS px tall", a[4]);
+        for b in &boxes[..i] {
+            let apart = a[0] >= b[0] + b[2]
+                || b[0] >= a[0] + a[2]
+                || a[1] >= b[1] + b[3]
+                || b[1] >= a[1] + a[3];
+            assert!(apart, "labels overlap: {a:.1?} and {b:.1?}");
+        }
+    }
+    let shot = b.client.screenshot().await.unwrap();
+    std::fs::write(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/target/web-phone-390x844.png"),
+        shot,
+    )
+    .unwrap();
+    b.close().await;
+}

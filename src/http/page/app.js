@@ -53,6 +53,13 @@ function showStatus(s) {
       ['dropped', `${v.dropped_renderer} renderer, ${v.dropped_encoder} encoder`],
       ['render', `${v.render_ms.toFixed(1)} ms`], ['encode', `${v.encode_ms.toFixed(1)} ms`],
       ['RTSP clients', v.rtsp_clients], ['page viewers', v.page_viewers]);
+    const [scans, scanMs, detectMs] = v.scans;
+    rows.push(['detection', scans > 0
+      ? `${scans.toFixed(1)} scans/s (${scanMs.toFixed(1)} ms render, ${detectMs.toFixed(1)} ms detect)`
+      : 'no scans'], ['tracked', v.tracked]);
+    if (v.views_alone[0] > 0) {
+      rows.push(['views alone', `${v.views_alone[0].toFixed(1)} fps, ${v.views_alone[1].toFixed(1)} ms each`]);
+    }
     if (v.exposure) rows.push(['exposure', v.exposure]);
     if (v.source_down) rows.push(['source down', v.source_down]);
   }

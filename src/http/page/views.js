@@ -7,6 +7,7 @@
 const LAYOUT_DEBUG = 6; // the whole fisheye frame: no camera to steer
 const MIN_FOV = 0.02;
 const MAX_FOV = Math.PI;
+const LABEL_PX = 13; // the labels' text height on screen, CSS pixels
 
 export class Views {
   constructor(overlay, api, onMessage) {
@@ -27,6 +28,8 @@ export class Views {
     overlay.addEventListener('pointercancel', (e) => this.up(e));
     overlay.addEventListener('wheel', (e) => this.wheel(e), { passive: false });
     overlay.addEventListener('dblclick', (e) => this.centre(e));
+    // Labels are sized for the screen: drawn again when the picture's size there changes.
+    new ResizeObserver(() => this.draw()).observe(overlay);
   }
 
   // New parameters: the output's views and each camera's fov.
@@ -46,29 +49,50 @@ export class Views {
     }
     const g = this.context;
     g.clearRect(0, 0, o.width, o.height);
-    const scale = Math.max(1, o.width / 960);
-    g.lineWidth = 2 * scale;
-    g.font = `${Math.round(16 * scale)}px system-ui, sans-serif`;
+    // Canvas pixels per CSS pixel: the labels keep LABEL_PX on screen however the picture is
+    // scaled (a phone shows a 1280-wide frame about 390 px wide).
+    const scale = o.width / (this.overlay.clientWidth || o.width);
+    const font = LABEL_PX * scale;
+    const pad = 4 * scale;
+    g.lineWidth = 2 * Math.max(1, scale);
+    g.font = `${Math.round(font)}px system-ui, sans-serif`;
+    g.textBaseline = 'top';
+    // Every label's box, so that none is drawn over another.
+    const placed = [];
+    const label = (text, box, colour) => {
+      g.fillStyle = 'rgba(0, 0, 0, 0.6)';
+      g.fillRect(box.x, box.y, box.w, box.h);
+      g.fillStyle = colour;
+      g.fillText(text, box.x + pad, box.y + pad);
+      placed.push(box);
+    };
+    const sized = (text, x, y) => ({ x, y, w: g.measureText(text).width + 2 * pad, h: font + 2 * pad });
+    const free = (b) => b.x >= 0 && b.y >= 0 && b.x + b.w <= o.width && b.y + b.h <= o.height
+      && !placed.some((p) => b.x < p.x + p.w && p.x < b.x + b.w && b.y < p.y + p.h && p.y < b.y + b.h);
     this.views().forEach((v, cam) => {
       g.strokeStyle = 'rgba(79, 179, 255, 0.9)';
       g.strokeRect(v.x + 1, v.y + 1, v.w - 2, v.h - 2);
-      const label = o.layout_mode === LAYOUT_DEBUG ? 'fisheye' : `cam ${cam}`;
-      const width = g.measureText(label).width + 12 * scale;
-      g.fillStyle = 'rgba(0, 0, 0, 0.6)';
-      g.fillRect(v.x + 4 * scale, v.y + 4 * scale, width, 22 * scale);
-      g.fillStyle = '#fff';
-      g.fillText(label, v.x + 10 * scale, v.y + 21 * scale);
+      const text = o.layout_mode === LAYOUT_DEBUG ? 'fisheye' : `cam ${cam}`;
+      label(text, sized(text, v.x + pad, v.y + pad), '#fff');
     });
     g.strokeStyle = 'rgba(255, 170, 40, 0.95)';
-    g.fillStyle = 'rgba(255, 170, 40, 0.95)';
-    for (const o of this.objects) {
-      for (const m of o.views || []) {
+    for (const object of this.objects) {
+      for (const m of object.views || []) {
         g.beginPath();
         g.arc(m.x, m.y, m.radius, 0, 2 * Math.PI);
         g.stroke();
-        g.fillText(`#${o.index}`, m.x + m.radius + 3 * scale, m.y - m.radius);
+        // Beside the ring, on whichever side is clear of the labels drawn; none if no side is.
+        const text = `#${object.index}`;
+        const { w, h } = sized(text, 0, 0);
+        const r = m.radius + pad;
+        const box = [[m.x + r, m.y - r - h], [m.x + r, m.y + r], [m.x - r - w, m.y - r - h], [m.x - r - w, m.y + r]]
+          .map(([x, y]) => sized(text, x, y)).find(free);
+        if (box) label(text, box, 'rgba(255, 170, 40, 0.95)');
       }
     }
+    // Where the labels lie and their text's height, in the canvas's pixels (for tests and
+    // tools).
+    this.overlay.dataset.labels = JSON.stringify(placed.map((b) => ({ ...b, font })));
   }
 
   // The tracked object ringed at output point (x, y), if any (a little slack around the ring).
