@@ -8,6 +8,15 @@ pub fn clock_us() -> u64 {
     gstreamer::get_timestamp().useconds()
 }
 
+/// A time on [`clock_us`] as microseconds since 1970 (the UNIX time KLV metadata carries),
+/// by the system clock now.
+pub fn unix_us(at: u64) -> u64 {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64);
+    now.saturating_sub(clock_us().saturating_sub(at))
+}
+
 /// When one frame passed each stage on its way to the stream, on [`clock_us`] (0 for a stage
 /// not reached): captured (the source's stamp), in the slot, taken by the frame loop,
 /// rendered and read back, handed to the encoder, out of the encoder, handed to the RTSP

@@ -47,9 +47,12 @@ pub struct Config {
     pub http: HttpConfig,
     /// Finding and tracking objects for the detection tiles.
     pub detection: DetectionConfig,
-    /// Relays to publish the stream to: `rtsp://HOST:PORT/PATH` (RTSP RECORD) or
-    /// `srt://HOST:PORT` (MPEG-TS over SRT).
+    /// Relays to publish the stream to: `rtsp://HOST:PORT/PATH` (RTSP RECORD),
+    /// `srt://HOST:PORT` (MPEG-TS over SRT) or `udp://HOST:PORT` (MPEG-TS over UDP, unicast
+    /// or multicast). The MPEG-TS ones carry KLV metadata (MISB ST 0601) beside the video.
     pub publish: Vec<String>,
+    /// The camera whose view the composed stream's KLV metadata describes (0..=3).
+    pub klv_camera: usize,
     /// Seconds between the one-line health summaries in the log (0: none).
     pub health_interval_s: f64,
 }
@@ -73,6 +76,7 @@ impl Default for Config {
             http: HttpConfig::default(),
             detection: DetectionConfig::default(),
             publish: Vec::new(),
+            klv_camera: 0,
             health_interval_s: 10.0,
         }
     }
@@ -123,6 +127,7 @@ impl Config {
             view_size: (self.cameras.width, self.cameras.height),
             detection: self.detection.clone(),
             health_interval_s: self.health_interval_s,
+            klv_camera: self.klv_camera,
         })
     }
 
@@ -153,6 +158,13 @@ impl Config {
         self.source.parse::<SourceSpec>()?;
         if !(1..=240).contains(&self.source_fps) {
             return out_of_range(format!("source_fps {} is outside 1..=240", self.source_fps));
+        }
+        if self.klv_camera >= crate::state::MAX_CAMERAS {
+            return out_of_range(format!(
+                "klv_camera {} is not a camera (0..={})",
+                self.klv_camera,
+                crate::state::MAX_CAMERAS - 1
+            ));
         }
         let d = &self.demo;
         if d.width < 64 || d.height < 64 || d.width > 7680 || d.height > 4320 {
@@ -295,6 +307,7 @@ mod tests {
             ("[demo]\nwidth = 641\nheight = 480", "even"),
             ("[encoder]\nbitrate_kbps = 5", "bitrate_kbps"),
             ("[capture]\nstill_format = \"gif\"", "still_format"),
+            ("klv_camera = 4", "klv_camera"),
         ] {
             let e = Config::parse(text).unwrap_err().to_string();
             assert!(e.contains(says), "{text:?}: {e}");

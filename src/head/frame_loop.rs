@@ -7,7 +7,7 @@ use super::pacing::Pacer;
 use super::supervise::Fault;
 use super::views::ViewOutputs;
 use super::{Head, HeadError, no_signal};
-use crate::clock::{Stamps, clock_us};
+use crate::clock::{Stamps, clock_us, unix_us};
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
 use crate::head::capture::Still;
 use crate::lens::Lens;
@@ -15,7 +15,8 @@ use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::render::{Filter, FramePlan};
 use crate::state::{Failure, RunStatus, State};
 use crate::stream::Encoder;
-use crate::stream::encoder::AccessUnit;
+use crate::stream::encoder::{AccessUnit, Side};
+use crate::stream::klv::ViewMetadata;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -29,6 +30,15 @@ const SIGNAL_TIMEOUT: Duration = Duration::from_secs(1);
 enum RenderFailure {
     Gpu(String),
     Frame(String),
+}
+
+/// A frame rendered: its bytes, the state and lens it was rendered with, and its KLV.
+struct Rendered {
+    data: Vec<u8>,
+    layout: PlaneLayout,
+    state: State,
+    lens: Lens,
+    klv: Option<Arc<[u8]>>,
 }
 
 /// What the status should say: running while frames flow; error once the source failed or
@@ -142,14 +152,13 @@ impl Head {
             let t0 = Instant::now();
             // The state and lens the frame was rendered with, for the views alone.
             let mut framed = None;
+            let mut klv = None;
             let rendered = match (&last_frame, signal) {
-                (Some(frame), true) => {
-                    self.render(&mut renderer, frame, &state)
-                        .map(|(data, layout, s, lens)| {
-                            framed = Some((s, lens));
-                            (data, layout)
-                        })
-                }
+                (Some(frame), true) => self.render(&mut renderer, frame, &state).map(|r| {
+                    framed = Some((r.state, r.lens));
+                    klv = r.klv;
+                    (r.data, r.layout)
+                }),
                 _ => {
                     stamps = None;
                     Ok(no_signal::frame(state.output.width, state.output.height))
@@ -188,7 +197,8 @@ impl Head {
                 encoder.force_key_unit();
             }
             let dropped_before = encoder.dropped;
-            if let Err(e) = encoder.push_stamped(data, &layout, pts, state.output.fps, stamps) {
+            let side = Side { stamps, klv };
+            if let Err(e) = encoder.push_with(data, &layout, pts, state.output.fps, side) {
                 error!("{e}; rebuilding the encoder");
                 self.live.set_failure(Failure::Encoder);
                 healthy = Some(false);
@@ -250,13 +260,14 @@ impl Head {
     }
 
     /// Renders `frame` with `state`, the vehicle as the telemetry had it at capture time;
-    /// also gives that state and the lens at the frame's size.
+    /// also gives that state, the lens at the frame's size and the KLV packet of the view
+    /// `klv_camera` in it.
     fn render(
         &self,
         renderer: &mut Renderer,
         frame: &Frame,
         state: &State,
-    ) -> Result<(Vec<u8>, PlaneLayout, State, Lens), RenderFailure> {
+    ) -> Result<Rendered, RenderFailure> {
         let mut s = state.clone();
         let (attitude, position) = self.telemetry.at(frame.captured_us);
         if let Some(a) = attitude {
@@ -286,7 +297,22 @@ impl Head {
                 GpuError::Failed(_) | GpuError::Device { .. } => RenderFailure::Gpu(e.to_string()),
                 other => RenderFailure::Frame(other.to_string()),
             })?;
-        Ok((out.data, out.layout, s, lens))
+        let cam = self.cfg.klv_camera;
+        let klv = ViewMetadata::of(
+            &plan,
+            &plan.camera_view(&s, cam),
+            &s,
+            unix_us(frame.captured_us),
+            format!("DigiView cam {cam}"),
+        )
+        .map(|m| m.packet().into());
+        Ok(Rendered {
+            data: out.data,
+            layout: out.layout,
+            state: s,
+            lens,
+            klv,
+        })
     }
 }
 

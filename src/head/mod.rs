@@ -61,6 +61,8 @@ pub struct HeadConfig {
     pub detection: DetectionConfig,
     /// Seconds between the one-line health summaries in the log (0: none).
     pub health_interval_s: f64,
+    /// The camera whose view the composed stream's KLV metadata describes.
+    pub klv_camera: usize,
 }
 
 /// Sends the demo's flight on as an autopilot would, from its start: what it returns runs

@@ -248,6 +248,22 @@ impl FramePlan {
         }
     }
 
+    /// The world ray a view's point `p` looks along, whether or not the lens images it (a
+    /// rectified view's own projection, an unrectified view's fisheye point unprojected);
+    /// None for a black view or a point the lens model has no ray for.
+    pub fn view_ray(&self, view: &PlannedView, p: DVec2) -> Option<DVec3> {
+        match view.map {
+            ViewMap::Rays {
+                projection,
+                world_from_view,
+            } => Some(world_from_view * projection.ray(p)),
+            ViewMap::Fisheye { origin, scale } => {
+                Some(self.lens_from_world.transpose() * self.lens.unproject(origin + p * scale)?)
+            }
+            ViewMap::Black => None,
+        }
+    }
+
     /// Where a world ray shows in a view (view pixels from its top-left corner), None where
     /// the view does not show it: the inverse of [`FramePlan::world_ray`].
     pub fn view_point(&self, view: &PlannedView, ray: DVec3) -> Option<DVec2> {

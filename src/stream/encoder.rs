@@ -69,12 +69,23 @@ pub struct AccessUnit {
     pub encode_time: Option<Duration>,
     /// The frame's stamps as pushed, with `encoded` set as it left the encoder.
     pub stamps: Option<Stamps>,
+    /// The frame's KLV metadata as pushed (`Side::klv`), for the MPEG-TS outputs.
+    pub klv: Option<Arc<[u8]>>,
+}
+
+/// What a frame carries to its access unit besides its picture.
+#[derive(Clone, Debug, Default)]
+pub struct Side {
+    /// Its way out, stage by stage (`encoder_in` is set as it is pushed).
+    pub stamps: Option<Stamps>,
+    /// Its KLV packet (MISB ST 0601), stamped with the unit's time where it is muxed.
+    pub klv: Option<Arc<[u8]>>,
 }
 
 type Sink = Box<dyn Fn(AccessUnit) + Send + Sync>;
 
-/// The frames in the encoder, oldest first: when each was pushed, and its stamps.
-type Pending = Arc<Mutex<VecDeque<(Instant, Option<Stamps>)>>>;
+/// The frames in the encoder, oldest first: when each was pushed, and what it carries.
+type Pending = Arc<Mutex<VecDeque<(Instant, Side)>>>;
 
 pub struct Encoder {
     pipeline: gst::Pipeline,
@@ -185,8 +196,9 @@ impl Encoder {
                         .lock()
                         .unwrap_or_else(|e| e.into_inner())
                         .pop_front();
-                    let encode_time = pushed.map(|(at, _)| at.elapsed());
-                    let stamps = pushed.and_then(|(_, s)| s).map(|s| Stamps {
+                    let encode_time = pushed.as_ref().map(|(at, _)| at.elapsed());
+                    let side = pushed.map(|(_, side)| side).unwrap_or_default();
+                    let stamps = side.stamps.map(|s| Stamps {
                         encoded: clock_us(),
                         ..s
                     });
@@ -196,6 +208,7 @@ impl Encoder {
                         key,
                         encode_time,
                         stamps,
+                        klv: side.klv,
                     });
                     Ok(gst::FlowSuccess::Ok)
                 })
@@ -253,18 +266,18 @@ impl Encoder {
         pts: Duration,
         fps: u32,
     ) -> Result<(), StreamError> {
-        self.push_stamped(data, layout, pts, fps, None)
+        self.push_with(data, layout, pts, fps, Side::default())
     }
 
-    /// As [`Encoder::push`], the frame's stamps carried to its access unit (with
-    /// `encoder_in` set now).
-    pub fn push_stamped(
+    /// As [`Encoder::push`], what the frame carries (`side`) handed on with its access unit
+    /// (its stamps with `encoder_in` set now).
+    pub fn push_with(
         &mut self,
         data: Vec<u8>,
         layout: &PlaneLayout,
         pts: Duration,
         fps: u32,
-        stamps: Option<Stamps>,
+        side: Side,
     ) -> Result<(), StreamError> {
         if let Some(e) = bus_error(&self.pipeline) {
             return Err(self.failed(e));
@@ -276,11 +289,11 @@ impl Encoder {
         loop {
             let mut q = self.pending.lock().unwrap_or_else(|e| e.into_inner());
             if q.len() < BACKLOG {
-                let stamps = stamps.map(|s| Stamps {
+                let stamps = side.stamps.map(|s| Stamps {
                     encoder_in: clock_us(),
                     ..s
                 });
-                q.push_back((Instant::now(), stamps));
+                q.push_back((Instant::now(), Side { stamps, ..side }));
                 break;
             }
             if !self.blocking {

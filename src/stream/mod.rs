@@ -5,6 +5,7 @@
 //! units to media relays, and `preview` to the web page's viewers.
 
 pub mod encoder;
+pub mod klv;
 pub mod preview;
 pub mod publish;
 pub mod record;

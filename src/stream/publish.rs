@@ -1,7 +1,10 @@
 //! Publishing: the encoder's access units pushed to a media relay, so that viewers beyond a
 //! handful pull from the relay rather than over the drone's radio link. `rtsp://` publishes
 //! with RTSP RECORD (`rtspclientsink`, as MediaMTX and gst-rtsp-server accept), `srt://` as
-//! MPEG-TS in SRT caller mode (`srtsink`). Each relay has a thread of its own that connects,
+//! MPEG-TS in SRT caller mode (`srtsink`), `udp://` as MPEG-TS in UDP datagrams to a host or
+//! a multicast group (`udpsink`). The MPEG-TS outputs carry each frame's KLV metadata (MISB
+//! ST 0601, asynchronous: ST 1402's private data stream) stamped with its frame's time.
+//! Each relay has a thread of its own that connects,
 //! and reconnects with back-off whenever the relay goes away or is not there yet; the frame
 //! path only hands units over (it never waits on a relay), and the built-in RTSP server is
 //! not touched by any of it.
@@ -42,6 +45,7 @@ pub struct PublishTarget {
 enum Kind {
     Rtsp,
     Srt,
+    Udp,
 }
 
 /// Why a publish URL is refused.
@@ -49,11 +53,11 @@ enum Kind {
 pub enum PublishError {
     #[error("publish URL {0:?}: not a URL")]
     NotAUrl(String),
-    #[error("publish URL {0:?}: the scheme must be rtsp, rtsps, rtspt or srt")]
+    #[error("publish URL {0:?}: the scheme must be rtsp, rtsps, rtspt, srt or udp")]
     Scheme(String),
     #[error("publish URL {0:?} names no host")]
     NoHost(String),
-    #[error("publish URL {0:?}: an SRT URL needs a port")]
+    #[error("publish URL {0:?}: an SRT or UDP URL needs a port")]
     NoPort(String),
     #[error("publish URL {0:?}: an RTSP URL needs a path to publish to (rtsp://HOST:PORT/PATH)")]
     NoPath(String),
@@ -67,12 +71,13 @@ impl std::str::FromStr for PublishTarget {
         let kind = match parsed.scheme().as_str() {
             "rtsp" | "rtsps" | "rtspt" => Kind::Rtsp,
             "srt" => Kind::Srt,
+            "udp" => Kind::Udp,
             _ => return Err(PublishError::Scheme(url.to_string())),
         };
         if parsed.host().is_none_or(|h| h.is_empty()) {
             return Err(PublishError::NoHost(url.to_string()));
         }
-        if kind == Kind::Srt && parsed.port() < 0 {
+        if matches!(kind, Kind::Srt | Kind::Udp) && parsed.port() < 0 {
             return Err(PublishError::NoPort(url.to_string()));
         }
         if kind == Kind::Rtsp && parsed.path().trim_matches('/').is_empty() {
@@ -92,7 +97,13 @@ impl PublishTarget {
         match self.kind {
             Kind::Rtsp => "rtspclientsink",
             Kind::Srt => "srtsink",
+            Kind::Udp => "udpsink",
         }
+    }
+
+    /// Whether the target is MPEG-TS, which carries the KLV metadata.
+    fn muxed(&self) -> bool {
+        self.kind != Kind::Rtsp
     }
 
     fn description(&self) -> String {
@@ -101,9 +112,13 @@ impl PublishTarget {
             self.codec.caps(),
             self.codec.parser()
         );
+        // KLV beside the video: asynchronous, as GStreamer 1.22's mpegtsmux writes it.
+        let klv = "appsrc name=klv is-live=true format=time caps=meta/x-klv,parsed=true ! mux.";
+        let mux = "mpegtsmux name=mux alignment=7";
         match self.kind {
             Kind::Rtsp => format!("{src} ! rtspclientsink name=sink latency=0 protocols=tcp"),
-            Kind::Srt => format!("{src} ! mpegtsmux alignment=7 ! srtsink name=sink mode=caller"),
+            Kind::Srt => format!("{src} ! {mux} ! srtsink name=sink mode=caller {klv}"),
+            Kind::Udp => format!("{src} ! {mux} ! udpsink name=sink sync=false {klv}"),
         }
     }
 }
@@ -111,6 +126,8 @@ impl PublishTarget {
 /// The pipeline to the relay while one is up.
 struct Link {
     src: gst_app::AppSrc,
+    /// The KLV metadata's, in the MPEG-TS outputs.
+    klv: Option<gst_app::AppSrc>,
     clock: Restamp,
     /// Units are dropped until a key frame (at the start, and after a unit was dropped).
     need_key: bool,
@@ -182,7 +199,7 @@ impl Publisher {
     /// Hands one access unit over; never waits. Returns true when it starts dropping units
     /// because the relay is behind: ask the encoder for a key frame to resume at.
     pub fn push(&self, au: &AccessUnit) -> bool {
-        let (src, buffer) = {
+        let (src, buffer, klv) = {
             let mut link = self.link.lock().unwrap_or_else(|e| e.into_inner());
             let Some(l) = link.as_mut() else {
                 return false;
@@ -198,9 +215,18 @@ impl Publisher {
             let Some(buffer) = l.clock.restamped(&au.buffer, now) else {
                 return false;
             };
-            (l.src.clone(), buffer)
+            // The frame's KLV, stamped as its picture is.
+            let klv = l.klv.clone().zip(au.klv.as_ref()).map(|(src, packet)| {
+                let mut b = gst::Buffer::from_slice(packet.to_vec());
+                b.get_mut().expect("a new buffer").set_pts(buffer.pts());
+                (src, b)
+            });
+            (l.src.clone(), buffer, klv)
         };
         let _ = src.push_buffer(buffer);
+        if let Some((src, b)) = klv {
+            let _ = src.push_buffer(b);
+        }
         false
     }
 }
@@ -268,14 +294,21 @@ fn publish_once(
     // However this ends, a panic included, the pipeline stops and no unit is handed to it.
     let _stopped = Stopped(&pipeline, link);
     let sink: gst::Element = element(&pipeline, "sink")?;
-    sink.set_property(
-        match target.kind {
-            Kind::Rtsp => "location",
-            Kind::Srt => "uri",
-        },
-        &target.url,
-    );
+    match target.kind {
+        Kind::Rtsp => sink.set_property("location", &target.url),
+        Kind::Srt => sink.set_property("uri", &target.url),
+        Kind::Udp => {
+            let uri = glib::Uri::parse(&target.url, glib::UriFlags::NONE)
+                .map_err(|e| GstError::Refused(e.to_string()))?;
+            sink.set_property("host", uri.host().unwrap_or_default().as_str());
+            sink.set_property("port", uri.port());
+        }
+    }
     let src: gst_app::AppSrc = element(&pipeline, "src")?;
+    let klv: Option<gst_app::AppSrc> = match target.muxed() {
+        true => Some(element(&pipeline, "klv")?),
+        false => None,
+    };
     let bus = pipeline.bus().ok_or(GstError::NoBus)?;
     (|| {
         pipeline
@@ -284,6 +317,7 @@ fn publish_once(
         // Units flow from now: the relay's session is described from the first ones.
         *link.lock().unwrap_or_else(|e| e.into_inner()) = Some(Link {
             src,
+            klv,
             clock: Restamp::default(),
             need_key: true,
         });
@@ -338,6 +372,8 @@ mod tests {
             "rtsp://10.0.0.2/live/cam",
             "rtsps://user:pw@relay:8322/a",
             "srt://10.0.0.2:8890?streamid=publish:drone1",
+            "udp://239.1.2.3:5600",
+            "udp://10.0.0.2:5600",
         ] {
             assert!(ok.parse::<PublishTarget>().is_ok(), "{ok}");
         }
@@ -348,6 +384,7 @@ mod tests {
             ("rtsp://relay:8554", "a path"),
             ("rtsp://relay:8554/", "a path"),
             ("srt://relay", "a port"),
+            ("udp://relay", "a port"),
             ("not a url", "URL"),
         ] {
             let e = bad.parse::<PublishTarget>().unwrap_err().to_string();

@@ -19,6 +19,7 @@ mod fuzz_corpus;
 mod gpu_frames;
 mod gpu_render;
 mod h265;
+mod klv;
 mod lens_calibrate;
 mod lens_calibrate_video;
 mod locate;

@@ -1,0 +1,347 @@
+//! The KLV metadata (MISB ST 0601) of a view, read back by klvdata, a reader written by
+//! others (tests/peers/klv_read.py): every packet's checksum valid, tag 2 first and tag 1
+//! last; the platform's pose, the sensor's position and the view's fields of view as set; the
+//! view's pointing relative to the airframe turning back into the camera's own world
+//! direction; the frame centre where the camera's boresight meets the ground, worked out here
+//! from the camera's angles alone; and a view raised above the horizon without a centre or
+//! corners.
+
+use crate::common;
+use common::peers::python;
+use common::*;
+use digiview::geometry::ground::ground_point;
+use digiview::geometry::rotation::direction;
+use digiview::geometry::{Euler, GeoPoint, GeoPosition};
+use digiview::render::FramePlan;
+use digiview::stream::klv::ViewMetadata;
+use glam::DVec3;
+use serde_json::Value;
+use std::process::Command;
+
+const TIME_US: u64 = 1_764_150_000_123_456;
+
+/// The packets of `metadata`, read back by klvdata: one JSON object each.
+fn read_back(metadata: &[ViewMetadata]) -> Vec<Value> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("views.klv");
+    let bytes: Vec<u8> = metadata.iter().flat_map(ViewMetadata::packet).collect();
+    std::fs::write(&path, bytes).unwrap();
+    let packets = klvdata(&path);
+    assert_eq!(packets.len(), metadata.len());
+    packets
+}
+
+/// The packets in file `path`, as klvdata reads them (tests/peers/klv_read.py): one JSON
+/// object each.
+fn klvdata(path: &std::path::Path) -> Vec<Value> {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/klv_read.py");
+    let out = Command::new(python())
+        .arg(script)
+        .arg(path)
+        .output()
+        .unwrap();
+    let why = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{why}");
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+fn value(packet: &Value, tag: u32) -> f64 {
+    packet["values"][tag.to_string()]
+        .as_f64()
+        .unwrap_or_else(|| panic!("tag {tag} missing: {packet}"))
+}
+
+fn close(what: &str, got: f64, want: f64, tolerance: f64) {
+    assert!(
+        (got - want).abs() <= tolerance,
+        "{what}: read {got}, want {want} (±{tolerance})"
+    );
+}
+
+#[test]
+fn klvdata_reads_a_views_pose_pointing_and_footprint_as_digiview_sees_them() {
+    let lens = small_lens("CIL216");
+    let mut state = four_view_state(7);
+    state.vehicle.position = GeoPosition {
+        lat: 47.397,
+        lon: 8.546,
+        alt: 620.0,
+        relative_alt: 120.0,
+    };
+    // Flying: yawed, nose down 5°, rolled; then pitched up past tag 6's ±20°.
+    let mut metadata = vec![];
+    for (pitch, roll) in [(-5.0, 8.0), (35.0, -60.0)] {
+        let a = &mut state.vehicle.attitude;
+        (a.yaw, a.pitch, a.roll) = (30.0 * DEG, pitch * DEG, roll * DEG);
+        // Camera 0 looks 45° east of north, 60° down, earth-locked; camera 1 10° up.
+        (state.cameras[0].yaw, state.cameras[0].pitch) = (45.0 * DEG, -60.0 * DEG);
+        state.cameras[1].pitch = 10.0 * DEG;
+        for cam in [0, 1] {
+            let plan = FramePlan::single_view(&state, &lens, cam, 640, 360);
+            let source = format!("DigiView cam {cam}");
+            metadata
+                .push(ViewMetadata::of(&plan, &plan.views[0], &state, TIME_US, source).unwrap());
+        }
+    }
+    let packets = read_back(&metadata);
+    for (k, (p, m)) in packets.iter().zip(&metadata).enumerate() {
+        eprintln!("packet {k}: {p}");
+        assert_eq!(p["checksum_ok"], true, "packet {k}");
+        let tags: Vec<u64> = p["tags"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| t.as_u64().unwrap())
+            .collect();
+        assert_eq!(
+            (tags[0], tags[tags.len() - 1]),
+            (2, 1),
+            "packet {k}: {tags:?}"
+        );
+        assert!(tags.contains(&65), "packet {k}: {tags:?}");
+        assert_eq!(p["values"]["2"].as_u64(), Some(TIME_US), "packet {k}");
+        assert_eq!(p["values"]["11"], format!("DigiView cam {}", k % 2));
+        close("heading", value(p, 5), 30.0, 0.01);
+        let pitch = [-5.0, 35.0][k / 2];
+        match pitch > 20.0 {
+            false => close("pitch", value(p, 6), pitch, 0.001),
+            true => close("pitch (full)", value(p, 90), pitch, 1e-6),
+        }
+        close("latitude", value(p, 13), 47.397, 1e-6);
+        close("longitude", value(p, 14), 8.546, 1e-6);
+        close("altitude", value(p, 15), 620.0, 0.4);
+        close("hfov", value(p, 16), m.fov.0, 0.01);
+        close("vfov", value(p, 17), m.fov.1, 0.01);
+        // The view's pointing relative to the airframe, read back, turned into the world
+        // with the platform's angles read back: the camera's own direction.
+        let euler =
+            |a: f64, b: f64, c: f64| Euler::new(a.to_radians(), b.to_radians(), c.to_radians());
+        let platform = euler(value(p, 5), pitch, m.platform.roll);
+        let relative = euler(value(p, 18), value(p, 19), value(p, 20));
+        let seen = platform.matrix() * relative.matrix() * DVec3::X;
+        let cam = &state.cameras[k % 2];
+        let want = direction(cam.yaw, cam.pitch);
+        let off = seen.angle_between(want).to_degrees();
+        assert!(
+            off < 0.01,
+            "packet {k}: the boresight read back is {off}° off"
+        );
+        if k % 2 == 1 {
+            // Above the horizon: no frame centre, no corners.
+            assert!(
+                !tags.iter().any(|t| [21, 23, 24, 25, 82, 89].contains(t)),
+                "packet {k}: {tags:?}"
+            );
+            continue;
+        }
+        let (centre, range) = ground_point(&state.vehicle.position, want).unwrap();
+        let metres = |lat: f64, lon: f64, at: GeoPoint| {
+            let north = (lat - at.lat) * 111_320.0;
+            let east = (lon - at.lon) * 111_320.0 * at.lat.to_radians().cos();
+            north.hypot(east)
+        };
+        let miss = metres(value(p, 23), value(p, 24), centre);
+        assert!(
+            miss < 0.1,
+            "packet {k}: the frame centre is {miss:.3} m off"
+        );
+        close("centre elevation", value(p, 25), 500.0, 0.4);
+        close("slant range", value(p, 21), range, 0.01);
+        let corners = m.corners.unwrap();
+        for (i, c) in corners.iter().enumerate() {
+            let miss = metres(value(p, 82 + 2 * i as u32), value(p, 83 + 2 * i as u32), *c);
+            assert!(miss < 0.01, "packet {k}: corner {i} is {miss:.3} m off");
+        }
+    }
+}
+
+/// `ffprobe -show_packets` of `ts`: (stream index, pts in seconds or NaN where it has none)
+/// of every packet.
+fn packets(ts: &std::path::Path) -> Vec<(u64, f64)> {
+    let out = Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-show_entries",
+            "packet=stream_index,pts_time",
+            "-of",
+            "json",
+        ])
+        .arg(ts)
+        .output()
+        .unwrap();
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    v["packets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|p| {
+            let pts = p["pts_time"].as_str().and_then(|t| t.parse().ok());
+            Some((p["stream_index"].as_u64()?, pts.unwrap_or(f64::NAN)))
+        })
+        .collect()
+}
+
+/// `serve --publish udp://…`: FFmpeg receives MPEG-TS with the H.264 and a KLV data stream
+/// (KLVA), one packet per picture (asynchronous carriage, as GStreamer 1.22's mpegtsmux
+/// writes it: FFmpeg reads no PTS on them, so tag 2 is what ties a packet to its frame);
+/// klvdata reads each packet
+/// with a valid checksum, tag 2 first (the capture times a frame apart, on the UNIX clock)
+/// and tag 1 last; the frame centre is where DigiView's own CAM_TARGET puts camera 0's centre
+/// pixel on the ground.
+#[test]
+fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
+    let port = common::autopilot::free_udp_port();
+    let url = format!("udp://127.0.0.1:{port}");
+    let serve = common::serve::Serve::start_video(&[
+        "--size",
+        "640x480",
+        "--demo-hover",
+        "--publish",
+        &url,
+    ]);
+    let dir = tempfile::tempdir().unwrap();
+    let ts = dir.path().join("out.ts");
+    let got = Command::new("timeout")
+        .args([
+            "20",
+            "ffmpeg",
+            "-loglevel",
+            "error",
+            "-y",
+            "-i",
+            &url,
+            "-t",
+            "5",
+        ])
+        .args(["-map", "0", "-c", "copy", "-f", "mpegts"])
+        .arg(&ts)
+        .output()
+        .unwrap();
+    assert!(
+        got.status.success(),
+        "{}",
+        String::from_utf8_lossy(&got.stderr)
+    );
+    let probe = Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-show_entries",
+            "stream=codec_name,codec_tag_string",
+        ])
+        .args(["-of", "csv=p=0"])
+        .arg(&ts)
+        .output()
+        .unwrap();
+    let streams = String::from_utf8_lossy(&probe.stdout).to_string();
+    assert!(
+        streams.contains("h264") && streams.contains("klv,KLVA"),
+        "{streams}"
+    );
+    // One KLV packet a picture, counted live over 4 s.
+    let live = Command::new("timeout")
+        .args(["15", "ffprobe", "-v", "error", "-read_intervals", "%+4"])
+        .args([
+            "-show_entries",
+            "packet=stream_index",
+            "-of",
+            "csv=p=0",
+            &url,
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&live.stdout);
+    let count = |i: &str| {
+        text.lines()
+            .filter(|l| l.trim_end_matches(',') == i)
+            .count()
+    };
+    let (pictures, klv_packets) = (count("0"), count("1"));
+    eprintln!("live, 4 s: {pictures} pictures, {klv_packets} KLV packets");
+    assert!(pictures >= 30, "{pictures} pictures");
+    assert!(
+        pictures.abs_diff(klv_packets) <= 2,
+        "{klv_packets} KLV packets for {pictures} pictures"
+    );
+    // The KLV packets carry no PTS as FFmpeg reads them (asynchronous carriage).
+    let all = packets(&ts);
+    let data: Vec<f64> = all.iter().filter(|p| p.0 == 1).map(|p| p.1).collect();
+    assert!(data.len() >= 30, "{} KLV packets", data.len());
+    eprintln!(
+        "{} KLV packets, {} with a PTS",
+        data.len(),
+        data.iter().filter(|d| d.is_finite()).count()
+    );
+    // The KLV itself, through klvdata.
+    let klv = dir.path().join("out.klv");
+    let x = Command::new("ffmpeg")
+        .args(["-loglevel", "error", "-y", "-i"])
+        .arg(&ts)
+        .args(["-map", "0:d", "-c", "copy", "-f", "data"])
+        .arg(&klv)
+        .output()
+        .unwrap();
+    assert!(x.status.success(), "{}", String::from_utf8_lossy(&x.stderr));
+    let read = klvdata(&klv);
+    assert_eq!(read.len(), data.len(), "packets klvdata read");
+    let mut times = vec![];
+    for p in &read {
+        assert_eq!(p["checksum_ok"], true, "{p}");
+        let tags = p["tags"].as_array().unwrap();
+        assert_eq!(
+            (&tags[0], &tags[tags.len() - 1]),
+            (&Value::from(2), &Value::from(1))
+        );
+        times.push(p["values"]["2"].as_u64().unwrap());
+    }
+    let gaps: Vec<u64> = times
+        .windows(2)
+        .map(|w| w[1].saturating_sub(w[0]))
+        .collect();
+    assert!(
+        times.windows(2).all(|w| w[1] > w[0]),
+        "capture times go back"
+    );
+    let mut sorted = gaps.clone();
+    sorted.sort();
+    let median = sorted[sorted.len() / 2];
+    assert!(
+        (20_000..=100_000).contains(&median),
+        "a frame apart: {median} µs"
+    );
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_micros() as u64;
+    let age = now.saturating_sub(*times.last().unwrap());
+    assert!(age < 10_000_000, "the last capture time is {age} µs ago");
+    // The frame centre, against CAM_TARGET's ground point for camera 0's centre pixel (a
+    // hair below it: x = y = 0 asks for the set target).
+    let reply = ctl(
+        &serve.addr.to_string(),
+        &["--json", "get", "cam_target", "cam_id=0", "x=0", "y=0.0001"],
+    );
+    let t: Value = serde_json::from_slice(&reply.stdout).unwrap();
+    let (lat, lon) = (
+        t["values"]["t_latitude"].as_f64().unwrap(),
+        t["values"]["t_longitude"].as_f64().unwrap(),
+    );
+    let last = read.last().unwrap();
+    let north = (value(last, 23) - lat) * 111_320.0;
+    let east = (value(last, 24) - lon) * 111_320.0 * lat.to_radians().cos();
+    let miss = north.hypot(east);
+    eprintln!(
+        "frame centre {:.6}, {:.6}; CAM_TARGET {lat}, {lon}: {miss:.2} m",
+        value(last, 23),
+        value(last, 24)
+    );
+    assert!(
+        miss < 2.0,
+        "the frame centre is {miss:.2} m from CAM_TARGET's"
+    );
+}
