@@ -16,6 +16,7 @@ mod detect_external;
 mod detect_motion;
 mod detect_onnx;
 mod exposure;
+mod klv_flight;
 mod serve_video;
 mod services;
 mod tracking;

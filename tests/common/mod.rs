@@ -8,6 +8,7 @@ pub mod direct;
 pub mod frames;
 pub mod gcs;
 pub mod gpu;
+pub mod klv;
 pub mod peers;
 pub mod relay;
 pub mod serve;

@@ -7,7 +7,7 @@
 //! corners.
 
 use crate::common;
-use common::peers::python;
+use common::klv::{klvdata, read_ts, record_ts, value};
 use common::*;
 use digiview::geometry::ground::ground_point;
 use digiview::geometry::rotation::direction;
@@ -29,30 +29,6 @@ fn read_back(metadata: &[ViewMetadata]) -> Vec<Value> {
     let packets = klvdata(&path);
     assert_eq!(packets.len(), metadata.len());
     packets
-}
-
-/// The packets in file `path`, as klvdata reads them (tests/peers/klv_read.py): one JSON
-/// object each.
-fn klvdata(path: &std::path::Path) -> Vec<Value> {
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/klv_read.py");
-    let out = Command::new(python())
-        .arg(script)
-        .arg(path)
-        .output()
-        .unwrap();
-    let why = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{why}");
-    String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect()
-}
-
-fn value(packet: &Value, tag: u32) -> f64 {
-    packet["values"][tag.to_string()]
-        .as_f64()
-        .unwrap_or_else(|| panic!("tag {tag} missing: {packet}"))
 }
 
 fn close(what: &str, got: f64, want: f64, tolerance: f64) {
@@ -206,27 +182,7 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
     ]);
     let dir = tempfile::tempdir().unwrap();
     let ts = dir.path().join("out.ts");
-    let got = Command::new("timeout")
-        .args([
-            "20",
-            "ffmpeg",
-            "-loglevel",
-            "error",
-            "-y",
-            "-i",
-            &url,
-            "-t",
-            "5",
-        ])
-        .args(["-map", "0", "-c", "copy", "-f", "mpegts"])
-        .arg(&ts)
-        .output()
-        .unwrap();
-    assert!(
-        got.status.success(),
-        "{}",
-        String::from_utf8_lossy(&got.stderr)
-    );
+    record_ts(&url, 5, &ts);
     let probe = Command::new("ffprobe")
         .args([
             "-v",
@@ -278,16 +234,7 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
         data.iter().filter(|d| d.is_finite()).count()
     );
     // The KLV itself, through klvdata.
-    let klv = dir.path().join("out.klv");
-    let x = Command::new("ffmpeg")
-        .args(["-loglevel", "error", "-y", "-i"])
-        .arg(&ts)
-        .args(["-map", "0:d", "-c", "copy", "-f", "data"])
-        .arg(&klv)
-        .output()
-        .unwrap();
-    assert!(x.status.success(), "{}", String::from_utf8_lossy(&x.stderr));
-    let read = klvdata(&klv);
+    let read = read_ts(&ts);
     assert_eq!(read.len(), data.len(), "packets klvdata read");
     let mut times = vec![];
     for p in &read {

@@ -1,0 +1,102 @@
+//! KLV metadata in flight: a simulated autopilot yaws the vehicle 30°/s (and rolls it 4°)
+//! while `serve`, on an image source (a camera's frames), publishes MPEG-TS over UDP. FFmpeg records it and klvdata reads it: every
+//! packet's platform heading is the autopilot's yaw at that packet's capture time within
+//! 0.5°, and camera 0, locked to the earth, keeps its world direction: its angles relative to
+//! the airframe, composed with the platform's as read, give it back (they are made with the
+//! same attitude sample that rendered the frame).
+
+use crate::common;
+use common::autopilot::{SimAutopilot, clock_s, free_udp_port};
+use common::klv::{read_ts, record_ts, value};
+use common::serve::Serve;
+use common::{DEG, four_view_state};
+use digiview::geometry::Euler;
+use digiview::geometry::rotation::direction;
+use glam::DVec3;
+
+const YAW_RATE: f64 = 30.0 * DEG;
+
+fn yawing(t: f64) -> DVec3 {
+    DVec3::new(
+        (YAW_RATE * t).rem_euclid(2.0 * std::f64::consts::PI),
+        0.0,
+        4.0 * DEG,
+    )
+}
+
+/// The angle from `b` to `a`, degrees, in -180..180.
+fn turn(a: f64, b: f64) -> f64 {
+    (a - b + 540.0).rem_euclid(360.0) - 180.0
+}
+
+#[test]
+fn the_klv_heading_follows_a_yawing_autopilot_and_an_earth_locked_view_keeps_its_direction() {
+    let _alone = crate::one_at_a_time();
+    let dir = tempfile::tempdir().unwrap();
+    let mut state = four_view_state(7);
+    (state.cameras[0].yaw, state.cameras[0].pitch) = (50.0 * DEG, -40.0 * DEG);
+    let state_file = dir.path().join("state.toml");
+    std::fs::write(&state_file, toml::to_string(&state).unwrap()).unwrap();
+    // A camera's frames, as a still: the autopilot is then the vehicle's only attitude (the
+    // demo source would report its own flight beside it).
+    let fisheye = dir.path().join("fisheye.png");
+    let synth = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["synth", "--sensor", "1280x720", "--out"])
+        .arg(&fisheye)
+        .output()
+        .unwrap();
+    assert!(
+        synth.status.success(),
+        "{}",
+        String::from_utf8_lossy(&synth.stderr)
+    );
+    let (link, out) = (free_udp_port(), free_udp_port());
+    let url = format!("udp://127.0.0.1:{out}");
+    let _serve = Serve::start_video(&[
+        "--mavlink",
+        &format!("udpin:127.0.0.1:{link}"),
+        "--state",
+        state_file.to_str().unwrap(),
+        "--publish",
+        &url,
+        "--source",
+        &format!("image:{}", fisheye.display()),
+    ]);
+    let _sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{link}"), yawing);
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let ts = dir.path().join("flight.ts");
+    record_ts(&url, 6, &ts);
+    // Capture times (UNIX µs) back onto the monotonic clock the autopilot's flight is a
+    // function of.
+    let unix_now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    let offset = unix_now - clock_s();
+    let packets = read_ts(&ts);
+    assert!(packets.len() >= 60, "{} packets", packets.len());
+    let (mut worst_heading, mut worst_bearing) = (0.0f64, 0.0f64);
+    for p in &packets {
+        assert_eq!(p["checksum_ok"], true, "{p}");
+        let t = p["values"]["2"].as_u64().unwrap() as f64 * 1e-6 - offset;
+        let want = yawing(t).x.to_degrees();
+        worst_heading = worst_heading.max(turn(value(p, 5), want).abs());
+        // The view's pointing relative to the airframe, turned into the world with the
+        // platform's angles as read: camera 0's own direction, whatever the heading.
+        let euler = |a: f64, b: f64, c: f64| Euler::new(a * DEG, b * DEG, c * DEG);
+        let platform = euler(value(p, 5), value(p, 6), value(p, 7));
+        let relative = euler(value(p, 18), value(p, 19), value(p, 20));
+        let seen = platform.matrix() * relative.matrix() * DVec3::X;
+        let off = seen.angle_between(direction(50.0 * DEG, -40.0 * DEG));
+        worst_bearing = worst_bearing.max(off.to_degrees());
+    }
+    let first = value(&packets[0], 5);
+    let last = value(&packets[packets.len() - 1], 5);
+    eprintln!(
+        "{} packets, heading {first:.1}° to {last:.1}°: off the autopilot by at most \
+         {worst_heading:.3}°; camera 0 off its own direction by at most {worst_bearing:.3}°",
+        packets.len()
+    );
+    assert!(worst_heading <= 0.5, "heading off by {worst_heading:.3}°");
+    assert!(worst_bearing <= 0.5, "camera 0 off by {worst_bearing:.3}°");
+}
