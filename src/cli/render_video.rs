@@ -12,6 +12,7 @@ use crate::render::{Filter, FramePlan};
 use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
 use crate::stream::encoder::AccessUnit;
+use crate::stream::record::Container;
 use crate::stream::{Codec, Encoder, EncoderConfig, Recorder};
 use anyhow::{Context, Result, anyhow, bail};
 use std::collections::VecDeque;
@@ -109,7 +110,11 @@ impl Sink {
             Target::Images(pattern) => return Ok(Sink::Images(pattern)),
             Target::Mp4(out) => out,
         };
-        let recorder = Arc::new(Mutex::new(Some(Recorder::start(out.temp(), Codec::H264)?)));
+        let recorder = Arc::new(Mutex::new(Some(Recorder::start(
+            out.temp(),
+            Codec::H264,
+            Container::Mp4,
+        )?)));
         let feed = recorder.clone();
         let fps = fps.round().clamp(1.0, 240.0) as u32;
         let cfg = EncoderConfig {

@@ -10,6 +10,7 @@ use crate::state::MAX_CAMERAS;
 use crate::state::capture::{CaptureError, CaptureStatus, Capturer, StillDone, ViewShooter};
 use crate::stream::Recorder;
 use crate::stream::encoder::AccessUnit;
+use crate::stream::record::Container;
 use gstreamer::glib;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -44,6 +45,8 @@ pub struct CaptureConfig {
     pub raw: bool,
     /// A capture is refused while the disk has less free space than this.
     pub min_free_mb: u64,
+    /// What recordings are written as: MP4, or MPEG-TS with the KLV metadata.
+    pub container: Container,
     /// The recordings' coding: the encoder's (`[encoder] codec`), not a key of `[capture]`.
     #[serde(skip)]
     pub codec: crate::stream::Codec,
@@ -56,6 +59,7 @@ impl Default for CaptureConfig {
             still_format: StillFormat::Jpeg,
             raw: false,
             min_free_mb: 200,
+            container: Container::Mp4,
             codec: crate::stream::Codec::H264,
         }
     }
@@ -239,7 +243,7 @@ impl Capture {
     pub fn on_access_unit(&self, au: &AccessUnit) {
         let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(r) = recorder.as_mut()
-            && let Err(e) = r.push(&au.buffer, au.key)
+            && let Err(e) = r.push_unit(au)
         {
             error!("{e}: recording stopped");
             *recorder = None;
@@ -268,7 +272,7 @@ impl Capture {
     pub fn on_view_access_unit(&self, i: usize, au: &AccessUnit) {
         let mut recorders = self.view_recorders();
         if let Some(r) = recorders[i].as_mut()
-            && let Err(e) = r.push(&au.buffer, au.key)
+            && let Err(e) = r.push_unit(au)
         {
             error!("{e}: camera {i}'s recording stopped");
             recorders[i] = None;
@@ -297,8 +301,13 @@ impl Capture {
             return Ok(());
         }
         self.ready()?;
-        let r = Recorder::start(&self.name(&format!("-cam{i}.mp4")), self.cfg.codec)
-            .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
+        let ext = self.cfg.container.extension();
+        let r = Recorder::start(
+            &self.name(&format!("-cam{i}{ext}")),
+            self.cfg.codec,
+            self.cfg.container,
+        )
+        .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
         info!("recording camera {i} to {}", r.path().display());
         recorders[i] = Some(r);
         self.videos.fetch_add(1, Ordering::Relaxed);
@@ -356,7 +365,8 @@ impl Capturer for Capture {
                 return Ok(());
             }
             self.ready()?;
-            let r = Recorder::start(&self.name(".mp4"), self.cfg.codec)
+            let ext = self.cfg.container.extension();
+            let r = Recorder::start(&self.name(ext), self.cfg.codec, self.cfg.container)
                 .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
             info!("recording to {}", r.path().display());
             *recorder = Some(r);

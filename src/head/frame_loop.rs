@@ -209,9 +209,10 @@ impl Head {
             self.stats
                 .encoder_dropped
                 .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
-            let context = framed.as_ref().map(|(s, lens)| (s, lens));
+            let captured = last_frame.as_ref().map_or(0, |f| unix_us(f.captured_us));
+            let context = framed.as_ref().map(|(s, lens)| (s, lens, captured));
             self.render_views(&mut views, &mut renderer, context, pts, state.output.fps);
-            if let (Some(frame), Some((s, lens))) = (&last_frame, context) {
+            if let (Some(frame), Some((s, lens, _))) = (&last_frame, context) {
                 self.offer_scan(&mut scans, &mut renderer, frame, s, lens);
             }
             views.frame_done(taken.elapsed());

@@ -15,6 +15,8 @@ use crate::render::{Filter, FramePlan};
 use crate::state::State;
 use crate::state::capture::CaptureError;
 use crate::stream::Encoder;
+use crate::stream::encoder::Side;
+use crate::stream::klv::ViewMetadata;
 use crate::stream::rtsp::VIEW_MOUNTS;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -61,9 +63,9 @@ impl ViewOutputs {
     }
 }
 
-/// The state and lens the frame last uploaded to the renderer was rendered with (None while
-/// the source is down).
-pub(super) type Rendered<'a> = Option<(&'a State, &'a Lens)>;
+/// The state and lens the frame last uploaded to the renderer was rendered with, and its
+/// capture time (UNIX µs, for the views' KLV); None while the source is down.
+pub(super) type Rendered<'a> = Option<(&'a State, &'a Lens, u64)>;
 
 impl Head {
     /// Feeds the watched views' streams that are due (`ViewPacing`) and takes the stills
@@ -106,8 +108,9 @@ impl Head {
             return;
         }
         let pictures = match rendered {
-            Some((state, lens)) => {
-                let pictures = draw_views(outs, renderer, state, lens, &wanted, self.cfg.view_size);
+            Some((state, lens, time_us)) => {
+                let size = self.cfg.view_size;
+                let pictures = draw_views(outs, renderer, (state, lens, time_us), &wanted, size);
                 let took = now.elapsed();
                 outs.pacing.drawn(&wanted, took, now);
                 self.stats
@@ -118,9 +121,12 @@ impl Head {
                     .fetch_add(wanted.len() as u64, Ordering::Relaxed);
                 pictures
             }
-            None => wanted.iter().map(|_| Err(NoPicture::NoSignal)).collect(),
+            None => wanted
+                .iter()
+                .map(|_| (Err(NoPicture::NoSignal), None))
+                .collect(),
         };
-        for (i, picture) in wanted.into_iter().zip(pictures) {
+        for (i, (picture, klv)) in wanted.into_iter().zip(pictures) {
             let asked: Vec<_>;
             (asked, stills) = stills.into_iter().partition(|s| s.0 == i);
             for (_, _, done) in asked {
@@ -134,7 +140,8 @@ impl Head {
             if due[i] {
                 let (w, h) = self.cfg.view_size;
                 let (data, layout) = picture.unwrap_or_else(|_| no_signal::frame(w, h));
-                self.feed_view(outs, i, data, &layout, pts, fps);
+                let side = Side { stamps: None, klv };
+                self.feed_view(outs, i, data, &layout, (pts, fps), side);
             }
         }
     }
@@ -146,8 +153,8 @@ impl Head {
         i: usize,
         data: Vec<u8>,
         layout: &PlaneLayout,
-        pts: Duration,
-        fps: u32,
+        (pts, fps): (Duration, u32),
+        side: Side,
     ) {
         if outs.encoders[i].is_none() {
             if outs.failed[i].is_some_and(|t| t.elapsed() < RETRY) {
@@ -174,7 +181,7 @@ impl Head {
         if self.rtsp.view_key_wanted(i) | self.capture.take_view_key_request(i) {
             encoder.force_key_unit();
         }
-        if let Err(e) = encoder.push(data, layout, pts, fps) {
+        if let Err(e) = encoder.push_with(data, layout, pts, fps, side) {
             error!("camera {i}'s stream: {e}; starting its encoder again");
             outs.encoders[i] = None;
         }
@@ -183,15 +190,15 @@ impl Head {
 
 /// Views `wanted`, each alone at `size`, drawn with `state` and `lens` from the frame last
 /// uploaded to `renderer`, in one submission: I420, with the mip filter as the composed frame
-/// where a view is minified, else bilinear (`FramePlan::cheapest_filter`).
+/// where a view is minified, else bilinear (`FramePlan::cheapest_filter`); and each view's
+/// KLV packet for the frame captured at `time_us`.
 fn draw_views(
     outs: &mut ViewOutputs,
     renderer: &mut Renderer,
-    state: &State,
-    lens: &Lens,
+    (state, lens, time_us): (&State, &Lens, u64),
     wanted: &[usize],
     (w, h): (u32, u32),
-) -> Vec<Picture> {
+) -> Vec<(Picture, Option<Arc<[u8]>>)> {
     let plans: Vec<_> = wanted
         .iter()
         .map(|&i| FramePlan::single_view(state, lens, i, w, h))
@@ -206,7 +213,11 @@ fn draw_views(
         jobs.push((id, plan));
         Ok(())
     });
-    match drawn.and_then(|()| renderer.redraw(&jobs)) {
+    let klv = wanted.iter().zip(&plans).map(|(&i, plan)| {
+        let name = format!("DigiView cam {i}");
+        ViewMetadata::of(plan, &plan.views[0], state, time_us, name).map(|m| m.packet().into())
+    });
+    let pictures: Vec<Picture> = match drawn.and_then(|()| renderer.redraw(&jobs)) {
         Ok(frames) => frames.into_iter().map(|f| Ok((f.data, f.layout))).collect(),
         Err(e) => {
             let e = Arc::new(e);
@@ -215,5 +226,6 @@ fn draw_views(
                 .map(|_| Err(NoPicture::Gpu(e.clone())))
                 .collect()
         }
-    }
+    };
+    pictures.into_iter().zip(klv).collect()
 }

@@ -246,6 +246,7 @@ fn capture_kind(name: &str) -> Option<&'static str> {
         Some("jpg") => Some("image/jpeg"),
         Some("png") => Some("image/png"),
         Some("mp4") => Some("video/mp4"),
+        Some("ts") => Some("video/mp2t"),
         _ => None,
     }
 }

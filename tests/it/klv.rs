@@ -292,3 +292,90 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
         "the frame centre is {miss:.2} m from CAM_TARGET's"
     );
 }
+
+/// `[capture] container = "ts"`: the composed stream's recording and camera 2's own (started
+/// over MAVLink, as a ground station does) are MPEG-TS whose KLV klvdata reads, each
+/// describing its own view: the composed one camera 0 (`klv_camera`), camera 2's itself,
+/// their frame centres as far apart as the two cameras look.
+#[test]
+fn ts_recordings_carry_each_views_own_klv() {
+    use common::gcs::{Gcs, accepted, cameras, params};
+    use mavlink::dialects::common::MavCmd;
+    let dir = tempfile::tempdir().unwrap();
+    let captures = dir.path().join("captures");
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[cameras]\nwidth = 640\nheight = 480\n[capture]\ndir = {:?}\nmin_free_mb = 1\n\
+             container = \"ts\"\n",
+            captures.to_str().unwrap()
+        ),
+    )
+    .unwrap();
+    let port = common::autopilot::free_udp_port();
+    let serve = common::serve::Serve::start_video(&[
+        "--config",
+        config.to_str().unwrap(),
+        "--mavlink",
+        &format!("udpin:127.0.0.1:{port}"),
+        "--size",
+        "640x480",
+        "--demo-hover",
+    ]);
+    let gcs = Gcs::connect(port);
+    let (system, _) = cameras(&gcs);
+    let addr = serve.addr.to_string();
+    let start = MavCmd::MAV_CMD_VIDEO_START_CAPTURE;
+    accepted(
+        gcs.command(system, 102, start, params(&[])),
+        "camera 2 records",
+    );
+    let o = ctl(&addr, &["set", "capture", "flags=2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::thread::sleep(std::time::Duration::from_secs(4));
+    let o = ctl(&addr, &["set", "capture", "flags=0"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stop = MavCmd::MAV_CMD_VIDEO_STOP_CAPTURE;
+    accepted(
+        gcs.command(system, 102, stop, params(&[])),
+        "camera 2 stops",
+    );
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let files: Vec<_> = std::fs::read_dir(&captures)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ts"))
+        .collect();
+    let find = |cam2: bool| {
+        let f = files
+            .iter()
+            .find(|p| p.to_string_lossy().ends_with("-cam2.ts") == cam2);
+        f.unwrap_or_else(|| panic!("no recording (camera 2: {cam2}) in {files:?}"))
+    };
+    let mut centres = vec![];
+    for (path, name) in [
+        (find(false), "DigiView cam 0"),
+        (find(true), "DigiView cam 2"),
+    ] {
+        let packets = read_ts(path);
+        eprintln!("{}: {} KLV packets", path.display(), packets.len());
+        assert!(
+            packets.len() >= 30,
+            "{}: {} packets",
+            path.display(),
+            packets.len()
+        );
+        for p in &packets {
+            assert_eq!(p["checksum_ok"], true, "{p}");
+            assert_eq!(p["values"]["11"], name, "{}", path.display());
+        }
+        let last = packets.last().unwrap();
+        centres.push((value(last, 23), value(last, 24)));
+    }
+    // Camera 0 looks north and camera 2 south, 30° down from 50 m: 173 m apart.
+    let (a, b) = (centres[0], centres[1]);
+    let apart = ((a.0 - b.0) * 111_320.0).hypot((a.1 - b.1) * 111_320.0 * a.0.to_radians().cos());
+    eprintln!("frame centres {a:?} and {b:?}: {apart:.1} m apart");
+    assert!((apart - 173.2).abs() < 2.0, "{apart:.1} m apart");
+}
