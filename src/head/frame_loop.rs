@@ -306,7 +306,11 @@ impl Head {
             unix_us(frame.captured_us),
             format!("DigiView cam {cam}"),
         )
-        .map(|m| m.packet().into());
+        .map(|m| {
+            let packet = m.packet().into();
+            *self.klv.lock().unwrap_or_else(|e| e.into_inner()) = Some(m);
+            packet
+        });
         Ok(Rendered {
             data: out.data,
             layout: out.layout,

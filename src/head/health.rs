@@ -38,6 +38,8 @@ pub struct Health {
     pub tracked: usize,
     /// Where the frames' time went, capture to sent (None while none went out).
     pub latency: Option<super::latency::Stages>,
+    /// The KLV metadata of the composed stream's last frame, field by field.
+    pub klv: Option<crate::stream::klv::ViewMetadata>,
 }
 
 /// The counters at one moment.
@@ -163,6 +165,7 @@ impl Head {
             crops: (b.crops - a.crops) as f64 / secs,
             tracked: self.live.snapshot().tracked.len(),
             latency: self.latency.since(a.clock_us),
+            klv: self.klv.lock().unwrap_or_else(|e| e.into_inner()).clone(),
         }
     }
 

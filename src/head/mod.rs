@@ -106,6 +106,8 @@ pub struct Head {
     stats: Stats,
     /// Where the frames' time goes, stage by stage.
     latency: latency::Latency,
+    /// The KLV metadata of the composed stream's last frame.
+    klv: Mutex<Option<crate::stream::klv::ViewMetadata>>,
     /// The figures over the last second.
     health: Mutex<health::Health>,
     exposure: exposure::ExposureStage,
@@ -182,6 +184,7 @@ impl Head {
             source_error: Mutex::new(None),
             stats: Stats::default(),
             latency: latency::Latency::default(),
+            klv: Mutex::default(),
             health: Mutex::default(),
             exposure,
             scans: detection::ScanSlot::default(),

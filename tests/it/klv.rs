@@ -291,6 +291,20 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
         miss < 2.0,
         "the frame centre is {miss:.2} m from CAM_TARGET's"
     );
+    // The web API's status shows the last frame's metadata field by field.
+    let status = format!("{}api/status", serve.http.as_ref().unwrap());
+    let (code, body) = common::gcs::http_get(&status);
+    assert_eq!(code, 200);
+    let klv: Value = serde_json::from_slice::<Value>(&body).unwrap()["video"]["klv"].clone();
+    assert_eq!(klv["source"], "DigiView cam 0", "{klv}");
+    let centre = &klv["centre"]["point"];
+    let north = (centre["lat"].as_f64().unwrap() - lat) * 111_320.0;
+    let east = (centre["lon"].as_f64().unwrap() - lon) * 111_320.0 * lat.to_radians().cos();
+    assert!(north.hypot(east) < 2.0, "{klv}");
+    assert!(
+        klv["time_us"].as_u64().unwrap() > *times.last().unwrap(),
+        "{klv}"
+    );
 }
 
 /// `[capture] container = "ts"`: the composed stream's recording and camera 2's own (started

@@ -11,7 +11,7 @@ use crate::state::State;
 use glam::{DMat3, DVec2, DVec3};
 
 /// Yaw, pitch and roll in degrees.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Degrees {
     pub yaw: f64,
     pub pitch: f64,
@@ -29,14 +29,14 @@ impl From<Euler> for Degrees {
 }
 
 /// Where a ray from the vehicle meets the ground, and how far away.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct GroundHit {
     pub point: GeoPoint,
     /// Metres.
     pub range: f64,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ViewMetadata {
     /// The frame's capture time, µs since 1970.
     pub time_us: u64,
