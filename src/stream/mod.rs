@@ -2,7 +2,9 @@
 //! H.264 access units (x264 tuned for zero latency, or a hardware encoder); `rtsp` serves them
 //! as one shared media to any number of RTSP clients; `record` writes them to fragmented MP4.
 //! One encoder feeds both, so recording costs no second encode; `publish` pushes the same
-//! units to media relays, and `preview` to the web page's viewers.
+//! units to media relays, and `preview` to the web page's viewers. `klv` makes each frame's
+//! MISB ST 0601 metadata, which travels with the frame through the encoder to the MPEG-TS
+//! outputs (published and recorded).
 
 pub mod encoder;
 pub mod klv;
