@@ -32,12 +32,14 @@ enum RenderFailure {
     Frame(String),
 }
 
-/// A frame rendered: its bytes, the state and lens it was rendered with, and its KLV.
+/// A frame rendered: its bytes, the state and lens it was rendered with, its capture time
+/// on the UNIX clock (the one every stream's KLV of this frame carries), and its KLV.
 struct Rendered {
     data: Vec<u8>,
     layout: PlaneLayout,
     state: State,
     lens: Lens,
+    unix_us: u64,
     klv: Option<Arc<[u8]>>,
 }
 
@@ -150,12 +152,13 @@ impl Head {
             shown = Some(state.clone());
             let pts = pacer.pts(start.elapsed());
             let t0 = Instant::now();
-            // The state and lens the frame was rendered with, for the views alone.
+            // The state and lens the frame was rendered with and its capture time, for the
+            // views alone.
             let mut framed = None;
             let mut klv = None;
             let rendered = match (&last_frame, signal) {
                 (Some(frame), true) => self.render(&mut renderer, frame, &state).map(|r| {
-                    framed = Some((r.state, r.lens));
+                    framed = Some((r.state, r.lens, r.unix_us));
                     klv = r.klv;
                     (r.data, r.layout)
                 }),
@@ -209,8 +212,7 @@ impl Head {
             self.stats
                 .encoder_dropped
                 .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
-            let captured = last_frame.as_ref().map_or(0, |f| unix_us(f.captured_us));
-            let context = framed.as_ref().map(|(s, lens)| (s, lens, captured));
+            let context = framed.as_ref().map(|(s, lens, t)| (s, lens, *t));
             self.render_views(&mut views, &mut renderer, context, pts, state.output.fps);
             if let (Some(frame), Some((s, lens, _))) = (&last_frame, context) {
                 self.offer_scan(&mut scans, &mut renderer, frame, s, lens);
@@ -299,11 +301,12 @@ impl Head {
                 other => RenderFailure::Frame(other.to_string()),
             })?;
         let cam = self.cfg.klv_camera;
+        let time_us = unix_us(frame.captured_us);
         let klv = ViewMetadata::of(
             &plan,
             &plan.camera_view(&s, cam),
             &s,
-            unix_us(frame.captured_us),
+            time_us,
             format!("DigiView cam {cam}"),
         )
         .map(|m| {
@@ -316,6 +319,7 @@ impl Head {
             layout: out.layout,
             state: s,
             lens,
+            unix_us: time_us,
             klv,
         })
     }

@@ -285,13 +285,7 @@ impl FramePlan {
 
     /// Fisheye pixels per output pixel, worst case over a grid of the view, rounded up.
     fn samples_for(&self, view: &PlannedView) -> u32 {
-        (self.footprint(view).ceil() as u32).clamp(1, MAX_SAMPLES)
-    }
-
-    /// The most fisheye pixels one output pixel of `view` spans, across or down, over a 9x9
-    /// grid of its pixels (0 where none images the fisheye).
-    pub fn footprint(&self, view: &PlannedView) -> f64 {
-        self.footprints(view).1
+        (self.footprints(view).1.ceil() as u32).clamp(1, MAX_SAMPLES)
     }
 
     /// The least and the most fisheye pixels one output pixel of `view` spans, across or

@@ -112,8 +112,7 @@ impl PublishTarget {
             self.codec.caps(),
             self.codec.parser()
         );
-        // KLV beside the video: asynchronous, as GStreamer 1.22's mpegtsmux writes it.
-        let klv = "appsrc name=klv is-live=true format=time caps=meta/x-klv,parsed=true ! mux.";
+        let klv = super::klv::muxer_input(true);
         let mux = "mpegtsmux name=mux alignment=7";
         match self.kind {
             Kind::Rtsp => format!("{src} ! rtspclientsink name=sink latency=0 protocols=tcp"),
@@ -216,11 +215,11 @@ impl Publisher {
                 return false;
             };
             // The frame's KLV, stamped as its picture is.
-            let klv = l.klv.clone().zip(au.klv.as_ref()).map(|(src, packet)| {
-                let mut b = gst::Buffer::from_slice(packet.to_vec());
-                b.get_mut().expect("a new buffer").set_pts(buffer.pts());
-                (src, b)
-            });
+            let klv = l
+                .klv
+                .clone()
+                .zip(au.klv.as_ref())
+                .map(|(src, packet)| (src, super::klv::buffer(packet, buffer.pts())));
             (l.src.clone(), buffer, klv)
         };
         let _ = src.push_buffer(buffer);

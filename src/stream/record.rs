@@ -57,8 +57,8 @@ impl Recorder {
                 format!("{video} ! mp4mux fragment-duration=1000 streamable=true ! {file}")
             }
             Container::Ts => format!(
-                "{video} ! mpegtsmux name=mux alignment=7 ! {file} \
-                 appsrc name=klv format=time caps=meta/x-klv,parsed=true ! mux."
+                "{video} ! mpegtsmux name=mux alignment=7 ! {file} {}",
+                super::klv::muxer_input(false)
             ),
         })?;
         let src: gst_app::AppSrc = element(&pipeline, "src")?;
@@ -96,9 +96,7 @@ impl Recorder {
             return Ok(());
         };
         if let (Some(src), Some(packet)) = (&self.klv, &au.klv) {
-            let mut b = gst::Buffer::from_slice(packet.to_vec());
-            b.get_mut().expect("a new buffer").set_pts(t);
-            let _ = src.push_buffer(b);
+            let _ = src.push_buffer(super::klv::buffer(packet, Some(t)));
         }
         Ok(())
     }

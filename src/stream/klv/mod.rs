@@ -10,6 +10,21 @@ pub mod view;
 pub use st0601::UAS_LS_KEY;
 pub use view::ViewMetadata;
 
+use gstreamer as gst;
+
+/// The KLV input of an MPEG-TS muxer named `mux`: an appsrc named `klv` (live where the
+/// pipeline is), asynchronous KLV as GStreamer 1.22's mpegtsmux writes it.
+pub fn muxer_input(live: bool) -> String {
+    format!("appsrc name=klv is-live={live} format=time caps=meta/x-klv,parsed=true ! mux.")
+}
+
+/// A packet as a buffer for [`muxer_input`], shown at `pts` (its picture's).
+pub fn buffer(packet: &[u8], pts: Option<gst::ClockTime>) -> gst::Buffer {
+    let mut b = gst::Buffer::from_slice(packet.to_vec());
+    b.get_mut().expect("a new buffer").set_pts(pts);
+    b
+}
+
 /// A BER length: the short form up to 127, else `0x80 | n` and the length in n bytes.
 pub fn ber_length(len: usize, out: &mut Vec<u8>) {
     if len < 128 {

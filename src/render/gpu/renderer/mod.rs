@@ -336,14 +336,19 @@ impl Renderer {
         let Some(frame) = self.in_flight.pop_front() else {
             return Ok(None);
         };
+        self.read_back(frame).map(Some)
+    }
+
+    /// Waits for a frame's readback buffer and copies the frame out.
+    fn read_back(&self, frame: InFlight) -> Result<RenderedFrame, GpuError> {
         frame.readback.wait(&self.gpu.device)?;
         let data = frame.readback.read_out(frame.layout.size as usize)?;
-        Ok(Some(RenderedFrame {
+        Ok(RenderedFrame {
             id: frame.id,
             layout: frame.layout,
             data,
             latency: frame.started.elapsed(),
-        }))
+        })
     }
 
     /// Draws each `(output, plan)` from the frame last pushed, without uploading it again:
@@ -373,33 +378,28 @@ impl Renderer {
             output.prepare(&self.gpu, &mut self.pipelines, input, plan)?;
         }
         let mut encoder = self.encoder();
-        let mut readbacks = Vec::with_capacity(jobs.len());
-        for &(id, _) in jobs {
-            let output = &mut self.more[id.0];
+        let mut drawn = Vec::with_capacity(jobs.len());
+        // The frame drawn from: the newest pushed.
+        let id = self.next_id.saturating_sub(1);
+        for &(output, _) in jobs {
+            let output = &mut self.more[output.0];
             output.encode_draw(&mut encoder, &self.pipelines, &[]);
             let slot = (output.drawn % RING as u64) as usize;
             output.drawn += 1;
             let target = output.target.as_ref().unwrap();
             target.encode_readback(&mut encoder, slot);
-            readbacks.push((target.readbacks[slot].clone(), target.layout));
+            drawn.push(InFlight {
+                id,
+                readback: target.readbacks[slot].clone(),
+                layout: target.layout,
+                started,
+            });
         }
         self.submit(encoder);
-        for (readback, _) in &readbacks {
-            readback.request(wgpu::MapMode::Read);
+        for frame in &drawn {
+            frame.readback.request(wgpu::MapMode::Read);
         }
-        let id = self.next_id.saturating_sub(1);
-        readbacks
-            .into_iter()
-            .map(|(readback, layout)| {
-                readback.wait(&self.gpu.device)?;
-                Ok(RenderedFrame {
-                    id,
-                    layout,
-                    data: readback.read_out(layout.size as usize)?,
-                    latency: started.elapsed(),
-                })
-            })
-            .collect()
+        drawn.into_iter().map(|f| self.read_back(f)).collect()
     }
 
     /// Renders one frame and waits for it.
