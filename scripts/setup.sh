@@ -129,11 +129,12 @@ fi
 
 # The peers users have, in the project's own Python environment (.venv): MAVSDK (its wheel
 # carries the C++ core most apps build on), pymavlink, and MAVProxy as the router that joins
-# an autopilot, DigiView and a ground station on a drone; and klvdata, a MISB ST 0601 reader
-# written by others, for the KLV metadata. Pinned, so every machine tests against the same
+# an autopilot, DigiView and a ground station on a drone; and klvdata and stanag4609, MISB
+# ST 0601 readers written by others (stanag4609 also reads ST 0903 VMTI), for the KLV
+# metadata. Pinned, so every machine tests against the same
 # ones; the tests find them at .venv/bin/python.
-mavlink_peers=(mavsdk==4.1.0 pymavlink==2.4.50 MAVProxy==1.8.75 klvdata==0.0.3)
-if ! .venv/bin/python -c 'import mavsdk, pymavlink, MAVProxy, klvdata' 2>/dev/null ||
+mavlink_peers=(mavsdk==4.1.0 pymavlink==2.4.50 MAVProxy==1.8.75 klvdata==0.0.3 stanag4609==0.4.0)
+if ! .venv/bin/python -c 'import mavsdk, pymavlink, MAVProxy, klvdata, stanag4609' 2>/dev/null ||
   ! .venv/bin/pip freeze 2>/dev/null | grep -qx "${mavlink_peers[0]}"; then
   echo "setup: installing ${mavlink_peers[*]} into .venv"
   python3 -m venv .venv

@@ -51,8 +51,14 @@ pub struct Config {
     /// `srt://HOST:PORT` (MPEG-TS over SRT) or `udp://HOST:PORT` (MPEG-TS over UDP, unicast
     /// or multicast). The MPEG-TS ones carry KLV metadata (MISB ST 0601) beside the video.
     pub publish: Vec<String>,
+    /// Relays for the views' own streams, `CAMERA=URL` (`2=udp://239.1.2.3:5602`), the URLs
+    /// as in `publish`; a view published is rendered and encoded all the time.
+    pub publish_views: Vec<String>,
     /// The camera whose view the composed stream's KLV metadata describes (0..=3).
     pub klv_camera: usize,
+    /// Whether the KLV lists the tracked objects (ST 0903 VMTI in tag 74); false leaves them
+    /// out, for readers that fail on tag 74 (klvdata 0.0.3).
+    pub klv_objects: bool,
     /// Seconds between the one-line health summaries in the log (0: none).
     pub health_interval_s: f64,
 }
@@ -76,7 +82,9 @@ impl Default for Config {
             http: HttpConfig::default(),
             detection: DetectionConfig::default(),
             publish: Vec::new(),
+            publish_views: Vec::new(),
             klv_camera: 0,
+            klv_objects: true,
             health_interval_s: 10.0,
         }
     }
@@ -128,12 +136,19 @@ impl Config {
             detection: self.detection.clone(),
             health_interval_s: self.health_interval_s,
             klv_camera: self.klv_camera,
+            klv_objects: self.klv_objects,
         })
     }
 
     /// The relays of `publish`, checked.
     pub fn publish_targets(&self) -> Result<Vec<PublishTarget>, PublishError> {
         self.publish.iter().map(|u| u.parse()).collect()
+    }
+
+    /// The views' relays of `publish_views`, checked: (camera, target).
+    pub fn view_publish_targets(&self) -> Result<Vec<(usize, PublishTarget)>, PublishError> {
+        let view_target = crate::stream::publish::view_target;
+        self.publish_views.iter().map(|t| view_target(t)).collect()
     }
 
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
@@ -232,6 +247,7 @@ impl Config {
             ));
         }
         self.publish_targets()?;
+        self.view_publish_targets()?;
         self.mavlink
             .endpoint
             .parse::<crate::autopilot::Endpoint>()?;
@@ -308,6 +324,9 @@ mod tests {
             ("[encoder]\nbitrate_kbps = 5", "bitrate_kbps"),
             ("[capture]\nstill_format = \"gif\"", "still_format"),
             ("klv_camera = 4", "klv_camera"),
+            ("publish_views = [\"4=udp://h:5600\"]", "CAMERA=URL"),
+            ("publish_views = [\"udp://h:5600\"]", "CAMERA=URL"),
+            ("publish_views = [\"1=udp://h\"]", "needs a port"),
         ] {
             let e = Config::parse(text).unwrap_err().to_string();
             assert!(e.contains(says), "{text:?}: {e}");

@@ -21,6 +21,7 @@ use crate::policy::{Permissions, Policy};
 use crate::state::capture::{Capturer, NoVideo, ViewShooter};
 use crate::state::{Invalid, Live, State};
 use crate::stream::publish::PublishError;
+use crate::stream::rtsp::VIEW_MOUNTS;
 use crate::stream::{Publisher, Rtsp, StreamError};
 use crate::supervise;
 use crate::telemetry::Telemetry;
@@ -287,24 +288,31 @@ fn start_head(
         let base = format!("rtsp://{public}:{}{}", rtsp.port(), rtsp.path());
         c.set_streams(base, cfg.encoder.bitrate_kbps, codec);
     }
+    let publish = |mut target: crate::stream::PublishTarget, wanted: Arc<AtomicBool>| {
+        target.codec = codec;
+        info!("publishing to {}", target.url);
+        let report: Arc<dyn crate::supervise::Report> = live.clone();
+        Publisher::start(target, report, move || {
+            wanted.store(true, Ordering::Relaxed)
+        })
+    };
     let publishers = cfg
         .publish_targets()?
         .into_iter()
-        .map(|mut target| {
-            target.codec = codec;
-            let wanted = key_wanted.clone();
-            info!("publishing to {}", target.url);
-            let report: Arc<dyn crate::supervise::Report> = live.clone();
-            Publisher::start(target, report, move || {
-                wanted.store(true, Ordering::Relaxed)
-            })
-        })
+        .map(|target| publish(target, key_wanted.clone()))
         .collect::<Result<Vec<_>, _>>()?;
+    let view_key_wanted: [Arc<AtomicBool>; VIEW_MOUNTS] = Default::default();
+    let mut view_publishers: [Vec<Publisher>; VIEW_MOUNTS] = Default::default();
+    for (cam, target) in cfg.view_publish_targets()? {
+        view_publishers[cam].push(publish(target, view_key_wanted[cam].clone())?);
+    }
     let parts = HeadParts {
         live: live.clone(),
         capture,
         rtsp: Arc::new(rtsp),
         publishers,
+        view_publishers,
+        view_key_wanted,
         telemetry: telemetry.clone(),
         key_wanted,
         demo_autopilot: wiring::demo_autopilot(&cfg.mavlink),

@@ -37,9 +37,40 @@ pub struct RenderArgs {
     /// Minification filter (docs/decisions.md, "Filtering").
     #[arg(long, value_enum, default_value = "mip")]
     filter: Filter,
+    /// With every frame of a video, the KLV metadata (MISB ST 0601, docs/klv.md) of camera
+    /// --klv-camera's view as the state has it, in an MPEG-TS output (--out NAME.ts).
+    #[arg(long)]
+    klv: bool,
+    /// The camera whose view the KLV describes.
+    #[arg(long, default_value_t = 0, value_parser = klv_camera, requires = "klv")]
+    klv_camera: usize,
+    /// When the input's first frame was captured, seconds since 1970 (UTC), for the KLV's
+    /// time stamps; default: the input file's modification time less its length.
+    #[arg(long, value_parser = klv_start, requires = "klv")]
+    klv_start: Option<f64>,
     #[command(flatten)]
     state: StateArgs,
 }
+
+fn klv_camera(text: &str) -> Result<usize> {
+    let last = crate::state::MAX_CAMERAS - 1;
+    text.parse::<usize>()
+        .ok()
+        .filter(|&c| c <= last)
+        .ok_or_else(|| anyhow::anyhow!("{text} is not a camera (0..={last})"))
+}
+
+fn klv_start(text: &str) -> Result<f64> {
+    text.parse::<f64>()
+        .ok()
+        .filter(|t| (0.0..=MAX_KLV_START).contains(t))
+        .ok_or_else(|| {
+            anyhow::anyhow!("{text} is not a UNIX time in seconds (0..={MAX_KLV_START})")
+        })
+}
+
+/// The latest `--klv-start`: the year 2100.
+const MAX_KLV_START: f64 = 4_102_444_800.0;
 
 #[derive(Args, Debug)]
 pub struct SynthArgs {
@@ -120,6 +151,9 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
         }
         return super::render_video::render_video(cal, &state, &args.video());
     }
+    if args.klv {
+        anyhow::bail!("--klv goes with a video's frames (--out NAME.ts); an image has no stream");
+    }
     if is_pattern(&args.out) || !is_image(&args.out) {
         anyhow::bail!(
             "{}: an image input renders to an image (.png or .jpg); a video or an image \
@@ -158,6 +192,7 @@ impl RenderArgs {
             input_fps: self.input_fps,
             bitrate_kbps: self.bitrate_kbps,
             filter: self.filter,
+            klv: self.klv.then_some((self.klv_camera, self.klv_start)),
         }
     }
 }

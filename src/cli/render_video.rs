@@ -1,7 +1,8 @@
 //! `digiview render` on a video file or an image sequence: GStreamer decodes every frame (none
 //! dropped), the GPU renders it with the state's views, and the output goes to an MP4 (H.264)
-//! or an image sequence, with a progress bar. Frames are pipelined: frame N uploads and
-//! renders while frame N-1 is read back and encoded.
+//! or an image sequence, with a progress bar; or to MPEG-TS, with each frame's KLV metadata if
+//! asked. Frames are pipelined: frame N uploads and renders while frame N-1 is read back and
+//! encoded.
 
 use super::output::{self, Output};
 use crate::frame::PixelFormat;
@@ -11,7 +12,8 @@ use crate::render::gpu::{Gpu, Renderer};
 use crate::render::{Filter, FramePlan};
 use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
-use crate::stream::encoder::AccessUnit;
+use crate::stream::encoder::{AccessUnit, Side};
+use crate::stream::klv::ViewMetadata;
 use crate::stream::record::Container;
 use crate::stream::{Codec, Encoder, EncoderConfig, Recorder};
 use anyhow::{Context, Result, anyhow, bail};
@@ -26,11 +28,14 @@ pub struct VideoJob {
     pub input_fps: u32,
     pub bitrate_kbps: u32,
     pub filter: Filter,
+    /// KLV with every frame: the camera whose view it describes, and the first frame's
+    /// capture time (UNIX seconds; None: the input's modification time less its length).
+    pub klv: Option<(usize, Option<f64>)>,
 }
 
 /// Where rendered frames go.
 enum Sink {
-    Mp4 {
+    Video {
         encoder: Encoder,
         recorder: Arc<Mutex<Option<Recorder>>>,
         fps: u32,
@@ -63,7 +68,7 @@ pub(super) fn numbered(pattern: &str, n: u64) -> Result<String> {
 
 /// Where the frames will go, checked before any work.
 enum Target {
-    Mp4(Output),
+    Video(Output, Container),
     Images(String),
 }
 
@@ -87,6 +92,9 @@ impl Target {
             output::refuse_inputs(&o, &inputs)?;
         }
         if out.contains('%') {
+            if job.klv.is_some() {
+                bail!("--klv goes in an MPEG-TS output (--out NAME.ts), not an image sequence");
+            }
             output::image_format(Path::new(&numbered(&out, 0)?))?;
             if let Some(dir) = Path::new(&out)
                 .parent()
@@ -97,23 +105,31 @@ impl Target {
             }
             return Ok(Target::Images(out));
         }
-        if !out.to_ascii_lowercase().ends_with(".mp4") {
-            bail!("{out}: a video renders to .mp4 or to an image pattern such as out/%05d.png");
-        }
-        Ok(Target::Mp4(Output::create(&job.out, &inputs)?))
+        let lower = out.to_ascii_lowercase();
+        let container = match () {
+            _ if lower.ends_with(".ts") => Container::Ts,
+            _ if lower.ends_with(".mp4") && job.klv.is_some() => {
+                bail!("{out}: MP4 carries no KLV; --klv renders to MPEG-TS (--out NAME.ts)")
+            }
+            _ if lower.ends_with(".mp4") => Container::Mp4,
+            _ => bail!(
+                "{out}: a video renders to .mp4, .ts or an image pattern such as out/%05d.png"
+            ),
+        };
+        Ok(Target::Video(Output::create(&job.out, &inputs)?, container))
     }
 }
 
 impl Sink {
     fn open(target: Target, job: &VideoJob, fps: f64) -> Result<Sink> {
-        let out = match target {
+        let (out, container) = match target {
             Target::Images(pattern) => return Ok(Sink::Images(pattern)),
-            Target::Mp4(out) => out,
+            Target::Video(out, container) => (out, container),
         };
         let recorder = Arc::new(Mutex::new(Some(Recorder::start(
             out.temp(),
             Codec::H264,
-            Container::Mp4,
+            container,
         )?)));
         let feed = recorder.clone();
         let fps = fps.round().clamp(1.0, 240.0) as u32;
@@ -125,12 +141,12 @@ impl Sink {
         };
         let encoder = Encoder::offline(&cfg, fps, move |au: AccessUnit| {
             if let Some(r) = feed.lock().unwrap_or_else(|e| e.into_inner()).as_mut()
-                && let Err(e) = r.push(&au.buffer, au.key)
+                && let Err(e) = r.push_unit(&au)
             {
                 tracing::error!("{e}");
             }
         })?;
-        Ok(Sink::Mp4 {
+        Ok(Sink::Video {
             encoder,
             recorder,
             fps,
@@ -138,10 +154,12 @@ impl Sink {
         })
     }
 
-    fn write(&mut self, frame: RenderedFrame, pts: Duration) -> Result<()> {
+    /// Writes `frame`, shown at `pts`, with its KLV packet if there is one.
+    fn write(&mut self, frame: RenderedFrame, pts: Duration, klv: Option<Arc<[u8]>>) -> Result<()> {
         match self {
-            Sink::Mp4 { encoder, fps, .. } => {
-                Ok(encoder.push(frame.data, &frame.layout, pts, *fps)?)
+            Sink::Video { encoder, fps, .. } => {
+                let side = Side { stamps: None, klv };
+                Ok(encoder.push_with(frame.data, &frame.layout, pts, *fps, side)?)
             }
             Sink::Images(pattern) => {
                 let path = numbered(pattern, frame.id)?;
@@ -151,7 +169,7 @@ impl Sink {
     }
 
     fn finish(self) -> Result<()> {
-        if let Sink::Mp4 {
+        if let Sink::Video {
             encoder,
             recorder,
             out,
@@ -169,6 +187,39 @@ impl Sink {
         }
         Ok(())
     }
+}
+
+/// The KLV packet of the frame shown at `pts`: camera `cam`'s view of `plan`, drawn with
+/// `state`, the first frame captured at `start_us`.
+fn klv_packet(
+    plan: &FramePlan,
+    state: &State,
+    (cam, start_us): (usize, u64),
+    pts: Duration,
+) -> Option<Arc<[u8]>> {
+    let time_us = start_us + pts.as_micros() as u64;
+    ViewMetadata::of_camera(plan, state, cam, time_us).map(|m| m.packet().into())
+}
+
+/// When the input's first frame was captured, µs since 1970: as given, else its file's (a
+/// sequence's first file's) modification time, less its `length` for a video file.
+fn first_capture(job: &VideoJob, given: Option<f64>, length: Option<Duration>) -> Result<u64> {
+    if let Some(t) = given {
+        return Ok((t * 1e6) as u64);
+    }
+    let text = job.input.to_string_lossy();
+    let (file, less) = match text.contains('%') {
+        true => (PathBuf::from(numbered(&text, 0)?), Duration::ZERO),
+        false => (job.input.clone(), length.unwrap_or_default()),
+    };
+    let modified = std::fs::metadata(&file)
+        .and_then(|m| m.modified())
+        .with_context(|| format!("{}: no modification time for --klv", file.display()))?;
+    let since = modified
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default()
+        .saturating_sub(less);
+    Ok(since.as_micros() as u64)
 }
 
 pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> {
@@ -201,6 +252,10 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         }
         _ => None,
     });
+    let klv = match job.klv {
+        Some((cam, start)) => Some((cam, first_capture(job, start, duration)?)),
+        None => None,
+    };
     let out_format = if job.out.to_string_lossy().contains('%') {
         PixelFormat::Rgba
     } else {
@@ -257,7 +312,8 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         times.push_back(pts);
         if let Some(done) = renderer.push(&frame.data, &frame.layout, p)? {
             let t = times.pop_front().unwrap_or_default();
-            sink.as_mut().unwrap().write(done, t)?;
+            let packet = klv.and_then(|k| klv_packet(p, state, k, t));
+            sink.as_mut().unwrap().write(done, t, packet)?;
         }
         count += 1;
         bar.set_position(pts.as_millis() as u64);
@@ -271,7 +327,11 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     };
     while let Some(done) = renderer.flush()? {
         let t = times.pop_front().unwrap_or_default();
-        sink.write(done, t)?;
+        let packet = match (klv, &plan) {
+            (Some(k), Some((_, p))) => klv_packet(p, state, k, t),
+            _ => None,
+        };
+        sink.write(done, t, packet)?;
     }
     sink.finish()?;
     bar.finish_and_clear();

@@ -30,10 +30,15 @@ pub struct ServeArgs {
     /// MAVLink a signed message as well).
     #[arg(long)]
     allow_delete: Option<Allow>,
-    /// Also push the stream to a relay: rtsp://HOST:PORT/PATH (RTSP RECORD) or
-    /// srt://HOST:PORT (repeatable; replaces the config's `publish`).
+    /// Also push the stream to a relay: rtsp://HOST:PORT/PATH (RTSP RECORD),
+    /// srt://HOST:PORT or udp://HOST:PORT (MPEG-TS with KLV) (repeatable; replaces the
+    /// config's `publish`).
     #[arg(long = "publish", value_name = "URL")]
     publish: Vec<String>,
+    /// Push camera N's own stream to a relay: N=URL, the URL as --publish's (repeatable;
+    /// replaces the config's `publish_views`).
+    #[arg(long = "publish-view", value_name = "N=URL")]
+    publish_views: Vec<String>,
     /// The detector for the detection tiles: motion (built in), onnx (a model, NanoDet-m by
     /// default) or off (default: the config's, motion; off when the state gives objects with
     /// --track).
@@ -118,6 +123,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     let (mut cfg, _) = args.setup.config()?;
     if !args.publish.is_empty() {
         cfg.publish = args.publish.clone();
+    }
+    if !args.publish_views.is_empty() {
+        cfg.publish_views = args.publish_views.clone();
     }
     if args.demo_hover {
         cfg.demo.motion = false;

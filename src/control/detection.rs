@@ -106,20 +106,11 @@ pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
         .iter()
         .map(|t| {
             let ray = direction(t.yaw, t.pitch);
-            let (u, v) = ray.any_orthonormal_pair();
-            let (sin, cos) = (t.size / 2.0).sin_cos();
             plan.views[..shown]
                 .iter()
                 .enumerate()
                 .filter_map(|(cam, view)| {
-                    let centre = plan.view_point(view, ray)?;
-                    // The mean distance to the points of the object's rim that the view shows.
-                    let rim: Vec<f64> = [u, -u, v, -v]
-                        .iter()
-                        .filter_map(|&side| plan.view_point(view, ray * cos + side * sin))
-                        .map(|p| p.distance(centre))
-                        .collect();
-                    let radius = rim.iter().sum::<f64>() / rim.len().max(1) as f64;
+                    let (centre, radius) = plan.view_circle(view, ray, t.size)?;
                     let at = centre + DVec2::new(view.rect.x as f64, view.rect.y as f64);
                     Some(Seen {
                         cam: cam as u8,

@@ -302,14 +302,10 @@ impl Head {
             })?;
         let cam = self.cfg.klv_camera;
         let time_us = unix_us(frame.captured_us);
-        let klv = ViewMetadata::of(
-            &plan,
-            &plan.camera_view(&s, cam),
-            &s,
-            time_us,
-            format!("DigiView cam {cam}"),
-        )
-        .map(|m| {
+        let klv = ViewMetadata::of_camera(&plan, &s, cam, time_us).map(|mut m| {
+            if !self.cfg.klv_objects {
+                m.objects = None;
+            }
             let packet = m.packet().into();
             *self.klv.lock().unwrap_or_else(|e| e.into_inner()) = Some(m);
             packet

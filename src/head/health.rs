@@ -150,10 +150,14 @@ impl Head {
             encode_ms: per(b.encode_us - a.encode_us, b.encoded - a.encoded),
             rtsp_clients: self.rtsp.clients(),
             page_viewers: self.preview.viewers(),
-            relays: (
-                self.publishers.iter().filter(|p| p.connected()).count(),
-                self.publishers.len(),
-            ),
+            relays: {
+                let all = || {
+                    self.publishers
+                        .iter()
+                        .chain(self.view_publishers.iter().flatten())
+                };
+                (all().filter(|p| p.connected()).count(), all().count())
+            },
             exposure: self.exposure_summary().trim_start_matches(", ").to_string(),
             source_down: self.source_error(),
             views_alone: (views as f64 / secs, per(b.view_us - a.view_us, views)),

@@ -38,6 +38,7 @@ use crate::render::gpu::GpuError;
 use crate::source::demo::{DemoConfig, Flight};
 use crate::source::{FrameSlot, SourceSpec};
 use crate::state::Live;
+use crate::stream::rtsp::VIEW_MOUNTS;
 use crate::stream::{EncoderConfig, Preview, Publisher, Rtsp, StreamError};
 use crate::telemetry::Telemetry;
 use capture::Capture;
@@ -63,6 +64,8 @@ pub struct HeadConfig {
     pub health_interval_s: f64,
     /// The camera whose view the composed stream's KLV metadata describes.
     pub klv_camera: usize,
+    /// Whether the KLV lists the tracked objects (tag 74).
+    pub klv_objects: bool,
 }
 
 /// Sends the demo's flight on as an autopilot would, from its start: what it returns runs
@@ -95,6 +98,9 @@ pub struct Head {
     pub rtsp: Arc<Rtsp>,
     /// The relays the stream is published to.
     pub publishers: Vec<Publisher>,
+    /// Each view's own stream's relays, and whether one of them owes a key frame.
+    pub view_publishers: [Vec<Publisher>; VIEW_MOUNTS],
+    view_key_wanted: [Arc<AtomicBool>; VIEW_MOUNTS],
     pub slot: Arc<FrameSlot>,
     pub stop: Arc<AtomicBool>,
     /// Set by the RTSP server when a client joins: the encoder owes it a key frame.
@@ -131,6 +137,9 @@ pub struct HeadParts {
     pub rtsp: Arc<Rtsp>,
     /// The relays the stream is published to.
     pub publishers: Vec<Publisher>,
+    /// Each view's own stream's relays, and their key-frame requests.
+    pub view_publishers: [Vec<Publisher>; VIEW_MOUNTS],
+    pub view_key_wanted: [Arc<AtomicBool>; VIEW_MOUNTS],
     pub telemetry: Arc<Telemetry>,
     /// Set by the RTSP server and the relays when a client joins: a key frame is owed.
     pub key_wanted: Arc<AtomicBool>,
@@ -165,6 +174,8 @@ impl Head {
             capture,
             rtsp,
             publishers,
+            view_publishers,
+            view_key_wanted,
             telemetry,
             key_wanted,
             demo_autopilot,
@@ -177,6 +188,8 @@ impl Head {
             telemetry,
             rtsp,
             publishers,
+            view_publishers,
+            view_key_wanted,
             slot: Arc::default(),
             stop: Arc::default(),
             preview: Arc::new(Preview::new(key_wanted.clone())),

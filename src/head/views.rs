@@ -1,6 +1,6 @@
 //! The views alone, beside the composed frame: each view's own stream (`PATH/camN`, what the
-//! MAVLink cameras give ground stations), rendered and encoded only while someone watches or
-//! its camera records it, and the stills the cameras take of their view. Both draw the view by
+//! MAVLink cameras give ground stations), rendered and encoded only while someone watches,
+//! its camera records it or it is published to a relay, and the stills the cameras take of their view. Both draw the view by
 //! itself at the `[cameras]` size from the fisheye frame the composed frame was just rendered
 //! from, with the same state, as further outputs of the frame loop's renderer: the frame is
 //! uploaded once, and every view wanted is drawn in one submission after the composed frame
@@ -88,9 +88,12 @@ impl Head {
             self.capture.put_back_view_stills(waiting);
             stills = late;
         }
-        // Watched, or recorded by its camera: its stream is encoded.
-        let watched: [bool; VIEW_MOUNTS] =
-            std::array::from_fn(|i| self.rtsp.view_watched(i) || self.capture.view_recording(i));
+        // Watched, recorded by its camera or published: its stream is encoded.
+        let watched: [bool; VIEW_MOUNTS] = std::array::from_fn(|i| {
+            self.rtsp.view_watched(i)
+                || self.capture.view_recording(i)
+                || !self.view_publishers[i].is_empty()
+        });
         for (i, watched) in watched.into_iter().enumerate() {
             if !watched && outs.encoders[i].take().is_some() {
                 // Nobody watches: no render, no encoder.
@@ -110,7 +113,14 @@ impl Head {
         let pictures = match rendered {
             Some((state, lens, time_us)) => {
                 let size = self.cfg.view_size;
-                let pictures = draw_views(outs, renderer, (state, lens, time_us), &wanted, size);
+                let objects = self.cfg.klv_objects;
+                let pictures = draw_views(
+                    outs,
+                    renderer,
+                    (state, lens, time_us),
+                    &wanted,
+                    (size, objects),
+                );
                 let took = now.elapsed();
                 outs.pacing.drawn(&wanted, took, now);
                 self.stats
@@ -164,9 +174,16 @@ impl Head {
             match Encoder::new(&self.cfg.encoder, fps, move |au| {
                 head.rtsp.push_view(i, &au.buffer);
                 head.capture.on_view_access_unit(i, &au);
+                for p in &head.view_publishers[i] {
+                    if p.push(&au) {
+                        head.view_key_wanted[i].store(true, Ordering::Relaxed);
+                    }
+                }
             }) {
                 Ok(e) => {
-                    info!("camera {i}: its own stream is watched or recorded; encoding it");
+                    info!(
+                        "camera {i}: its own stream is watched, recorded or published; encoding it"
+                    );
                     outs.encoders[i] = Some(e);
                     outs.failed[i] = None;
                 }
@@ -178,7 +195,8 @@ impl Head {
             }
         }
         let encoder = outs.encoders[i].as_mut().expect("started above");
-        if self.rtsp.view_key_wanted(i) | self.capture.take_view_key_request(i) {
+        let relay_wants = self.view_key_wanted[i].swap(false, Ordering::Relaxed);
+        if self.rtsp.view_key_wanted(i) | self.capture.take_view_key_request(i) | relay_wants {
             encoder.force_key_unit();
         }
         if let Err(e) = encoder.push_with(data, layout, pts, fps, side) {
@@ -191,13 +209,13 @@ impl Head {
 /// Views `wanted`, each alone at `size`, drawn with `state` and `lens` from the frame last
 /// uploaded to `renderer`, in one submission: I420, with the mip filter as the composed frame
 /// where a view is minified, else bilinear (`FramePlan::cheapest_filter`); and each view's
-/// KLV packet for the frame captured at `time_us`.
+/// KLV packet for the frame captured at `time_us` (with its tracked objects if `objects`).
 fn draw_views(
     outs: &mut ViewOutputs,
     renderer: &mut Renderer,
     (state, lens, time_us): (&State, &Lens, u64),
     wanted: &[usize],
-    (w, h): (u32, u32),
+    ((w, h), objects): ((u32, u32), bool),
 ) -> Vec<(Picture, Option<Arc<[u8]>>)> {
     let plans: Vec<_> = wanted
         .iter()
@@ -215,7 +233,13 @@ fn draw_views(
     });
     let klv = wanted.iter().zip(&plans).map(|(&i, plan)| {
         let name = format!("DigiView cam {i}");
-        ViewMetadata::of(plan, &plan.views[0], state, time_us, name).map(|m| m.packet().into())
+        let frame = Some((w, h));
+        let m = ViewMetadata::of(plan, &plan.views[0], state, (time_us, frame), name)?;
+        let m = ViewMetadata {
+            objects: m.objects.filter(|_| objects),
+            ..m
+        };
+        Some(m.packet().into())
     });
     let pictures: Vec<Picture> = match drawn.and_then(|()| renderer.redraw(&jobs)) {
         Ok(frames) => frames.into_iter().map(|f| Ok((f.data, f.layout))).collect(),

@@ -190,9 +190,9 @@ impl FramePlan {
     /// Camera `i`'s view as the frame draws it or, when the layout does not show that camera,
     /// as a square of [`UNSHOWN_VIEW`] pixels (what CAM_OFFSET and CAM_TARGET measure in).
     pub fn camera_view(&self, state: &State, i: usize) -> PlannedView {
-        match self.layout.views.get(i) {
-            Some(&(_, slot)) if slot != Slot::Debug => self.views[i],
-            _ => {
+        match self.shows_camera(i) {
+            true => self.views[i],
+            false => {
                 let rect = Rect::new(0, 0, UNSHOWN_VIEW, UNSHOWN_VIEW);
                 let cam = &state.cameras[i];
                 let vehicle = &state.vehicle;
@@ -213,6 +213,27 @@ impl FramePlan {
                 }
             }
         }
+    }
+
+    /// Whether the frame draws camera `i`'s view (a debug panel does not count).
+    pub fn shows_camera(&self, i: usize) -> bool {
+        matches!(self.layout.views.get(i), Some(&(_, slot)) if slot != Slot::Debug)
+    }
+
+    /// Where a round thing of angular diameter `size` seen along `ray` shows in a view: its
+    /// centre (view pixels, as [`FramePlan::view_point`]) and its radius there, the mean
+    /// distance to the points of its rim the view shows (0 where it shows none). None where
+    /// the view does not show its centre.
+    pub fn view_circle(&self, view: &PlannedView, ray: DVec3, size: f64) -> Option<(DVec2, f64)> {
+        let centre = self.view_point(view, ray)?;
+        let (u, v) = ray.any_orthonormal_pair();
+        let (sin, cos) = (size / 2.0).sin_cos();
+        let rim: Vec<f64> = [u, -u, v, -v]
+            .iter()
+            .filter_map(|&side| self.view_point(view, ray * cos + side * sin))
+            .map(|p| p.distance(centre))
+            .collect();
+        Some((centre, rim.iter().sum::<f64>() / rim.len().max(1) as f64))
     }
 
     /// The fisheye pixel (OpenCV coordinates) seen at point `p` of a view, None where the

@@ -3,7 +3,8 @@
 //! with RTSP RECORD (`rtspclientsink`, as MediaMTX and gst-rtsp-server accept), `srt://` as
 //! MPEG-TS in SRT caller mode (`srtsink`), `udp://` as MPEG-TS in UDP datagrams to a host or
 //! a multicast group (`udpsink`). The MPEG-TS outputs carry each frame's KLV metadata (MISB
-//! ST 0601, asynchronous: ST 1402's private data stream) stamped with its frame's time.
+//! ST 0601, asynchronous: ST 1402's private data stream) stamped with its frame's time. A
+//! view's own stream is published the same way (`CAMERA=URL`, [`view_target`]).
 //! Each relay has a thread of its own that connects,
 //! and reconnects with back-off whenever the relay goes away or is not there yet; the frame
 //! path only hands units over (it never waits on a relay), and the built-in RTSP server is
@@ -61,6 +62,19 @@ pub enum PublishError {
     NoPort(String),
     #[error("publish URL {0:?}: an RTSP URL needs a path to publish to (rtsp://HOST:PORT/PATH)")]
     NoPath(String),
+    #[error("view relay {0:?}: give CAMERA=URL, the camera 0..=3 (2=udp://239.1.2.3:5602)")]
+    NotAView(String),
+}
+
+/// A view's own stream's relay, from `CAMERA=URL`: the camera and the target.
+pub fn view_target(text: &str) -> Result<(usize, PublishTarget), PublishError> {
+    let not_a_view = || PublishError::NotAView(text.to_string());
+    let (cam, url) = text.split_once('=').ok_or_else(not_a_view)?;
+    let cam: usize = cam.trim().parse().map_err(|_| not_a_view())?;
+    if cam >= super::rtsp::VIEW_MOUNTS {
+        return Err(not_a_view());
+    }
+    Ok((cam, url.parse()?))
 }
 
 impl std::str::FromStr for PublishTarget {

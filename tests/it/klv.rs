@@ -1,5 +1,5 @@
-//! The KLV metadata (MISB ST 0601) of a view, read back by klvdata, a reader written by
-//! others (tests/peers/klv_read.py): every packet's checksum valid, tag 2 first and tag 1
+//! The KLV metadata (MISB ST 0601) of a view, read back by klvdata and stanag4609, readers
+//! written by others (tests/peers/klv_read.py, misb_read.py): every packet's checksum valid, tag 2 first and tag 1
 //! last; the platform's pose, the sensor's position and the view's fields of view as set; the
 //! view's pointing relative to the airframe turning back into the camera's own world
 //! direction; the frame centre where the camera's boresight meets the ground, worked out here
@@ -7,11 +7,11 @@
 //! corners.
 
 use crate::common;
-use common::klv::{klvdata, read_ts, record_ts, value};
+use common::klv::{POSITION, extract, klvdata, metres, misb, pixel, read_ts, record_ts, value};
 use common::*;
+use digiview::geometry::Euler;
 use digiview::geometry::ground::ground_point;
 use digiview::geometry::rotation::direction;
-use digiview::geometry::{Euler, GeoPoint, GeoPosition};
 use digiview::render::FramePlan;
 use digiview::stream::klv::ViewMetadata;
 use glam::DVec3;
@@ -28,6 +28,25 @@ fn read_back(metadata: &[ViewMetadata]) -> Vec<Value> {
     std::fs::write(&path, bytes).unwrap();
     let packets = klvdata(&path);
     assert_eq!(packets.len(), metadata.len());
+    // stanag4609, strict about every field it knows, takes each packet and reads the same.
+    for (k, (strict, p)) in misb(&path).iter().zip(&packets).enumerate() {
+        assert!(strict.get("error").is_none(), "packet {k}: {strict}");
+        for tag in [5, 13, 14, 23, 24, 82, 89] {
+            let (a, b) = (
+                &strict["values"][tag.to_string()],
+                &p["values"][tag.to_string()],
+            );
+            if let (Some(a), Some(b)) = (a.as_f64(), b.as_f64()) {
+                assert!((a - b).abs() < 1e-6, "packet {k}, tag {tag}: {a} and {b}");
+            } else {
+                assert_eq!(
+                    a.is_null(),
+                    b.is_null(),
+                    "packet {k}, tag {tag}: {a} and {b}"
+                );
+            }
+        }
+    }
     packets
 }
 
@@ -42,12 +61,7 @@ fn close(what: &str, got: f64, want: f64, tolerance: f64) {
 fn klvdata_reads_a_views_pose_pointing_and_footprint_as_digiview_sees_them() {
     let lens = small_lens("CIL216");
     let mut state = four_view_state(7);
-    state.vehicle.position = GeoPosition {
-        lat: 47.397,
-        lon: 8.546,
-        alt: 620.0,
-        relative_alt: 120.0,
-    };
+    state.vehicle.position = POSITION;
     // Flying: yawed, nose down 5°, rolled; then pitched up past tag 6's ±20°.
     let mut metadata = vec![];
     for (pitch, roll) in [(-5.0, 8.0), (35.0, -60.0)] {
@@ -59,8 +73,16 @@ fn klvdata_reads_a_views_pose_pointing_and_footprint_as_digiview_sees_them() {
         for cam in [0, 1] {
             let plan = FramePlan::single_view(&state, &lens, cam, 640, 360);
             let source = format!("DigiView cam {cam}");
-            metadata
-                .push(ViewMetadata::of(&plan, &plan.views[0], &state, TIME_US, source).unwrap());
+            metadata.push(
+                ViewMetadata::of(
+                    &plan,
+                    &plan.views[0],
+                    &state,
+                    (TIME_US, Some((640, 360))),
+                    source,
+                )
+                .unwrap(),
+            );
         }
     }
     let packets = read_back(&metadata);
@@ -115,12 +137,7 @@ fn klvdata_reads_a_views_pose_pointing_and_footprint_as_digiview_sees_them() {
             continue;
         }
         let (centre, range) = ground_point(&state.vehicle.position, want).unwrap();
-        let metres = |lat: f64, lon: f64, at: GeoPoint| {
-            let north = (lat - at.lat) * 111_320.0;
-            let east = (lon - at.lon) * 111_320.0 * at.lat.to_radians().cos();
-            north.hypot(east)
-        };
-        let miss = metres(value(p, 23), value(p, 24), centre);
+        let miss = metres((value(p, 23), value(p, 24)), (centre.lat, centre.lon));
         assert!(
             miss < 0.1,
             "packet {k}: the frame centre is {miss:.3} m off"
@@ -129,7 +146,8 @@ fn klvdata_reads_a_views_pose_pointing_and_footprint_as_digiview_sees_them() {
         close("slant range", value(p, 21), range, 0.01);
         let corners = m.corners.unwrap();
         for (i, c) in corners.iter().enumerate() {
-            let miss = metres(value(p, 82 + 2 * i as u32), value(p, 83 + 2 * i as u32), *c);
+            let at = (value(p, 82 + 2 * i as u32), value(p, 83 + 2 * i as u32));
+            let miss = metres(at, (c.lat, c.lon));
             assert!(miss < 0.01, "packet {k}: corner {i} is {miss:.3} m off");
         }
     }
@@ -173,16 +191,27 @@ fn packets(ts: &std::path::Path) -> Vec<(u64, f64)> {
 fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
     let port = common::autopilot::free_udp_port();
     let url = format!("udp://127.0.0.1:{port}");
+    let view_url = format!("udp://127.0.0.1:{}", common::autopilot::free_udp_port());
     let serve = common::serve::Serve::start_video(&[
         "--size",
         "640x480",
         "--demo-hover",
+        "--track",
+        "yaw=5deg,pitch=-35deg,size=6deg,score=70,id=4",
         "--publish",
         &url,
+        "--publish-view",
+        &format!("2={view_url}"),
     ]);
     let dir = tempfile::tempdir().unwrap();
     let ts = dir.path().join("out.ts");
+    let view_ts = dir.path().join("cam2.ts");
+    let view = {
+        let (url, ts) = (view_url.clone(), view_ts.clone());
+        std::thread::spawn(move || record_ts(&url, 5, &ts))
+    };
     record_ts(&url, 5, &ts);
+    view.join().unwrap();
     let probe = Command::new("ffprobe")
         .args([
             "-v",
@@ -279,9 +308,7 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
         t["values"]["t_longitude"].as_f64().unwrap(),
     );
     let last = read.last().unwrap();
-    let north = (value(last, 23) - lat) * 111_320.0;
-    let east = (value(last, 24) - lon) * 111_320.0 * lat.to_radians().cos();
-    let miss = north.hypot(east);
+    let miss = metres((value(last, 23), value(last, 24)), (lat, lon));
     eprintln!(
         "frame centre {:.6}, {:.6}; CAM_TARGET {lat}, {lon}: {miss:.2} m",
         value(last, 23),
@@ -298,18 +325,96 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
     let klv: Value = serde_json::from_slice::<Value>(&body).unwrap()["video"]["klv"].clone();
     assert_eq!(klv["source"], "DigiView cam 0", "{klv}");
     let centre = &klv["centre"]["point"];
-    let north = (centre["lat"].as_f64().unwrap() - lat) * 111_320.0;
-    let east = (centre["lon"].as_f64().unwrap() - lon) * 111_320.0 * lat.to_radians().cos();
-    assert!(north.hypot(east) < 2.0, "{klv}");
+    let at = (
+        centre["lat"].as_f64().unwrap(),
+        centre["lon"].as_f64().unwrap(),
+    );
+    assert!(metres(at, (lat, lon)) < 2.0, "{klv}");
     assert!(
         klv["time_us"].as_u64().unwrap() > *times.last().unwrap(),
         "{klv}"
     );
+    // The tracked object, in the same stream's VMTI as stanag4609 reads it: where DETECTED_ROI
+    // puts it on the ground and the web API (what the page draws) in the composed frame.
+    let strict = misb(&extract(&ts));
+    assert_eq!(strict.len(), read.len());
+    assert!(
+        strict.iter().all(|p| p.get("error").is_none()),
+        "{strict:?}"
+    );
+    let vmti = &strict.last().unwrap()["vmti"];
+    let t = vmti["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["id"] == 4);
+    let t = t.unwrap_or_else(|| panic!("object 4 is not in {vmti}"));
+    let params = format!("{}api/params", serve.http.as_ref().unwrap());
+    let (_, body) = common::gcs::http_get(&params);
+    let roi = &serde_json::from_slice::<Value>(&body).unwrap()["DETECTED_ROI"][0];
+    let seen = roi["views"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|v| v["cam"] == 0);
+    let seen = seen.unwrap_or_else(|| panic!("camera 0 does not show object 4: {roi}"));
+    let at = glam::DVec2::new(seen["x"].as_f64().unwrap(), seen["y"].as_f64().unwrap());
+    let width = vmti["fields"]["frameWidth"].as_u64().unwrap();
+    assert_eq!(width, 640, "{vmti}");
+    let px = |tag: &str| pixel(&t[tag], width);
+    let (centre, tl, br) = (
+        px("targetCentroid"),
+        px("boundingBoxTopLeft"),
+        px("boundingBoxBottomRight"),
+    );
+    eprintln!(
+        "VMTI object 4: {t}; the page's ring at {at}, radius {}",
+        seen["radius"]
+    );
+    assert!(centre.distance(at) < 2.0, "centroid {centre}, ring {at}");
+    let radius = seen["radius"].as_f64().unwrap();
+    assert!(
+        ((br - tl).x - 2.0 * radius).abs() < 2.5,
+        "box {tl}..{br}, radius {radius}"
+    );
+    let ground = (
+        t["targetLocation"]["lat"].as_f64().unwrap(),
+        t["targetLocation"]["lon"].as_f64().unwrap(),
+    );
+    let want = (
+        roi["latitude"].as_f64().unwrap(),
+        roi["longitude"].as_f64().unwrap(),
+    );
+    let miss = metres(ground, want);
+    assert!(
+        miss < 2.0,
+        "object 4 is {miss:.2} m from DETECTED_ROI's point"
+    );
+    // Camera 2's own stream, published beside it (--publish-view), describes camera 2: its
+    // frame centre 173 m from camera 0's (north and south, 30° down from 50 m), its VMTI
+    // frame the view's own size.
+    let view = misb(&extract(&view_ts));
+    assert!(
+        view.len() >= 10,
+        "{} packets from camera 2's relay",
+        view.len()
+    );
+    let p = view.last().unwrap();
+    assert!(p.get("error").is_none(), "{p}");
+    assert_eq!(p["values"]["11"], "DigiView cam 2", "{p}");
+    assert_eq!(p["vmti"]["fields"]["frameWidth"], 1280, "{p}");
+    let centre = |p: &Value| (value(p, 23), value(p, 24));
+    let apart = metres(centre(p), centre(strict.last().unwrap()));
+    eprintln!(
+        "camera 2's relay: {} packets; frame centres {apart:.1} m apart",
+        view.len()
+    );
+    assert!((apart - 173.2).abs() < 2.0, "{apart:.1} m apart");
 }
 
 /// `[capture] container = "ts"`: the composed stream's recording and camera 2's own (started
-/// over MAVLink, as a ground station does) are MPEG-TS whose KLV klvdata reads, each
-/// describing its own view: the composed one camera 0 (`klv_camera`), camera 2's itself,
+/// over MAVLink, as a ground station does) are MPEG-TS whose KLV klvdata reads (whole, with
+/// `klv_objects = false`: no tag 74), each describing its own view: the composed one camera 0 (`klv_camera`), camera 2's itself,
 /// their frame centres as far apart as the two cameras look.
 #[test]
 fn ts_recordings_carry_each_views_own_klv() {
@@ -321,8 +426,8 @@ fn ts_recordings_carry_each_views_own_klv() {
     std::fs::write(
         &config,
         format!(
-            "[cameras]\nwidth = 640\nheight = 480\n[capture]\ndir = {:?}\nmin_free_mb = 1\n\
-             container = \"ts\"\n",
+            "klv_objects = false\n[cameras]\nwidth = 640\nheight = 480\n[capture]\n\
+             dir = {:?}\nmin_free_mb = 1\ncontainer = \"ts\"\n",
             captures.to_str().unwrap()
         ),
     )
@@ -383,13 +488,15 @@ fn ts_recordings_carry_each_views_own_klv() {
         for p in &packets {
             assert_eq!(p["checksum_ok"], true, "{p}");
             assert_eq!(p["values"]["11"], name, "{}", path.display());
+            // klv_objects = false: no tag 74, so klvdata 0.0.3 reads them whole.
+            assert_eq!(p["skipped"], serde_json::json!([]), "{p}");
         }
         let last = packets.last().unwrap();
         centres.push((value(last, 23), value(last, 24)));
     }
     // Camera 0 looks north and camera 2 south, 30° down from 50 m: 173 m apart.
     let (a, b) = (centres[0], centres[1]);
-    let apart = ((a.0 - b.0) * 111_320.0).hypot((a.1 - b.1) * 111_320.0 * a.0.to_radians().cos());
+    let apart = metres(a, b);
     eprintln!("frame centres {a:?} and {b:?}: {apart:.1} m apart");
     assert!((apart - 173.2).abs() < 2.0, "{apart:.1} m apart");
 }

@@ -40,5 +40,6 @@ mod services;
 mod trust_mavlink;
 mod trust_web;
 mod view_filters;
+mod vmti;
 mod web;
 mod web_api;

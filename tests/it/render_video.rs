@@ -284,3 +284,74 @@ fn a_stopped_render_leaves_no_file_and_a_cut_input_is_reported() {
         "{err}"
     );
 }
+
+/// `render --klv` to MPEG-TS: FFmpeg finds the H.264 and a KLV stream, and stanag4609 reads
+/// one packet per frame, each stamped with its frame's capture time (--klv-start plus the
+/// frame's time in the clip), the state's vehicle and camera 0's frame centre where its
+/// boresight meets the ground, and the tracked object in the VMTI. Asked of an MP4, --klv
+/// is a clear error and writes nothing.
+#[test]
+fn render_klv_writes_mpegts_with_each_frames_metadata() {
+    use digiview::geometry::ground::ground_point;
+    use digiview::geometry::rotation::direction;
+    let dir = tempfile::tempdir().unwrap();
+    let clip = dir.path().join("clip.mp4");
+    test_clip(&clip, 30);
+    let out = dir.path().join("out.ts");
+    let flags = [
+        "render",
+        "--input",
+        clip.to_str().unwrap(),
+        "--size",
+        "640x480",
+        "--attitude",
+        "yaw=30deg",
+        "--position",
+        "lat=47.397,lon=8.546,alt=620,rel=120",
+        "--cam",
+        "0:yaw=45deg,pitch=-60deg,lock=7",
+        "--track",
+        "yaw=45deg,pitch=-60deg,size=5deg,id=9",
+        "--klv",
+        "--klv-start",
+        "1764150000.25",
+        "--out",
+    ];
+    let mp4 = dir.path().join("out.mp4");
+    let r = digiview(&[&flags[..], &[mp4.to_str().unwrap()]].concat());
+    let why = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && why.contains("MPEG-TS"), "{why}");
+    assert!(!mp4.exists());
+    let r = digiview(&[&flags[..], &[out.to_str().unwrap()]].concat());
+    let why = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{why}");
+    let packets = common::klv::misb(&common::klv::extract(&out));
+    assert_eq!(packets.len(), 30, "one packet a frame");
+    let position = common::klv::POSITION;
+    let (centre, _) = ground_point(
+        &position,
+        direction(45f64.to_radians(), -60f64.to_radians()),
+    )
+    .unwrap();
+    for (k, p) in packets.iter().enumerate() {
+        assert!(p.get("error").is_none(), "packet {k}: {p}");
+        let v = &p["values"];
+        let time = v["2"].as_u64().unwrap_or_else(|| panic!("{p}")) as i64;
+        let want = 1_764_150_000_250_000 + k as i64 * 1_000_000 / 30;
+        assert!(
+            (time - want).abs() <= 1000,
+            "packet {k}: {time}, want {want}"
+        );
+        assert!((v["5"].as_f64().unwrap() - 30.0).abs() < 0.01, "{v}");
+        assert_eq!(v["11"], "DigiView cam 0");
+        let at = (v["23"].as_f64().unwrap(), v["24"].as_f64().unwrap());
+        let miss = common::klv::metres(at, (centre.lat, centre.lon));
+        assert!(
+            miss < 0.5,
+            "packet {k}: the frame centre is {miss:.2} m off"
+        );
+        let targets = p["vmti"]["targets"].as_array().unwrap();
+        assert_eq!(targets.len(), 1, "{p}");
+        assert_eq!(targets[0]["id"], 9);
+    }
+}

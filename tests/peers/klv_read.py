@@ -3,6 +3,10 @@ prints one JSON line a packet: the tags in the order they came, whether the chec
 (recomputed with klvdata's own `packet_checksum`) matches tag 1, and every item's value as
 klvdata decodes it (mapped values as numbers, strings as text, the time stamp as µs).
 
+klvdata 0.0.3 cannot read a packet with tag 74 (its VMTI parser is an abstract class: "Can't
+instantiate abstract class VMTILocalSet"), so that item is taken out of the value it is given
+and listed as "skipped"; the checksum is checked on the packet as it came.
+
 Usage: klv_read.py FILE
 """
 import json
@@ -28,6 +32,32 @@ def value_of(item):
     return str(v)
 
 
+def ber(data, i, oid):
+    """A BER length (or, with oid, a BER-OID tag) at data[i]: (value, next index)."""
+    if oid:
+        v = 0
+        while data[i] & 0x80:
+            v = (v << 7) | (data[i] & 0x7F)
+            i += 1
+        return (v << 7) | data[i], i + 1
+    if data[i] < 128:
+        return data[i], i + 1
+    n = data[i] & 0x7F
+    return int.from_bytes(data[i + 1 : i + 1 + n], "big"), i + 1 + n
+
+
+def without(value, skip):
+    """The local set `value` without its items whose tags are in `skip`."""
+    out, i = b"", 0
+    while i < len(value):
+        tag, j = ber(value, i, True)
+        n, k = ber(value, j, False)
+        if tag not in skip:
+            out += value[i : k + n]
+        i = k + n
+    return out
+
+
 def main(path):
     data = open(path, "rb").read()
     for key, value in KLVParser(data, key_length=16):
@@ -38,7 +68,7 @@ def main(path):
         n = len(value)
         length = bytes([n]) if n < 128 else bytes([0x80 | ((n.bit_length() + 7) // 8)]) + n.to_bytes((n.bit_length() + 7) // 8, "big")
         packet = key + length + value
-        parsed = klvdata.misb0601.UASLocalMetadataSet(value)
+        parsed = klvdata.misb0601.UASLocalMetadataSet(without(value, {74}))
         tags, values = [], {}
         for tag, item in parsed.items.items():
             t = int.from_bytes(tag, "big")
@@ -47,6 +77,7 @@ def main(path):
         print(json.dumps({
             "tags": tags,
             "checksum_ok": packet_checksum(packet) == packet[-2:],
+            "skipped": [74] if without(value, {74}) != value else [],
             "values": values,
         }))
 

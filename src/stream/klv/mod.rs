@@ -1,11 +1,13 @@
 //! KLV metadata for the streams (MISB ST 0601, the UAS Datalink Local Set): what a view of a
 //! frame shows and from where, as mapping and ISR software reads it. `view` works out a
 //! view's metadata from the frame's plan and the vehicle's pose at capture (where it looks,
-//! its footprint on the ground); `st0601` encodes it as one packet. Here: the local set's
+//! its footprint on the ground, the tracked objects it shows); `st0601` encodes it as one
+//! packet, with `vmti`'s ST 0903 set of the objects nested in it. Here: the local set's
 //! byte-level pieces, the BER lengths and tags and the checksum (SMPTE ST 336).
 
 pub mod st0601;
 pub mod view;
+pub mod vmti;
 
 pub use st0601::UAS_LS_KEY;
 pub use view::ViewMetadata;
@@ -70,6 +72,11 @@ impl LocalSet {
         ber_oid(tag, &mut self.items);
         ber_length(value.len(), &mut self.items);
         self.items.extend_from_slice(value);
+    }
+
+    /// The items as they are: a local set nested in another's item.
+    pub fn into_items(self) -> Vec<u8> {
+        self.items
     }
 
     /// The packet: `key`, the BER length, the items and, last, the checksum (tag 1).

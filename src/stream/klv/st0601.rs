@@ -1,7 +1,7 @@
 //! A view's metadata as one ST 0601 packet: tag 2 (the frame's capture time) first, the
 //! platform's pose, the sensor's position and pointing, the view's fields of view, its frame
-//! centre and the corners of its footprint, tag 65 (the set's version) and tag 1 (the
-//! checksum) last. Every value is mapped linearly onto its integer as the standard says;
+//! centre and the corners of its footprint, tag 65 (the set's version), the tracked objects
+//! (tag 74, ST 0903) and tag 1 (the checksum) last. Every value is mapped linearly onto its integer as the standard says;
 //! an item the view does not have (a corner above the horizon) is left out, never made up.
 
 use super::LocalSet;
@@ -75,6 +75,9 @@ impl ViewMetadata {
             set.push(25, &altitude(centre.point.alt));
         }
         set.push(65, &[VERSION]);
+        if let Some(objects) = &self.objects {
+            set.push(74, &objects.local_set(self.time_us, &self.source, self.fov));
+        }
         // The corners, full range (82 to 89: latitude then longitude, from the top left
         // clockwise): only where all four meet the ground, as readers draw a quadrilateral.
         if let Some(corners) = &self.corners {

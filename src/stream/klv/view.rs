@@ -2,10 +2,13 @@
 //! at that time (the attitude sample and position the frame was rendered with), the view's
 //! pointing relative to the airframe (an earth-locked view turned back into the airframe's
 //! axes with that same sample), its fields of view, and where its centre and corners meet
-//! the ground (the plane at the home altitude, as DETECTED_ROI and CAM_TARGET use).
+//! the ground (the plane at the home altitude, as DETECTED_ROI and CAM_TARGET use), and the
+//! tracked objects it shows, where.
 
+use super::vmti::{Target, Vmti};
 use crate::geometry::Euler;
 use crate::geometry::ground::{GeoPoint, ground_point};
+use crate::geometry::rotation::direction;
 use crate::render::plan::{FramePlan, PlannedView};
 use crate::state::State;
 use glam::{DMat3, DVec2, DVec3};
@@ -57,16 +60,20 @@ pub struct ViewMetadata {
     /// Where its corners meet the ground, from the top left clockwise; None unless all four
     /// do.
     pub corners: Option<[GeoPoint; 4]>,
+    /// The tracked objects it shows (ST 0903 VMTI); None leaves tag 74 out.
+    pub objects: Option<Vmti>,
 }
 
 impl ViewMetadata {
-    /// The metadata of `view` of `plan`, rendered with `state` (its vehicle as at the frame's
-    /// capture, `time_us`); None for a view that looks nowhere (an unknown crop mode).
+    /// The metadata of `view` of `plan`, rendered with `state` (its vehicle and tracked
+    /// objects as at the frame's capture, `time_us`), drawn in a frame of `frame` pixels
+    /// (None where the frame does not draw it); None for a view that looks nowhere (an
+    /// unknown crop mode).
     pub fn of(
         plan: &FramePlan,
         view: &PlannedView,
         state: &State,
-        time_us: u64,
+        (time_us, frame): (u64, Option<(u32, u32)>),
         source: String,
     ) -> Option<ViewMetadata> {
         let (w, h) = (view.rect.w as f64, view.rect.h as f64);
@@ -103,6 +110,62 @@ impl ViewMetadata {
                 .iter()
                 .all(Option::is_some)
                 .then(|| corners.map(|c| c.expect("all met the ground"))),
+            objects: Some(objects(plan, view, state, frame)),
         })
+    }
+}
+
+impl ViewMetadata {
+    /// The metadata of camera `cam`'s view in the composed frame of `plan` (drawn with
+    /// `state`, captured at `time_us`): its objects placed in the frame's pixels where the
+    /// frame draws the camera, without pixels where it does not.
+    pub fn of_camera(
+        plan: &FramePlan,
+        state: &State,
+        cam: usize,
+        time_us: u64,
+    ) -> Option<ViewMetadata> {
+        let frame = plan
+            .shows_camera(cam)
+            .then_some((state.output.width, state.output.height));
+        let view = plan.camera_view(state, cam);
+        ViewMetadata::of(
+            plan,
+            &view,
+            state,
+            (time_us, frame),
+            format!("DigiView cam {cam}"),
+        )
+    }
+}
+
+/// The tracked objects whose centres `view` shows, placed in its frame of `frame` pixels.
+fn objects(plan: &FramePlan, view: &PlannedView, state: &State, frame: Option<(u32, u32)>) -> Vmti {
+    let targets = state.tracked.iter().filter_map(|t| {
+        let ray = direction(t.yaw, t.pitch);
+        let (centre, radius) = plan.view_circle(view, ray, t.size)?;
+        let pixels = frame.map(|(w, h)| {
+            let at = centre + DVec2::new(view.rect.x as f64, view.rect.y as f64);
+            let px = |p: DVec2| {
+                let p = p
+                    .floor()
+                    .clamp(DVec2::ZERO, DVec2::new(w as f64 - 1.0, h as f64 - 1.0));
+                (p.x as u32, p.y as u32)
+            };
+            let r = DVec2::splat(radius);
+            [px(at), px(at - r), px(at + r)]
+        });
+        Some(Target {
+            id: t.id,
+            pixels,
+            score: t.score,
+            label: t.label.clone(),
+            ground: ground_point(&state.vehicle.position, ray).map(|(p, _)| p),
+        })
+    });
+    Vmti {
+        size: frame,
+        total: state.tracked.len(),
+        targets: targets.collect(),
     }
 }
