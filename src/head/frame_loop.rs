@@ -3,6 +3,7 @@
 //! "no signal" while the source is down), hands stills to the capture, and feeds the
 //! encoder. A failed GPU or encoder is rebuilt and the status says so meanwhile.
 
+use super::detection::score::rings;
 use super::pacing::Pacer;
 use super::supervise::Fault;
 use super::views::ViewOutputs;
@@ -294,6 +295,12 @@ impl Head {
             .for_frame(s.lens, size, s.sensor.roi())
             .map_err(|e| RenderFailure::Frame(e.to_string()))?;
         let plan = FramePlan::new(&s, &lens).map_err(|e| RenderFailure::Frame(e.to_string()))?;
+        if let Some(truth) = self.demo_truth() {
+            let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(score) = shared.as_mut() {
+                rings(&mut score.rings, &truth, (&plan, &s), frame.captured_us);
+            }
+        }
         let out = renderer
             .render(&frame.data, &frame.layout, &plan)
             .map_err(|e| match e {

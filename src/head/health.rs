@@ -40,6 +40,8 @@ pub struct Health {
     pub latency: Option<super::latency::Stages>,
     /// The KLV metadata of the composed stream's last frame, field by field.
     pub klv: Option<crate::stream::klv::ViewMetadata>,
+    /// On the demo: the tracker against the demo's own movers, since detection started.
+    pub demo_score: Option<super::detection::score::Score>,
 }
 
 /// The counters at one moment.
@@ -93,6 +95,19 @@ impl std::fmt::Display for Health {
             )?;
             if self.crops > 0.0 {
                 write!(f, ", {:.1} crops/s", self.crops)?;
+            }
+            if let Some(s) = &self.demo_score {
+                write!(
+                    f,
+                    " (against the demo's movers: {:.1}% on one, {} of {} entries late, a \
+                     tile on none {:.1} s at most, {:.1}% of rings within {} px)",
+                    s.precision * 100.0,
+                    s.late_entries,
+                    s.entries.len(),
+                    s.longest_false_tile,
+                    100.0 * s.rings.within as f64 / s.rings.count.max(1) as f64,
+                    super::detection::score::RING_LIMIT
+                )?;
             }
         }
         if self.relays.1 > 0 {
@@ -170,6 +185,11 @@ impl Head {
             tracked: self.live.snapshot().tracked.len(),
             latency: self.latency.since(a.clock_us),
             klv: self.klv.lock().unwrap_or_else(|e| e.into_inner()).clone(),
+            demo_score: self
+                .demo_score
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .clone(),
         }
     }
 

@@ -114,6 +114,9 @@ pub struct Head {
     latency: latency::Latency,
     /// The KLV metadata of the composed stream's last frame.
     klv: Mutex<Option<crate::stream::klv::ViewMetadata>>,
+    /// Where the demo's movers are, while the demo runs; the tracker scored against them.
+    demo_truth: Mutex<Option<detection::score::DemoTruth>>,
+    demo_score: Mutex<Option<detection::score::Score>>,
     /// The figures over the last second.
     health: Mutex<health::Health>,
     exposure: exposure::ExposureStage,
@@ -198,6 +201,8 @@ impl Head {
             stats: Stats::default(),
             latency: latency::Latency::default(),
             klv: Mutex::default(),
+            demo_truth: Mutex::default(),
+            demo_score: Mutex::default(),
             health: Mutex::default(),
             exposure,
             scans: detection::ScanSlot::default(),
@@ -266,6 +271,12 @@ impl Head {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clone()
+    }
+
+    /// Where the demo's movers are, while the demo is the source.
+    fn demo_truth(&self) -> Option<detection::score::DemoTruth> {
+        let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
+        truth.clone()
     }
 }
 

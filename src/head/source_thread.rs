@@ -2,11 +2,13 @@
 //! telemetry as an autopilot would), or a GStreamer source reopened with back-off whenever it
 //! fails. Frames go to the head's newest-wins slot.
 
+use super::detection::score::DemoTruth;
 use super::{Head, HeadError};
 use crate::clock::clock_us;
 use crate::exposure::{SensorModel, Setting};
 use crate::frame::{Frame, PlaneLayout};
 use crate::geometry::Euler;
+use crate::scene::synth::world_origin;
 use crate::source::demo::{DemoCamera, Flight};
 use crate::source::{Ended, SourceSpec, backoff};
 use std::sync::atomic::Ordering;
@@ -102,6 +104,11 @@ impl Head {
         );
         let period = Duration::from_secs_f64(1.0 / d.fps as f64);
         let start = Instant::now();
+        *self.demo_truth.lock().unwrap_or_else(|e| e.into_inner()) = Some(DemoTruth {
+            movers: camera.world().movers.clone(),
+            origin: world_origin(&flight.hover),
+            start_us: clock_us(),
+        });
         // The flight goes to the frames through the MAVLink link, as a real autopilot's would,
         // where the link listens on this machine; else straight into the telemetry.
         let _autopilot = match (&self.demo_autopilot, d.spin) {

@@ -2,7 +2,11 @@
 //! every 10 m, heavier every 50 m), coloured landmark discs at known positions, objects that
 //! move on circles, haze with distance, and a sky that meets the haze at the horizon.
 //! Every edge is soft (a fraction of a metre) so the world is band-limited enough for image
-//! comparisons to measure geometry, not aliasing.
+//! comparisons to measure geometry, not aliasing. [`GridWorld::colour_seen`] is what one
+//! camera pixel of a given angular size sees: every edge spread over the pixel's footprint on
+//! the ground, a line narrower than it dimmed to the share of it the line covers (as a
+//! sensor's pixel integrates its area), so far lines do not flicker from frame to frame as
+//! point samples of them would.
 
 use super::{World, smoothstep};
 use glam::{DVec2, DVec3};
@@ -105,35 +109,63 @@ impl Default for GridWorld {
     }
 }
 
-/// 1 on a line of the grid of `spacing` with half-width `half`, 0 away from it.
-fn line(x: f64, spacing: f64, half: f64) -> f64 {
+/// 1 on a line of the grid of `spacing` with half-width `half`, 0 away from it; seen through
+/// a footprint `f` metres wide (0: a point), the share of it the line covers.
+fn line(x: f64, spacing: f64, half: f64, f: f64) -> f64 {
     let d = (x - (x / spacing).round() * spacing).abs();
-    smoothstep(half + EDGE, half - EDGE, d)
+    if f <= 2.0 * EDGE {
+        return smoothstep(half + EDGE, half - EDGE, d);
+    }
+    // The footprint [d - f/2, d + f/2] against the nearest line and the next one over.
+    let covered = |c: f64| ((d + f / 2.0).min(c + half) - (d - f / 2.0).max(c - half)).max(0.0);
+    ((covered(0.0) + covered(spacing)) / f).min(1.0)
 }
 
 impl GridWorld {
-    fn ground(&self, p: DVec2, distance: f64, t: f64) -> DVec3 {
+    /// The colour a camera pixel `pixel` radians across sees from `eye` along `ray` at `t`:
+    /// as [`World::colour`], its edges spread over the pixel's footprint on the ground.
+    pub fn colour_seen(&self, eye: DVec3, ray: DVec3, t: f64, pixel: f64) -> DVec3 {
+        if ray.z > 1e-9 && eye.z < 0.0 {
+            let distance = -eye.z / ray.z;
+            let hit = eye + ray * distance;
+            // Across the pixel, along the ground where the ray meets it at a slant.
+            let footprint = distance * pixel / ray.z;
+            let c = self.ground(DVec2::new(hit.x, hit.y), (distance, footprint), t);
+            HAZE.lerp(c, (-distance / self.haze_distance).exp())
+        } else {
+            let elevation = (-ray.z).clamp(0.0, 1.0).asin();
+            HAZE.lerp(ZENITH, 1.0 - (-4.0 * elevation).exp())
+        }
+    }
+
+    fn ground(&self, p: DVec2, (distance, f): (f64, f64), t: f64) -> DVec3 {
         // A gentle large-scale tone so the ground is not flat colour.
         let tone = 1.0 + 0.07 * (p.x * TAU / 47.0).sin() * (p.y * TAU / 53.0).sin();
         let mut c = GROUND * tone;
         // Grid lines fade with distance, before they shrink below a pixel anywhere.
         let fade = (-distance / 250.0).exp();
-        let minor = line(p.x, 10.0, 0.25).max(line(p.y, 10.0, 0.25));
-        let major = line(p.x, 50.0, 0.6).max(line(p.y, 50.0, 0.6));
+        let minor = line(p.x, 10.0, 0.25, f).max(line(p.y, 10.0, 0.25, f));
+        let major = line(p.x, 50.0, 0.6, f).max(line(p.y, 50.0, 0.6, f));
+        let edge = EDGE.max(f / 2.0);
         c = c.lerp(GRID, minor.max(major) * fade);
         // Discs: only those near `p` can colour it (most of the cost is skipped this way).
         let disc = |c: DVec3, centre: DVec2, radius: f64, colour: DVec3| {
             let d2 = (p - centre).length_squared();
-            if d2 >= (radius + EDGE) * (radius + EDGE) {
+            if d2 >= (radius + edge) * (radius + edge) {
                 return c;
             }
-            c.lerp(colour, smoothstep(radius + EDGE, radius - EDGE, d2.sqrt()))
+            // A disc smaller than the footprint is dimmed to the share it covers.
+            let share = (radius / edge).min(1.0);
+            c.lerp(
+                colour,
+                share * smoothstep(radius + edge, radius - edge, d2.sqrt()),
+            )
         };
         for l in &self.landmarks {
             c = disc(c, l.position, l.radius, l.colour);
         }
         for m in &self.movers {
-            let reach = m.orbit + m.radius + EDGE;
+            let reach = m.orbit + m.radius + edge;
             if (p - m.centre).length_squared() < reach * reach {
                 c = disc(c, m.position(t), m.radius, m.colour);
             }
@@ -144,14 +176,6 @@ impl GridWorld {
 
 impl World for GridWorld {
     fn colour(&self, eye: DVec3, ray: DVec3, t: f64) -> DVec3 {
-        if ray.z > 1e-9 && eye.z < 0.0 {
-            let distance = -eye.z / ray.z;
-            let hit = eye + ray * distance;
-            let c = self.ground(DVec2::new(hit.x, hit.y), distance, t);
-            HAZE.lerp(c, (-distance / self.haze_distance).exp())
-        } else {
-            let elevation = (-ray.z).clamp(0.0, 1.0).asin();
-            HAZE.lerp(ZENITH, 1.0 - (-4.0 * elevation).exp())
-        }
+        self.colour_seen(eye, ray, t, 0.0)
     }
 }

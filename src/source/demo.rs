@@ -12,8 +12,8 @@ use crate::geometry::GeoPosition;
 use crate::geometry::ground::from_ned;
 use crate::geometry::view::lens_from_world;
 use crate::lens::Lens;
+use crate::scene::GridWorld;
 use crate::scene::synth::{eye_at, world_origin};
-use crate::scene::{GridWorld, World};
 use glam::{DMat3, DVec2, DVec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -116,14 +116,18 @@ pub fn spin(base: Euler, clock_s: f64) -> Euler {
 
 /// Makes demo frames of one lens at one size. The world is evaluated once per 2x2 block (at
 /// its centre) and luma is interpolated between block centres: the world's soft edges span
-/// several pixels, so this keeps the picture while cutting the cost four times.
+/// several pixels, so this keeps the picture while cutting the cost four times. Each block
+/// sees the world as a pixel of its angular size does (`GridWorld::colour_seen`): a grid
+/// line far away covers part of it and shows dimmed, steadily, rather than flickering on and
+/// off between frames as the vehicle moves (which a motion detector would take for motion).
 pub struct DemoCamera {
     world: GridWorld,
     layout: PlaneLayout,
     /// Blocks across and down.
     blocks: (usize, usize),
-    /// The unit ray (lens frame) through each block centre; None outside the image circle.
-    rays: Vec<Option<Vec3>>,
+    /// The unit ray (lens frame) through each block centre, and the angle to its neighbours
+    /// (radians); None outside the image circle.
+    rays: Vec<Option<(Vec3, f32)>>,
     mount: Euler,
     /// The lens's image centre, pixels.
     centre: DVec2,
@@ -134,13 +138,19 @@ impl DemoCamera {
     pub fn new(lens: &Lens, layout: PlaneLayout, mount: Euler) -> DemoCamera {
         assert_eq!((lens.width, lens.height), (layout.width, layout.height));
         let blocks = (layout.width as usize / 2, layout.height as usize / 2);
+        let ray = |bx: usize, by: usize| {
+            // OpenCV pixel coordinates: the block's centre lies between its pixels.
+            lens.unproject(DVec2::new(2.0 * bx as f64 + 0.5, 2.0 * by as f64 + 0.5))
+        };
         let rays = (0..blocks.1)
             .into_par_iter()
             .flat_map_iter(|by| {
                 (0..blocks.0).map(move |bx| {
-                    // OpenCV pixel coordinates: the block's centre lies between its pixels.
-                    let centre = DVec2::new(2.0 * bx as f64 + 0.5, 2.0 * by as f64 + 0.5);
-                    lens.unproject(centre).map(|r| r.as_vec3())
+                    let r = ray(bx, by)?;
+                    // The larger of the angles to the next block across and down.
+                    let next = [ray(bx + 1, by), ray(bx, by + 1)];
+                    let size = next.iter().flatten().map(|n| n.angle_between(r));
+                    Some((r.as_vec3(), size.fold(0.0, f64::max) as f32))
                 })
             })
             .collect();
@@ -182,9 +192,11 @@ impl DemoCamera {
             .into_par_iter()
             .flat_map_iter(|by| {
                 (0..bw).map(move |bx| match self.rays[by * bw + bx] {
-                    Some(r) => (self.world.colour(eye, world_from_lens * r.as_dvec3(), t)
-                        * sensor.scale)
-                        .min(DVec3::splat(255.0)),
+                    Some((r, size)) => {
+                        let ray = world_from_lens * r.as_dvec3();
+                        let seen = self.world.colour_seen(eye, ray, t, size as f64);
+                        (seen * sensor.scale).min(DVec3::splat(255.0))
+                    }
                     None => DVec3::ZERO,
                 })
             })

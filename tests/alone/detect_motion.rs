@@ -72,7 +72,7 @@ fn serve_tracks_the_demos_movers_and_reports_where_they_are_on_the_ground() {
     }
     on.sort();
     assert_eq!(on, vec![0, 1, 2]);
-    vmti_lists_the_movers(&url, &addr, &world);
+    vmti_lists_the_movers(&url, &addr);
     // run_ai off: no detections.
     assert!(
         ctl(&addr, &["set", "general_settings", "run_ai=0"])
@@ -86,7 +86,7 @@ fn serve_tracks_the_demos_movers_and_reports_where_they_are_on_the_ground() {
 /// The KLV of 3 s of the stream published to `url`, read by stanag4609: its VMTI lists every
 /// object the tracker follows (as many as DETECTED_ROI), and boxes those camera 0 (the view
 /// the composed stream's KLV describes) shows, each standing on a mover's circle.
-fn vmti_lists_the_movers(url: &str, addr: &str, world: &GridWorld) {
+fn vmti_lists_the_movers(url: &str, addr: &str) {
     use common::klv::{extract, misb, record_ts};
     let dir = tempfile::tempdir().unwrap();
     let ts = dir.path().join("movers.ts");
@@ -114,11 +114,7 @@ fn vmti_lists_the_movers(url: &str, addr: &str, world: &GridWorld) {
                 alt: l["hae"].as_f64().unwrap(),
             };
             let at = digiview::geometry::ground::to_ned(origin, point).truncate();
-            let off = world
-                .movers
-                .iter()
-                .map(|m| (at.distance(m.centre) - m.orbit).abs())
-                .fold(f64::INFINITY, f64::min);
+            let off = common::off_the_movers_circles(at);
             assert!(
                 off < 2.5,
                 "object {} is {off:.2} m off every mover's circle",

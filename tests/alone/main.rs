@@ -13,6 +13,7 @@ mod common;
 mod autopilot;
 mod autopilot_video;
 mod detect_external;
+mod detect_flying;
 mod detect_motion;
 mod detect_onnx;
 mod exposure;

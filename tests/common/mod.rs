@@ -302,3 +302,13 @@ pub fn raw_request(
         .ok_or_else(bad)?;
     Ok((status, body.to_string()))
 }
+
+/// How far a ground point (north, east of the demo world's origin, metres) is from the
+/// nearest of the demo's movers' circles: 0 on one, wherever on it the mover is now.
+pub fn off_the_movers_circles(at: glam::DVec2) -> f64 {
+    digiview::scene::GridWorld::default()
+        .movers
+        .iter()
+        .map(|m| (at.distance(m.centre) - m.orbit).abs())
+        .fold(f64::INFINITY, f64::min)
+}

@@ -11,6 +11,7 @@
 
 mod handover;
 mod objects;
+pub mod score;
 
 pub(super) use handover::ScanSlot;
 
@@ -226,6 +227,7 @@ impl Head {
         let mut last_sent: Option<f64> = None;
         let fault = crate::supervise::Fault::for_service("detection");
         let mut adopted = objects::Adopted::new();
+        let mut scorer: Option<score::Scorer> = None;
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("detection");
             let state = self.live.snapshot();
@@ -242,7 +244,7 @@ impl Head {
                 std::thread::sleep(Duration::from_millis(100));
                 continue;
             }
-            let (t, found, plan, t0) = if let Some(inbox) = self.external.get() {
+            let (t, found, plan, t0, position) = if let Some(inbox) = self.external.get() {
                 let Some((batch, arrived)) = inbox.take(Duration::from_millis(100)) else {
                     continue;
                 };
@@ -259,7 +261,7 @@ impl Head {
                 };
                 // On the sources' clock, as a scan's frames are.
                 let t = crate::clock::clock_us() as f64 * 1e-6 - arrived.elapsed().as_secs_f64();
-                (t, found, plan, t0)
+                (t, found, plan, t0, None)
             } else {
                 let Some(scan) = self.scans.take() else {
                     continue;
@@ -267,7 +269,7 @@ impl Head {
                 if !scan.crops.is_empty() {
                     let t0 = Instant::now();
                     self.track_step(&mut tracker, &state, &scan);
-                    self.show(&mut tracker, &state, &labels, &mut adopted);
+                    self.show(&mut tracker, &state, &labels, (&mut adopted, scan.t));
                     owns_list = true;
                     self.scans.took(true, t0);
                     continue;
@@ -296,7 +298,7 @@ impl Head {
                         detector.detect(v, p, &scan.picture, scan.stride, eye, scan.t)
                     }
                 };
-                (scan.t, found, scan.plan, t0)
+                (scan.t, found, scan.plan, t0, Some(scan.position))
             };
             let covered = |b: &AngularBox| {
                 plan.views
@@ -304,8 +306,19 @@ impl Head {
                     .any(|v| plan.view_point(v, b.centre).is_some())
             };
             tracker.scan(&state.detection, t, found, covered);
-            self.show(&mut tracker, &state, &labels, &mut adopted);
+            let (list, tiled) = self.show(&mut tracker, &state, &labels, (&mut adopted, t));
             owns_list = true;
+            if let (Some(position), Some(truth)) = (position, self.demo_truth()) {
+                let scorer = scorer.get_or_insert_with(|| score::Scorer::new(truth));
+                let covered = |ray| plan.views.iter().any(|v| plan.view_point(v, ray).is_some());
+                scorer.scan((t, &position), &list, tiled, covered);
+                let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
+                let rings = shared.take().map(|s| s.rings).unwrap_or_default();
+                *shared = Some(score::Score {
+                    rings,
+                    ..scorer.score().clone()
+                });
+            }
             self.scans.took(false, t0);
             self.stats
                 .detect_us

@@ -7,6 +7,7 @@ use crate::detect::Detector;
 use crate::detect::motion::MOVING;
 use crate::detect::onnx::class_name;
 use crate::detect::scan::{ScanView, crop_view};
+use crate::detect::tracker::Object;
 use crate::detect::tracker::UNKNOWN_CLASS;
 use crate::detect::{AngularBox, Tracker};
 use crate::geometry::rotation::{direction, yaw_pitch};
@@ -18,6 +19,10 @@ use tracing::{info, warn};
 
 /// The track step looks again for this many objects at most, those in the tiles first.
 const MAX_CROPS: usize = 6;
+
+/// An object no scan or crop has found for this long, seconds, is lost to sight: where it is
+/// is a guess, and a tile aimed at the guess shows empty ground.
+const IN_SIGHT: f64 = 1.0;
 
 /// Clicks taken on by the detection stage and not yet in the live state: the camera, the
 /// click's time (`Follow::since_us`) and the object it became.
@@ -63,14 +68,16 @@ impl Head {
     }
 
     /// Orders the tracker's objects into the tiles and puts them in the live state, with
-    /// the clicks `adopted` since the last time.
+    /// the clicks `adopted` since the last time, as of `now` (seconds on the clock): an
+    /// object not seen for [`IN_SIGHT`] is left out (no tile, no ring, not in DETECTED_ROI)
+    /// until a scan finds it again, unless a camera follows it. Returns the list and how many of it the tiles show.
     pub(super) fn show(
         &self,
         tracker: &mut Tracker,
         state: &State,
         labels: &[String],
-        adopted: &mut Adopted,
-    ) {
+        (adopted, now): (&mut Adopted, f64),
+    ) -> (Vec<Tracked>, usize) {
         let o = &state.output;
         let shown = layout(o.width, o.height, o.layout, o.overlay).map_or(0, |l| l.tiles.len());
         let tiles = tracker.tiles(state.detection.sorting_mode, shown);
@@ -80,7 +87,15 @@ impl Head {
             _ if class == UNKNOWN_CLASS => "pointed at".into(),
             _ => class_name(class),
         };
-        self.publish(tracked(tracker, &tiles, name), std::mem::take(adopted));
+        let followed = |id: u32| {
+            let id = Some(id);
+            let camera = |c: &crate::state::Camera| c.follow.is_some_and(|f| f.object == id);
+            state.cameras.iter().any(camera) || adopted.iter().any(|a| Some(a.2) == id)
+        };
+        let in_sight = |o: &Object| now - o.seen <= IN_SIGHT || followed(o.id);
+        let list = tracked(tracker, &tiles, name, in_sight);
+        self.publish(list.clone(), std::mem::take(adopted));
+        (list, shown)
     }
 
     /// Puts the objects in the live state, unless detection was turned off meanwhile: each
@@ -139,8 +154,13 @@ pub(super) fn crop_plan(
 }
 
 /// The tracker's objects as the state lists them: those in the tiles first, in tile order,
-/// then the others by score.
-fn tracked(tracker: &Tracker, tiles: &[Option<u32>], name: impl Fn(u16) -> String) -> Vec<Tracked> {
+/// then the others by score; of them, those `in_sight`.
+fn tracked(
+    tracker: &Tracker,
+    tiles: &[Option<u32>],
+    name: impl Fn(u16) -> String,
+    in_sight: impl Fn(&Object) -> bool,
+) -> Vec<Tracked> {
     let mut ids: Vec<u32> = tiles.iter().flatten().copied().collect();
     let mut rest: Vec<_> = tracker
         .objects()
@@ -151,6 +171,7 @@ fn tracked(tracker: &Tracker, tiles: &[Option<u32>], name: impl Fn(u16) -> Strin
     ids.extend(rest.iter().map(|o| o.id));
     ids.iter()
         .filter_map(|&id| tracker.get(id))
+        .filter(|o| in_sight(o))
         .map(|o| {
             let (yaw, pitch) = yaw_pitch(o.bbox.centre);
             Tracked {
