@@ -40,7 +40,7 @@ pub enum LensCommand {
         /// border; spacing, the gap between tags over the tag's side, 0.3 by default).
         #[arg(long, value_parser = Board::parse)]
         board: Board,
-        /// The PNG to write.
+        /// The PNG to write (.png: a board is printed from lossless pixels).
         #[arg(long)]
         out: PathBuf,
         /// The printer's resolution, dots per inch (50 to 1200).
@@ -54,6 +54,13 @@ fn draw_board(board: &Board, out: &Path, dpi: f64) -> Result<()> {
     if !(50.0..=1200.0).contains(&dpi) {
         bail!("--dpi {dpi}: between 50 and 1200");
     }
+    if super::output::image_format(out)? != image::ImageFormat::Png {
+        bail!(
+            "{}: a board is written as PNG (.png); JPEG's losses blur the tags' edges",
+            out.display()
+        );
+    }
+    let target = super::output::Output::create(out, &[])?;
     let dots_per_metre = dpi / 0.0254;
     let (low, high) = board.extent();
     let size = (high - low) * 1000.0;
@@ -69,8 +76,9 @@ fn draw_board(board: &Board, out: &Path, dpi: f64) -> Result<()> {
     }
     board
         .picture(dots_per_metre)
-        .save_with_format(out, image::ImageFormat::Png)
+        .save_with_format(target.temp(), image::ImageFormat::Png)
         .map_err(|e| anyhow!("cannot write {}: {e}", out.display()))?;
+    target.keep()?;
     println!(
         "{}: {} x {} tags, {:.0} x {:.0} px; print at {dpi} dpi with no scaling to get {:.1} x {:.1} mm",
         out.display(),

@@ -5,7 +5,7 @@
 use super::locate;
 use crate::lens::{LensCal, LensEntry};
 use crate::units::parse_angle;
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use std::path::Path;
 
@@ -125,10 +125,32 @@ fn append(
         }
     };
     LensCal::parse(path, &body)?;
-    let tmp = path.with_extension("cal.tmp");
-    std::fs::write(&tmp, &body)?;
-    std::fs::rename(&tmp, path)?;
+    replace_file(path, &body)?;
     Ok(replaced)
+}
+
+/// Replaces the file at `path` with `body` whole (a temporary file beside it, renamed over
+/// it): through a symbolic link, the file the link names, the link kept; with its mode kept.
+fn replace_file(path: &Path, body: &str) -> Result<()> {
+    use std::io::Write;
+    use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+    let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    let mode = std::fs::metadata(&target).map_or(0o644, |m| m.permissions().mode() & 0o7777);
+    let tmp = target.with_extension("cal.tmp");
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .mode(mode)
+        .open(&tmp)
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    // The mode asked for at creation is masked by the umask: set it as it was.
+    file.set_permissions(std::fs::Permissions::from_mode(mode))?;
+    file.write_all(body.as_bytes())?;
+    file.sync_all()?;
+    std::fs::rename(&tmp, &target)
+        .with_context(|| format!("cannot replace {}", target.display()))?;
+    Ok(())
 }
 
 /// The text with the `[[lens]]` table that starts on 1-based `line` replaced by `table`: its

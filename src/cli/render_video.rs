@@ -282,11 +282,19 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     loop {
         if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
             bar.finish_and_clear();
-            match &sink {
-                Some(Sink::Images(_)) => bail!(
-                    "interrupted after {count} frames; the frames rendered so far are in {}",
-                    job.out.display()
-                ),
+            match &mut sink {
+                Some(images @ Sink::Images(_)) => {
+                    // The frame still in the pipeline is written too: every frame counted
+                    // is on disk.
+                    while let Some(done) = renderer.flush()? {
+                        let t = times.pop_front().unwrap_or_default();
+                        images.write(done, t, None)?;
+                    }
+                    bail!(
+                        "interrupted after {count} frames; the frames rendered so far are in {}",
+                        job.out.display()
+                    )
+                }
                 _ => bail!(
                     "interrupted after {count} frames: {} was not written",
                     job.out.display()

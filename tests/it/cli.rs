@@ -94,6 +94,46 @@ fn synth_then_render_matches_synth_truth_through_the_command_line() {
     }
 }
 
+/// `lens import --write` through a symbolic link to lens.cal writes the file the link names,
+/// the link kept, and keeps the file's mode (640 here).
+#[test]
+fn import_through_a_link_writes_the_linked_file_and_keeps_its_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let real = dir.path().join("real.cal");
+    std::fs::copy(shipped(), &real).unwrap();
+    std::fs::set_permissions(&real, std::fs::Permissions::from_mode(0o640)).unwrap();
+    let link = dir.path().join("lens.cal");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let sample =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml");
+    let args = [
+        "lens",
+        "import",
+        sample.to_str().unwrap(),
+        "--name",
+        "KAL",
+        "--id",
+        "7",
+    ];
+    let o = digiview(&[&args[..], &["--write"]].concat(), &link);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(std::fs::read_to_string(&real).unwrap().contains("KAL"));
+    let mode = std::fs::metadata(&real).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o640, "mode {mode:o}");
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 2, "no temporary file left: {names:?}");
+}
+
 #[test]
 fn import_writes_a_new_lens_and_replaces_only_when_asked() {
     let dir = tempfile::tempdir().unwrap();

@@ -117,6 +117,17 @@ fn lens_board_draws_a_board_to_print_and_refuses_bad_specs() {
         20,
         "every tag read back"
     );
+    // Another format is refused, not written as PNG under its name.
+    let bmp = dir.path().join("board.bmp");
+    let o = run(&[
+        "--board",
+        "cols=5,rows=4,tag=40mm",
+        "--out",
+        bmp.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains(".png"), "{err}");
+    assert!(!bmp.exists());
     for (spec, why) in [
         ("cols=5,rows=4", "cols, rows and tag are needed"),
         ("cols=5,rows=1,tag=40mm", "at least 2x2"),

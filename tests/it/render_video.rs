@@ -228,26 +228,25 @@ fn a_stopped_render_leaves_no_file_and_a_cut_input_is_reported() {
     let clip = dir.path().join("long.mp4");
     test_clip(&clip, 900);
     let out = dir.path().join("out.mp4");
-    // Ctrl-C a second into a render of 30 s of video.
-    let child = Command::new(env!("CARGO_BIN_EXE_digiview"))
-        .args([
-            "render",
-            "--input",
-            clip.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .args(["--size", "640x480"])
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_secs(2));
-    // SAFETY: a signal to the child this test started and has not waited for yet.
-    let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
-    assert_eq!(sent, 0);
-    let r = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert!(!r.status.success(), "{err}");
+    // Ctrl-C two seconds into a render of 30 s of video.
+    let interrupted = |out: &Path| {
+        let child = Command::new(env!("CARGO_BIN_EXE_digiview"))
+            .args(["render", "--input", clip.to_str().unwrap(), "--out"])
+            .arg(out)
+            .args(["--size", "640x480"])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_secs(2));
+        // SAFETY: a signal to the child this test started and has not waited for yet.
+        let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+        assert_eq!(sent, 0);
+        let r = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&r.stderr).into_owned();
+        assert!(!r.status.success(), "{err}");
+        err
+    };
+    let err = interrupted(&out);
     assert!(
         err.contains("interrupted after") && err.contains("was not written"),
         "{err}"
@@ -257,6 +256,19 @@ fn a_stopped_render_leaves_no_file_and_a_cut_input_is_reported() {
         ["long.mp4"],
         "no output, no partial file"
     );
+    // Into an image sequence: as many frames on disk as it says, none partial.
+    let seq = dir.path().join("seq");
+    let err = interrupted(&seq.join("%04d.png"));
+    let said: usize = err
+        .split("interrupted after ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{err}"));
+    let on_disk = files(&seq);
+    assert!(said > 0, "{err}");
+    assert_eq!(on_disk.len(), said, "{err}: {on_disk:?}");
+    assert_eq!(on_disk.last().unwrap(), &format!("{:04}.png", said - 1));
 
     // The first third of a clip: rendered as far as it goes, and the exit status says so.
     let cut = dir.path().join("cut.mp4");
