@@ -248,6 +248,18 @@ impl Config {
         }
         self.publish_targets()?;
         self.view_publish_targets()?;
+        if self
+            .mavlink
+            .signing_key
+            .as_ref()
+            .is_some_and(|k| k.trim().is_empty())
+        {
+            return out_of_range(
+                "mavlink signing_key is empty: give 64 hex digits or a passphrase, or leave the \
+                 key out to sign nothing"
+                    .into(),
+            );
+        }
         self.mavlink
             .endpoint
             .parse::<crate::autopilot::Endpoint>()?;
@@ -325,6 +337,8 @@ mod tests {
             ("[capture]\nstill_format = \"gif\"", "still_format"),
             ("klv_camera = 4", "klv_camera"),
             ("publish_views = [\"4=udp://h:5600\"]", "CAMERA=URL"),
+            ("[mavlink]\nsigning_key = \"\"", "signing_key is empty"),
+            ("[mavlink]\nsigning_key = \"  \"", "signing_key is empty"),
             ("publish_views = [\"udp://h:5600\"]", "CAMERA=URL"),
             ("publish_views = [\"1=udp://h\"]", "needs a port"),
         ] {

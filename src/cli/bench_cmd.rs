@@ -17,6 +17,16 @@ use image::RgbImage;
 use serde::Serialize;
 use std::time::{Duration, Instant};
 
+/// `--input-size`: a fisheye frame as a camera gives one, up to the sensor's largest.
+fn input_size(text: &str) -> Result<(u32, u32)> {
+    let (w, h) = crate::units::parse_size(text)?;
+    let max = crate::state::MAX_SENSOR;
+    if w > max || h > max {
+        bail!("{w}x{h} is larger than the largest sensor, {max}x{max}");
+    }
+    Ok((w, h))
+}
+
 #[derive(Args, Debug)]
 pub struct BenchArgs {
     /// Frames to time in each run.
@@ -26,7 +36,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 5)]
     warmup: u32,
     /// The fisheye input's size.
-    #[arg(long, default_value = "3840x2160", value_parser = crate::units::parse_size)]
+    #[arg(long, default_value = "3840x2160", value_parser = input_size)]
     input_size: (u32, u32),
     /// The fisheye input's pixel format.
     #[arg(long, value_enum, default_value = "nv12")]

@@ -64,11 +64,12 @@ enum Action {
     /// Load test: many clients pipelining SET CAM_FOV / GET CAM_LOCK_FLAGS, every reply
     /// checked, with one more client stalled mid-frame; prints requests/s and reply times.
     Load {
-        #[arg(long, default_value_t = 50)]
-        clients: usize,
-        /// Requests per client.
-        #[arg(long, default_value_t = 2000)]
-        requests: usize,
+        /// Clients at once, 1 to 1000.
+        #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u16).range(1..=1000))]
+        clients: u16,
+        /// Requests per client, 1 to 1,000,000.
+        #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+        requests: u32,
         /// Do not keep a client stalled mid-frame during the run.
         #[arg(long)]
         no_stall: bool,
@@ -82,7 +83,10 @@ pub fn run(args: CtlArgs) -> Result<()> {
             clients,
             requests,
             no_stall,
-        } => return load(&args.addr, *clients, *requests, !no_stall, args.json),
+        } => {
+            let (clients, requests) = (*clients as usize, *requests as usize);
+            return load(&args.addr, clients, requests, !no_stall, args.json);
+        }
         _ => {}
     }
     let mut client = Client::connect(&args.addr, args.udp, args.timeout)?;

@@ -60,6 +60,12 @@ fn find(
         (None, None) => None,
     };
     if let Some((path, by)) = named {
+        if path.is_dir() {
+            bail!(
+                "{} (from {by}) is a directory: name the file in it",
+                path.display()
+            );
+        }
         if !path.is_file() {
             bail!("{} (from {by}): no such file", path.display());
         }

@@ -171,8 +171,14 @@ async fn logged_in(
     let Some(expected) = expected else {
         return next.run(request).await;
     };
+    // The scheme's name is case-insensitive (RFC 9110): "basic" is "Basic".
+    let same = |given: &str| {
+        let (scheme, token) = given.split_once(' ').unwrap_or((given, ""));
+        let (want_scheme, want_token) = expected.split_once(' ').unwrap_or((&expected, ""));
+        scheme.eq_ignore_ascii_case(want_scheme) && token.trim_start() == want_token
+    };
     let given = request.headers().get(header::AUTHORIZATION);
-    if given.is_some_and(|g| g.as_bytes() == expected.as_bytes()) {
+    if given.and_then(|g| g.to_str().ok()).is_some_and(same) {
         return next.run(request).await;
     }
     let mut refused = text(

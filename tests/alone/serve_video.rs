@@ -397,6 +397,18 @@ fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
     let with = url.replace("rtsp://", "rtsp://pilot:s3cret@");
     let allowed = probe_rtsp(&with, "width,height");
     assert_eq!(String::from_utf8_lossy(&allowed.stdout).trim(), "640,480");
+    // The web API asks the same login; the scheme's name in any case (RFC 9110).
+    let status = format!("{}api/status", serve.http.as_ref().unwrap());
+    let code = |auth| common::gcs::http_get_as(&status, auth).0;
+    assert_eq!(code(None), 401);
+    assert_eq!(code(Some("Basic cGlsb3Q6czNjcmV0")), 200);
+    assert_eq!(code(Some("basic cGlsb3Q6czNjcmV0")), 200);
+    assert_eq!(code(Some("BASIC cGlsb3Q6czNjcmV0")), 200);
+    assert_eq!(
+        code(Some("basic cGlsb3Q6d3Jvbmc=")),
+        401,
+        "a wrong password"
+    );
 
     // A disk without the free space the config keeps is a refused capture, not a bad file.
     for flags in [1, 2] {

@@ -296,13 +296,19 @@ pub fn accepted(answer: Option<(MavResult, Vec<MavMessage>)>, what: &str) -> Vec
 
 /// An HTTP GET of `url` (`http://HOST:PORT/PATH`) with std alone: the status and the body.
 pub fn http_get(url: &str) -> (u16, Vec<u8>) {
+    http_get_as(url, None)
+}
+
+/// As [`http_get`], with an `Authorization` header when given.
+pub fn http_get_as(url: &str, authorization: Option<&str>) -> (u16, Vec<u8>) {
     use std::io::{Read, Write};
     let rest = url.strip_prefix("http://").unwrap();
     let (host, path) = rest.split_at(rest.find('/').unwrap());
     let mut s = std::net::TcpStream::connect(host).unwrap_or_else(|e| panic!("{url}: {e}"));
+    let auth = authorization.map_or(String::new(), |a| format!("Authorization: {a}\r\n"));
     write!(
         s,
-        "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+        "GET {path} HTTP/1.1\r\nHost: {host}\r\n{auth}Connection: close\r\n\r\n"
     )
     .unwrap();
     let mut reply = vec![];

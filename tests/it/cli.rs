@@ -554,3 +554,42 @@ fn an_odd_output_size_is_rounded_down_on_every_entry_as_over_the_protocol() {
         (640, 480)
     );
 }
+
+/// Values a careless hand gives are refused before any work, saying what to change: a
+/// sequence read at 0 fps, a bench frame larger than any sensor, a load test of no client or
+/// of 100,000, and a directory where a file is wanted.
+#[test]
+fn careless_values_are_refused_with_what_to_change() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().to_str().unwrap();
+    let bin = |args: &[&str]| digiview(args, &shipped());
+    for (args, says) in [
+        (
+            vec![
+                "render",
+                "--input",
+                "f/%03d.png",
+                "--out",
+                "o.mp4",
+                "--input-fps",
+                "0",
+            ],
+            "0 is not in 1..=240",
+        ),
+        (
+            vec!["bench", "--input-size", "100000x100000", "--frames", "1"],
+            "larger than the largest sensor, 8192x8192",
+        ),
+        (
+            vec!["ctl", "load", "--clients", "100000"],
+            "not in 1..=1000",
+        ),
+        (vec!["ctl", "load", "--clients", "0"], "not in 1..=1000"),
+        (vec!["--lens-cal", d, "lens", "list"], "is a directory"),
+        (vec!["serve", "--config", d], "is a directory"),
+    ] {
+        let o = bin(&args);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+    }
+}
