@@ -222,6 +222,13 @@ impl Config {
             return out_of_range(format!("detection classes: {e}"));
         }
         self.rtsp.check()?;
+        let dir = &self.capture.dir;
+        if dir.exists() && !dir.is_dir() {
+            return out_of_range(format!(
+                "capture dir {} is not a directory: name a directory (made where missing)",
+                dir.display()
+            ));
+        }
         if let Err(e) = self.http.address() {
             return out_of_range(e.to_string());
         }

@@ -12,7 +12,8 @@ use std::path::Path;
 /// What names a new lens.cal entry and where it goes: `import`'s and `calibrate`'s.
 #[derive(Args, Debug)]
 pub struct EntryArgs {
-    #[arg(long)]
+    /// The lens's name: 1 to 64 printable characters, no quotes or backslashes.
+    #[arg(long, value_parser = lens_name)]
     pub name: String,
     #[arg(long)]
     pub id: u8,
@@ -25,6 +26,22 @@ pub struct EntryArgs {
     /// With --write: replace the entry of the same name or id.
     #[arg(long, requires = "write")]
     pub replace: bool,
+}
+
+/// `--name`: what lens.cal and the protocol's lens list show, so printable text that needs no
+/// escaping there.
+fn lens_name(text: &str) -> Result<String> {
+    let n = text.chars().count();
+    if text.trim().is_empty() || n > 64 {
+        bail!("a lens name has 1 to 64 characters (this has {n})");
+    }
+    if let Some(c) = text
+        .chars()
+        .find(|c| c.is_control() || matches!(c, '"' | '\\'))
+    {
+        bail!("a lens name is printable text without quotes or backslashes, not {c:?}");
+    }
+    Ok(text.to_string())
 }
 
 /// Prints a new entry, or with `write` adds it to the lens.cal in use; in place of the

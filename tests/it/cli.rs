@@ -557,11 +557,24 @@ fn an_odd_output_size_is_rounded_down_on_every_entry_as_over_the_protocol() {
 
 /// Values a careless hand gives are refused before any work, saying what to change: a
 /// sequence read at 0 fps, a bench frame larger than any sensor, a load test of no client or
-/// of 100,000, and a directory where a file is wanted.
+/// of 100,000, a directory where a file is wanted and a file where a directory is, and a
+/// lens name with a control character.
 #[test]
 fn careless_values_are_refused_with_what_to_change() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path().to_str().unwrap();
+    let file = dir.path().join("captures");
+    std::fs::write(&file, "not a directory").unwrap();
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!("[capture]\ndir = {:?}\n", file.to_str().unwrap()),
+    )
+    .unwrap();
+    let config = config.to_str().unwrap();
+    let sample =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml");
+    let sample = sample.to_str().unwrap();
     let bin = |args: &[&str]| digiview(args, &shipped());
     for (args, says) in [
         (
@@ -587,6 +600,11 @@ fn careless_values_are_refused_with_what_to_change() {
         (vec!["ctl", "load", "--clients", "0"], "not in 1..=1000"),
         (vec!["--lens-cal", d, "lens", "list"], "is a directory"),
         (vec!["serve", "--config", d], "is a directory"),
+        (vec!["serve", "--config", config], "is not a directory"),
+        (
+            vec!["lens", "import", sample, "--name", "A\u{7}B", "--id", "9"],
+            "without quotes or backslashes, not '\\u{7}'",
+        ),
     ] {
         let o = bin(&args);
         assert!(!o.status.success(), "{args:?} succeeded");
