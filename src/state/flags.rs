@@ -12,6 +12,8 @@ pub enum FlagError {
     NotKeyValue(String),
     #[error("{key}=`{value}` is not a valid number here")]
     NotANumber { key: String, value: String },
+    #[error("{key}=`{value}`: give a finite number")]
+    NotFinite { key: String, value: String },
     #[error("`{key}` is not {what}")]
     UnknownKey { key: String, what: &'static str },
     #[error("`{flag}`: {why}")]
@@ -78,10 +80,10 @@ impl State {
         let p = &mut self.vehicle.position;
         for (key, value) in key_values(flag)? {
             match key {
-                "lat" => p.lat = number(key, value)?,
-                "lon" => p.lon = number(key, value)?,
-                "alt" => p.alt = number(key, value)?,
-                "rel" | "relative_alt" => p.relative_alt = number(key, value)?,
+                "lat" => p.lat = finite(key, value)?,
+                "lon" => p.lon = finite(key, value)?,
+                "alt" => p.alt = finite(key, value)?,
+                "rel" | "relative_alt" => p.relative_alt = finite(key, value)?,
                 _ => return Err(unknown(key, "a position field (lat, lon, alt, rel)")),
             }
         }
@@ -148,6 +150,18 @@ fn key_values(text: &str) -> Result<Vec<(&str, &str)>, FlagError> {
                 .ok_or_else(|| FlagError::NotKeyValue(kv.to_string()))
         })
         .collect()
+}
+
+/// A number that is finite: NaN and the infinities are no place, height or size.
+fn finite(key: &str, value: &str) -> Result<f64, FlagError> {
+    let v: f64 = number(key, value)?;
+    match v.is_finite() {
+        true => Ok(v),
+        false => Err(FlagError::NotFinite {
+            key: key.to_string(),
+            value: value.to_string(),
+        }),
+    }
 }
 
 fn number<T: std::str::FromStr>(key: &str, value: &str) -> Result<T, FlagError> {
@@ -217,5 +231,15 @@ mod tests {
             let e = bad.validate(&lenses).unwrap_err().to_string();
             assert!(e.contains(says), "{flag}: {e}");
         }
+    }
+
+    #[test]
+    fn a_position_that_is_no_number_is_refused_and_the_state_kept() {
+        let mut s = State::default();
+        for flag in ["alt=nan", "rel=inf", "lat=-inf", "lon=NaN"] {
+            let e = s.apply_position(flag).unwrap_err().to_string();
+            assert!(e.contains("give a finite number"), "{flag}: {e}");
+        }
+        assert_eq!(s, State::default());
     }
 }

@@ -602,6 +602,18 @@ fn careless_values_are_refused_with_what_to_change() {
         (vec!["serve", "--config", d], "is a directory"),
         (vec!["serve", "--config", config], "is not a directory"),
         (
+            vec![
+                "render",
+                "--input",
+                "f.png",
+                "--out",
+                "o.png",
+                "--position",
+                "alt=nan",
+            ],
+            "alt=`nan`: give a finite number",
+        ),
+        (
             vec!["lens", "import", sample, "--name", "A\u{7}B", "--id", "9"],
             "without quotes or backslashes, not '\\u{7}'",
         ),
