@@ -189,6 +189,81 @@ impl State {
                 p.lat, p.lon
             ));
         }
+        for (name, m) in [("altitude", p.alt), ("height above home", p.relative_alt)] {
+            if !HEIGHTS.contains(&m) {
+                return invalid(format!(
+                    "vehicle {name} {} m is outside {}..={} m",
+                    num(m),
+                    HEIGHTS.start(),
+                    HEIGHTS.end()
+                ));
+            }
+        }
+        self.validate_frames()
+    }
+
+    /// The attitude, the mount, the cameras' targets and the tracked objects: angles within
+    /// what they can be, places on the globe.
+    fn validate_frames(&self) -> Result<(), Invalid> {
+        use std::f64::consts::{FRAC_PI_2, PI};
+        let slack = 1e-9;
+        let a = &self.vehicle.attitude;
+        let m = &self.mount;
+        for (what, e) in [
+            ("vehicle attitude", (a.yaw, a.pitch, a.roll)),
+            ("mount", (m.yaw, m.pitch, m.roll)),
+        ] {
+            let (yaw, pitch, roll) = e;
+            if yaw.abs() > 2.0 * PI + slack
+                || pitch.abs() > FRAC_PI_2 + slack
+                || roll.abs() > PI + slack
+            {
+                return invalid(format!(
+                    "{what} yaw {}, pitch {}, roll {} rad is outside ±2π, ±π/2, ±π",
+                    num(yaw),
+                    num(pitch),
+                    num(roll)
+                ));
+            }
+        }
+        for (i, c) in self.cameras.iter().enumerate() {
+            if let Some(t) = &c.target
+                && (!(-90.0..=90.0).contains(&t.lat)
+                    || !(-180.0..=180.0).contains(&t.lon)
+                    || !HEIGHTS.contains(&t.alt))
+            {
+                return invalid(format!(
+                    "camera {i}: target {}, {}, {} m is not a latitude, longitude and altitude \
+                     ({}..={} m)",
+                    num(t.lat),
+                    num(t.lon),
+                    num(t.alt),
+                    HEIGHTS.start(),
+                    HEIGHTS.end()
+                ));
+            }
+        }
+        for o in &self.tracked {
+            let sound = o.size > 0.0 && o.size <= PI && o.yaw.is_finite() && o.pitch.is_finite();
+            if !sound {
+                return invalid(format!(
+                    "tracked object {}: size {} rad is outside (0, π], or its direction is no \
+                     number",
+                    o.id, o.size
+                ));
+            }
+        }
         Ok(())
     }
 }
+
+/// `v` as a reader takes it in: as it is, or in scientific notation when huge.
+fn num(v: f64) -> String {
+    match v.abs() < 1e6 {
+        true => format!("{v}"),
+        false => format!("{v:e}"),
+    }
+}
+
+/// Altitudes and heights, metres: from below the Dead Sea to above any drone's ceiling.
+const HEIGHTS: std::ops::RangeInclusive<f64> = -1000.0..=20_000.0;
