@@ -206,7 +206,8 @@ impl State {
     /// what they can be, places on the globe.
     fn validate_frames(&self) -> Result<(), Invalid> {
         use std::f64::consts::{FRAC_PI_2, PI};
-        let slack = 1e-9;
+        // The protocol carries angles in milliradians: -π/2 arrives as -1.571.
+        let slack = 1e-3;
         let a = &self.vehicle.attitude;
         let m = &self.mount;
         for (what, e) in [
