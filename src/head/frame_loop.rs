@@ -295,12 +295,14 @@ impl Head {
             .for_frame(s.lens, size, s.sensor.roi())
             .map_err(|e| RenderFailure::Frame(e.to_string()))?;
         let plan = FramePlan::new(&s, &lens).map_err(|e| RenderFailure::Frame(e.to_string()))?;
-        if let Some(truth) = self.demo_truth() {
+        let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(truth) = truth.as_ref() {
             let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
             if let Some(score) = shared.as_mut() {
-                rings(&mut score.rings, &truth, (&plan, &s), frame.captured_us);
+                rings(&mut score.rings, truth, (&plan, &s), frame.captured_us);
             }
         }
+        drop(truth);
         let out = renderer
             .render(&frame.data, &frame.layout, &plan)
             .map_err(|e| match e {
@@ -309,10 +311,8 @@ impl Head {
             })?;
         let cam = self.cfg.klv_camera;
         let time_us = unix_us(frame.captured_us);
-        let klv = ViewMetadata::of_camera(&plan, &s, cam, time_us).map(|mut m| {
-            if !self.cfg.klv_objects {
-                m.objects = None;
-            }
+        let klv = ViewMetadata::of_camera(&plan, &s, cam, time_us).map(|m| {
+            let m = m.with_objects(self.cfg.klv_objects);
             let packet = m.packet().into();
             *self.klv.lock().unwrap_or_else(|e| e.into_inner()) = Some(m);
             packet

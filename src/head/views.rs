@@ -235,11 +235,7 @@ fn draw_views(
         let name = format!("DigiView cam {i}");
         let frame = Some((w, h));
         let m = ViewMetadata::of(plan, &plan.views[0], state, (time_us, frame), name)?;
-        let m = ViewMetadata {
-            objects: m.objects.filter(|_| objects),
-            ..m
-        };
-        Some(m.packet().into())
+        Some(m.with_objects(objects).packet().into())
     });
     let pictures: Vec<Picture> = match drawn.and_then(|()| renderer.redraw(&jobs)) {
         Ok(frames) => frames.into_iter().map(|f| Ok((f.data, f.layout))).collect(),

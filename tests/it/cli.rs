@@ -18,6 +18,11 @@ fn shipped() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal")
 }
 
+/// A Kalibr camera chain to import.
+fn kalibr_sample() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml")
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -105,8 +110,7 @@ fn import_through_a_link_writes_the_linked_file_and_keeps_its_mode() {
     std::fs::set_permissions(&real, std::fs::Permissions::from_mode(0o640)).unwrap();
     let link = dir.path().join("lens.cal");
     std::os::unix::fs::symlink(&real, &link).unwrap();
-    let sample =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml");
+    let sample = kalibr_sample();
     let args = [
         "lens",
         "import",
@@ -139,8 +143,7 @@ fn import_writes_a_new_lens_and_replaces_only_when_asked() {
     let dir = tempfile::tempdir().unwrap();
     let cal = dir.path().join("lens.cal");
     std::fs::copy(shipped(), &cal).unwrap();
-    let sample =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml");
+    let sample = kalibr_sample();
     let sample = sample.to_str().unwrap();
     let o = digiview(
         &[
@@ -572,8 +575,7 @@ fn careless_values_are_refused_with_what_to_change() {
     )
     .unwrap();
     let config = config.to_str().unwrap();
-    let sample =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import/kalibr_camchain.yaml");
+    let sample = kalibr_sample();
     let sample = sample.to_str().unwrap();
     let bin = |args: &[&str]| digiview(args, &shipped());
     for (args, says) in [
@@ -602,66 +604,6 @@ fn careless_values_are_refused_with_what_to_change() {
         (vec!["serve", "--config", d], "is a directory"),
         (vec!["serve", "--config", config], "is not a directory"),
         (
-            vec![
-                "render",
-                "--input",
-                "f.png",
-                "--out",
-                "o.png",
-                "--position",
-                "alt=nan",
-            ],
-            "alt=`nan`: give a finite number",
-        ),
-        (
-            vec![
-                "render",
-                "--input",
-                "f.png",
-                "--out",
-                "o.png",
-                "--position",
-                "alt=1e9",
-            ],
-            "vehicle altitude 1e9 m is outside -1000..=20000 m",
-        ),
-        (
-            vec![
-                "render",
-                "--input",
-                "f.png",
-                "--out",
-                "o.png",
-                "--attitude",
-                "roll=1e300",
-            ],
-            "vehicle attitude yaw 0, pitch 0, roll 1e300 rad is outside ±2π, ±π/2, ±π",
-        ),
-        (
-            vec![
-                "render",
-                "--input",
-                "f.png",
-                "--out",
-                "o.png",
-                "--mount",
-                "pitch=1e300",
-            ],
-            "mount yaw",
-        ),
-        (
-            vec![
-                "render",
-                "--input",
-                "f.png",
-                "--out",
-                "o.png",
-                "--track",
-                "size=-4deg",
-            ],
-            "tracked object 0: size",
-        ),
-        (
             vec!["lens", "import", sample, "--name", "A\u{7}B", "--id", "9"],
             "without quotes or backslashes, not '\\u{7}'",
         ),
@@ -669,5 +611,25 @@ fn careless_values_are_refused_with_what_to_change() {
         let o = bin(&args);
         assert!(!o.status.success(), "{args:?} succeeded");
         assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+    }
+    // State flags out of what they can be, refused before the (missing) input is read.
+    for (flag, value, says) in [
+        ("--position", "alt=nan", "alt=`nan`: give a finite number"),
+        (
+            "--position",
+            "alt=1e9",
+            "vehicle altitude 1e9 m is outside -1000..=20000 m",
+        ),
+        (
+            "--attitude",
+            "roll=1e300",
+            "vehicle attitude yaw 0, pitch 0, roll 1e300 rad is outside ±2π, ±π/2, ±π",
+        ),
+        ("--mount", "pitch=1e300", "mount yaw"),
+        ("--track", "size=-4deg", "tracked object 0: size"),
+    ] {
+        let o = bin(&["render", "--input", "f.png", "--out", "o.png", flag, value]);
+        assert!(!o.status.success(), "{flag} {value} succeeded");
+        assert!(stderr(&o).contains(says), "{flag} {value}: {}", stderr(&o));
     }
 }

@@ -68,7 +68,8 @@ def main(path):
         n = len(value)
         length = bytes([n]) if n < 128 else bytes([0x80 | ((n.bit_length() + 7) // 8)]) + n.to_bytes((n.bit_length() + 7) // 8, "big")
         packet = key + length + value
-        parsed = klvdata.misb0601.UASLocalMetadataSet(without(value, {74}))
+        readable = without(value, {74})
+        parsed = klvdata.misb0601.UASLocalMetadataSet(readable)
         tags, values = [], {}
         for tag, item in parsed.items.items():
             t = int.from_bytes(tag, "big")
@@ -77,7 +78,7 @@ def main(path):
         print(json.dumps({
             "tags": tags,
             "checksum_ok": packet_checksum(packet) == packet[-2:],
-            "skipped": [74] if without(value, {74}) != value else [],
+            "skipped": [74] if readable != value else [],
             "values": values,
         }))
 

@@ -300,18 +300,16 @@ impl Head {
                 };
                 (scan.t, found, scan.plan, t0, Some(scan.position))
             };
-            let covered = |b: &AngularBox| {
-                plan.views
-                    .iter()
-                    .any(|v| plan.view_point(v, b.centre).is_some())
-            };
+            let sees = |ray| plan.views.iter().any(|v| plan.view_point(v, ray).is_some());
+            let covered = |b: &AngularBox| sees(b.centre);
             tracker.scan(&state.detection, t, found, covered);
             let (list, tiled) = self.show(&mut tracker, &state, &labels, (&mut adopted, t));
             owns_list = true;
-            if let (Some(position), Some(truth)) = (position, self.demo_truth()) {
-                let scorer = scorer.get_or_insert_with(|| score::Scorer::new(truth));
-                let covered = |ray| plan.views.iter().any(|v| plan.view_point(v, ray).is_some());
-                scorer.scan((t, &position), &list, tiled, covered);
+            if scorer.is_none() {
+                scorer = self.demo_truth().map(score::Scorer::new);
+            }
+            if let (Some(position), Some(scorer)) = (position, scorer.as_mut()) {
+                scorer.scan((t, &position), &list, tiled, sees);
                 let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
                 let rings = shared.take().map(|s| s.rings).unwrap_or_default();
                 *shared = Some(score::Score {

@@ -116,6 +116,14 @@ impl ViewMetadata {
 }
 
 impl ViewMetadata {
+    /// The same without its tracked objects unless `keep` (`klv_objects`).
+    pub fn with_objects(self, keep: bool) -> ViewMetadata {
+        ViewMetadata {
+            objects: self.objects.filter(|_| keep),
+            ..self
+        }
+    }
+
     /// The metadata of camera `cam`'s view in the composed frame of `plan` (drawn with
     /// `state`, captured at `time_us`): its objects placed in the frame's pixels where the
     /// frame draws the camera, without pixels where it does not.
