@@ -21,7 +21,16 @@ struct Params {
     // Input chroma plane offsets (U or UV, V) in bytes, mip levels, unused.
     input_planes: vec4u,
     lens: Lens,
+    // The rolling shutter (the frame's `ShutterTable`, src/geometry/shutter.rs): a fisheye
+    // point's knot coordinate is dot(xyz, (x, y, 1)); w is 1 where the frame has a table.
+    shutter_line: vec4f,
+    // Rotations (quaternions x, y, z, w) from the lens frame at the middle row to the lens
+    // frame when each knot's row was read.
+    shutter: array<vec4f, KNOTS>,
 }
+
+// KNOTS in src/geometry/shutter.rs.
+const KNOTS: u32 = 17u;
 
 const KR: f32 = 0.2126;
 const KB: f32 = 0.0722;

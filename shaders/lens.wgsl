@@ -131,9 +131,9 @@ fn in_frame(q: vec2f) -> bool {
     return all(q >= vec2f(-0.501)) && all(q <= size - 0.499);
 }
 
-// Where a lens-frame ray lands (xy) and whether it is imaged there (z = 1) or black (z = 0):
-// src/lens/mod.rs's `Lens::project` followed by `Lens::in_frame`.
-fn lens_project(ray: vec3f) -> vec3f {
+// Where a lens-frame ray lands (xy) and whether the lens images it at all (z = 1; else z = 0
+// and xy = 0): src/lens/mod.rs's `Lens::project`, the frame's edges not yet considered.
+fn lens_point(ray: vec3f) -> vec3f {
     let affine = params.lens.affine;
     let rho = length(ray.xy);
     let theta = atan2(rho, ray.z);
@@ -153,7 +153,14 @@ fn lens_project(ray: vec3f) -> vec3f {
         affine.x * m.x + affine.z * m.y,
         affine.y * m.x + affine.w * m.y,
     ) + params.lens.offset_frame.xy;
-    return vec3f(q, select(0.0, 1.0, in_frame(q)));
+    return vec3f(q, 1.0);
+}
+
+// Where a lens-frame ray lands (xy) and whether it is imaged there (z = 1) or black (z = 0):
+// src/lens/mod.rs's `Lens::project` followed by `Lens::in_frame`.
+fn lens_project(ray: vec3f) -> vec3f {
+    let q = lens_point(ray);
+    return vec3f(q.xy, select(0.0, 1.0, q.z > 0.0 && in_frame(q.xy)));
 }
 
 // Whether a fisheye pixel lies inside the image circle and the frame (`Lens::unproject` is

@@ -12,8 +12,15 @@ const KIND_RECTILINEAR: u32 = 1u;
 const KIND_PANORAMA: u32 = 2u;
 const KIND_FISHEYE: u32 = 3u;
 
-// The view kinds the frame has, a bit per KIND_*: code for the kinds it lacks is left out.
-override VIEW_KINDS: u32 = 0xfu;
+// The bit of VIEW_KINDS that says the frame has a rolling shutter to correct (SHUTTER_BIT in
+// src/render/gpu/params.rs).
+const SHUTTER_BIT: u32 = 4u;
+// SHUTTER_STEPS in src/render/plan.rs.
+const SHUTTER_STEPS: u32 = 2u;
+
+// The view kinds the frame has, a bit per KIND_*, and SHUTTER_BIT: code for the kinds (and the
+// correction) it lacks is left out.
+override VIEW_KINDS: u32 = 0x1fu;
 
 // Twin of the Rust `GpuView` (src/render/gpu/params.rs).
 struct View {
@@ -65,11 +72,47 @@ fn view_point(v: View, p: vec2f) -> vec3f {
     let rectified_kinds = (VIEW_KINDS & ((1u << KIND_RECTILINEAR) | (1u << KIND_PANORAMA))) != 0u;
     let fisheyes = (VIEW_KINDS & (1u << KIND_FISHEYE)) != 0u;
     let ray = select(rectilinear, panorama, panoramas && kind == KIND_PANORAMA);
-    let rectified = lens_project(m * ray);
+    let rectified = shutter_project(m * ray);
     let q = k.xy + p * k.z - 0.5;
     let fisheye = vec3f(q, select(0.0, 1.0, lens_images(q)));
     let drawn = select(rectified, fisheye, fisheyes && (kind == KIND_FISHEYE || !rectified_kinds));
     return select(vec3f(0.0), drawn, kind != KIND_BLACK);
+}
+
+// Vector v turned by unit quaternion q (x, y, z, w).
+fn rotate(q: vec4f, v: vec3f) -> vec3f {
+    let t = 2.0 * cross(q.xyz, v);
+    return v + q.w * t + cross(q.xyz, t);
+}
+
+// The rolling shutter's rotation at fisheye point q: `ShutterTable::at` (nlerp between the
+// knots around the point's knot coordinate).
+fn shutter_at(q: vec2f) -> vec4f {
+    let line = params.shutter_line;
+    let k = clamp(dot(line.xyz, vec3f(q, 1.0)), 0.0, f32(KNOTS - 1u));
+    let i = min(u32(floor(k)), KNOTS - 2u);
+    let f = k - f32(i);
+    return normalize(mix(params.shutter[i], params.shutter[i + 1u], f));
+}
+
+// `lens_project` of a lens-frame ray (as the lens was at the frame's middle row), corrected
+// for the rolling shutter where the frame has one: `FramePlan::lens_pixel`, projected again
+// SHUTTER_STEPS times with the rotation of the row it landed on. Black where any projection
+// falls outside the lens's fov, as there.
+fn shutter_project(d: vec3f) -> vec3f {
+    if (VIEW_KINDS & (1u << SHUTTER_BIT)) == 0u {
+        return lens_project(d);
+    }
+    var q = lens_point(d);
+    if params.shutter_line.w > 0.0 {
+        var imaged = q.z;
+        for (var i = 0u; i < SHUTTER_STEPS; i++) {
+            q = lens_point(rotate(shutter_at(q.xy), d));
+            imaged = min(imaged, q.z);
+        }
+        q.z = imaged;
+    }
+    return vec3f(q.xy, select(0.0, 1.0, q.z > 0.0 && in_frame(q.xy)));
 }
 
 // View `vi` at output pixel (x, y); black where there is no view or the pixel is padding.

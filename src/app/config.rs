@@ -8,6 +8,7 @@ use crate::cameras::CamerasConfig;
 use crate::control::ControlConfig;
 use crate::detect::DetectionConfig;
 use crate::exposure::ExposureConfig;
+use crate::geometry::shutter::{MAX_READOUT_MS, Readout};
 use crate::head::HeadConfig;
 use crate::head::capture::CaptureConfig;
 use crate::http::HttpConfig;
@@ -61,6 +62,9 @@ pub struct Config {
     pub klv_objects: bool,
     /// Seconds between the one-line health summaries in the log (0: none).
     pub health_interval_s: f64,
+    /// The camera's rolling shutter, corrected in every view (docs/serve.md, "Rolling
+    /// shutter"); none by default.
+    pub readout: Readout,
 }
 
 impl Default for Config {
@@ -86,6 +90,7 @@ impl Default for Config {
             klv_camera: 0,
             klv_objects: true,
             health_interval_s: 10.0,
+            readout: Readout::default(),
         }
     }
 }
@@ -137,6 +142,7 @@ impl Config {
             health_interval_s: self.health_interval_s,
             klv_camera: self.klv_camera,
             klv_objects: self.klv_objects,
+            readout: self.readout,
         })
     }
 
@@ -181,7 +187,14 @@ impl Config {
                 crate::state::MAX_CAMERAS - 1
             ));
         }
+        self.readout.check().map_err(ConfigError::Range)?;
         let d = &self.demo;
+        if !d.readout_ms.is_finite() || !(0.0..=MAX_READOUT_MS).contains(&d.readout_ms) {
+            return out_of_range(format!(
+                "demo readout_ms {:?} is outside 0..={MAX_READOUT_MS}",
+                d.readout_ms
+            ));
+        }
         if d.width < 64 || d.height < 64 || d.width > 7680 || d.height > 4320 {
             return out_of_range(format!(
                 "demo size {}x{} is outside 64x64..7680x4320",

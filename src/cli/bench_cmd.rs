@@ -3,6 +3,7 @@
 //! stage waited for on its own (per-stage medians), one pipelined as the video head runs
 //! (frames per second, and each frame's latency from upload to readable bytes).
 
+use super::readout_args::ReadoutArgs;
 use super::{Backend, StateArgs, spinner};
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
 use crate::lens::{LensCal, Lenses};
@@ -59,6 +60,10 @@ pub struct BenchArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+    /// Correct a rolling shutter (each frame's table made from --turn, or none, about its
+    /// attitude): what the correction costs.
+    #[command(flatten)]
+    readout: ReadoutArgs,
     /// The output (--size, default 1920x1080), layout (default 4), overlay (default 2),
     /// cameras and lens, as for `render`.
     #[command(flatten)]
@@ -115,6 +120,8 @@ struct Report {
     filter: Filter,
     /// Median time to plan a frame from the state on the CPU (included in the totals).
     plan_ms: f64,
+    /// The rolling-shutter readout corrected (0: none).
+    readout_ms: f64,
 }
 
 fn ms(d: Duration) -> f64 {
@@ -173,7 +180,7 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
     for i in 0..total {
         let t = Instant::now();
         let state = attitude_at(&base, i);
-        plans.push(FramePlan::new(&state, &lens)?);
+        plans.push(FramePlan::new(&state, &lens)?.with_shutter(args.readout.table(&state, &lens)));
         plan_times.push(ms(t.elapsed()));
         let (w, h) = args.view_size;
         view_plans.push(
@@ -201,6 +208,7 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
         filter: args.filter,
         frames: args.frames,
         plan_ms: median(plan_times),
+        readout_ms: args.readout.readout_ms,
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -212,6 +220,12 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
         "frames       {} of {} → {}, layout {} overlay {}, filter {:?}",
         report.frames, report.input, report.output, report.layout, report.overlay, report.filter
     );
+    if report.readout_ms > 0.0 {
+        println!(
+            "rolling shutter corrected, {} ms readout",
+            report.readout_ms
+        );
+    }
     println!("median per stage (each waited for on its own):");
     let m = &r.staged;
     println!("  plan       {:8.2} ms (CPU)", report.plan_ms);

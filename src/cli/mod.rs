@@ -11,6 +11,7 @@ mod lens_cmd;
 mod lens_entry;
 pub mod locate;
 mod output;
+mod readout_args;
 mod render_cmd;
 mod render_video;
 pub(crate) mod serve_cmd;

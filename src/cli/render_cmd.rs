@@ -1,6 +1,7 @@
 //! `digiview render` (fisheye image → output frame) and `digiview synth` (synthetic fisheye
 //! frames, ground-truth output frames and panoramas).
 
+use super::readout_args::ReadoutArgs;
 use super::{Backend, StateArgs, output, spinner};
 use crate::frame::PixelFormat;
 use crate::lens::calibrate::Board;
@@ -8,7 +9,7 @@ use crate::lens::{LensCal, Lenses};
 use crate::render::gpu::renderer::render_image;
 use crate::render::gpu::{Gpu, Renderer};
 use crate::render::{Filter, FramePlan, cpu};
-use crate::scene::synth::{equirect, fisheye, truth};
+use crate::scene::synth::{equirect, fisheye, rolling_fisheye, truth};
 use crate::scene::{GridWorld, PanoramaWorld, World};
 use anyhow::{Context, Result};
 use clap::Args;
@@ -48,6 +49,9 @@ pub struct RenderArgs {
     /// time stamps; default: the input file's modification time less its length.
     #[arg(long, value_parser = klv_start, requires = "klv")]
     klv_start: Option<f64>,
+    /// An image input's rolling shutter, corrected (images only).
+    #[command(flatten)]
+    readout: ReadoutArgs,
     #[command(flatten)]
     state: StateArgs,
 }
@@ -102,6 +106,9 @@ pub struct SynthArgs {
     /// files: frames/%03d.png).
     #[arg(long, requires = "board", conflicts_with = "board_pose")]
     board_sweep: Option<usize>,
+    /// Capture the fisheye frame row by row, as a rolling-shutter camera does.
+    #[command(flatten)]
+    readout: ReadoutArgs,
     #[command(flatten)]
     state: StateArgs,
 }
@@ -149,6 +156,9 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
                 "the CPU reference renders single images; videos and sequences use --backend gpu"
             );
         }
+        if !args.readout.readout().is_global() {
+            anyhow::bail!("--readout-ms corrects an image input; videos and sequences take none");
+        }
         return super::render_video::render_video(cal, &state, &args.video());
     }
     if args.klv {
@@ -166,7 +176,7 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
         .with_context(|| format!("reading {}", args.input.display()))?
         .to_rgb8();
     let lens = Lenses::new(cal).for_frame(state.lens, input.dimensions(), state.sensor.roi())?;
-    let plan = FramePlan::new(&state, &lens)?;
+    let plan = FramePlan::new(&state, &lens)?.with_shutter(args.readout.table(&state, &lens));
     let out = match args.backend {
         Backend::Cpu => {
             let bar = spinner("rendering on the CPU");
@@ -250,6 +260,15 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
         equirect(world.as_ref(), &state, w, h)
     } else if args.truth {
         truth(world.as_ref(), &FramePlan::new(&state, &lens)?, &state)
+    } else if !args.readout.readout().is_global() {
+        let attitude = args.readout.attitude(&state);
+        rolling_fisheye(
+            world.as_ref(),
+            &lens,
+            &state,
+            &args.readout.readout(),
+            attitude,
+        )
     } else {
         fisheye(world.as_ref(), &lens, &state)
     };

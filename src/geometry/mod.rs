@@ -8,6 +8,7 @@ pub mod attitude;
 pub mod ground;
 pub mod projection;
 pub mod rotation;
+pub mod shutter;
 pub mod view;
 
 pub use attitude::AttitudeTrack;

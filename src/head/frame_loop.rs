@@ -10,6 +10,8 @@ use super::views::ViewOutputs;
 use super::{Head, HeadError, no_signal};
 use crate::clock::{Stamps, clock_us, unix_us};
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
+use crate::geometry::lens_from_world;
+use crate::geometry::shutter::ShutterTable;
 use crate::head::capture::Still;
 use crate::lens::Lens;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
@@ -263,6 +265,18 @@ impl Head {
         });
     }
 
+    /// The rolling shutter's table of a frame whose middle row was read at `middle_us`, the
+    /// vehicle turning as the telemetry has it (None for a global shutter).
+    fn shutter(&self, s: &State, lens: &Lens, middle_us: u64) -> Option<ShutterTable> {
+        let (middle, mount) = (s.vehicle.attitude.euler(), s.mount.euler());
+        let at = |dt_us: f64| {
+            let t = middle_us.saturating_add_signed(dt_us.round() as i64);
+            let attitude = self.telemetry.at(t).0.unwrap_or(middle);
+            lens_from_world(attitude, mount)
+        };
+        ShutterTable::new(&self.cfg.readout, (lens.width, lens.height), at)
+    }
+
     /// Renders `frame` with `state`, the vehicle as the telemetry had it at capture time;
     /// also gives that state, the lens at the frame's size and the KLV packet of the view
     /// `klv_camera` in it.
@@ -273,7 +287,10 @@ impl Head {
         state: &State,
     ) -> Result<Rendered, RenderFailure> {
         let mut s = state.clone();
-        let (attitude, position) = self.telemetry.at(frame.captured_us);
+        // A rolling shutter's frame is drawn as its middle row saw the world.
+        let middle_us = self.cfg.readout.middle_after_stamp_us().round() as i64;
+        let middle_us = frame.captured_us.saturating_add_signed(middle_us);
+        let (attitude, position) = self.telemetry.at(middle_us);
         if let Some(a) = attitude {
             (
                 s.vehicle.attitude.yaw,
@@ -294,7 +311,9 @@ impl Head {
             .lenses()
             .for_frame(s.lens, size, s.sensor.roi())
             .map_err(|e| RenderFailure::Frame(e.to_string()))?;
-        let plan = FramePlan::new(&s, &lens).map_err(|e| RenderFailure::Frame(e.to_string()))?;
+        let plan = FramePlan::new(&s, &lens)
+            .map_err(|e| RenderFailure::Frame(e.to_string()))?
+            .with_shutter(self.shutter(&s, &lens, middle_us));
         let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(truth) = truth.as_ref() {
             let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());

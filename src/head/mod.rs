@@ -33,6 +33,7 @@ pub use detection::DetectorError;
 use crate::detect::DetectionConfig;
 use crate::exposure::ExposureConfig;
 use crate::frame::FrameError;
+use crate::geometry::shutter::Readout;
 use crate::lens::LensError;
 use crate::render::gpu::GpuError;
 use crate::source::demo::{DemoConfig, Flight};
@@ -66,6 +67,8 @@ pub struct HeadConfig {
     pub klv_camera: usize,
     /// Whether the KLV lists the tracked objects (tag 74).
     pub klv_objects: bool,
+    /// The camera's rolling shutter, corrected.
+    pub readout: Readout,
 }
 
 /// Sends the demo's flight on as an autopilot would, from its start: what it returns runs

@@ -75,7 +75,7 @@ impl Head {
                 .lenses()
                 .for_frame(state.lens, (d.width, d.height), state.sensor.roi())?;
         let layout = PlaneLayout::tight(d.format, d.width, d.height)?;
-        let camera = DemoCamera::new(&lens, layout, state.mount.euler());
+        let camera = DemoCamera::new(&lens, layout, state.mount.euler()).with_readout(d.readout_ms);
         let flight = Flight {
             hover: state.vehicle.position,
             // Spinning is about level and north, by the clock alone: never about an attitude
@@ -145,7 +145,13 @@ impl Head {
                 gain: sensor.gain,
             });
             number += 1;
-            let data = camera.frame(attitude, &position, t, (sensor, number), stamp);
+            // A rolling shutter's later rows see the flight as it goes on.
+            let clock_s = captured_us as f64 / 1e6;
+            let at = |dt_us: f64| {
+                let dt = dt_us * 1e-6;
+                flight.pose_at(t + dt, clock_s + dt).0
+            };
+            let data = camera.frame(at, &position, t, (sensor, number), stamp);
             self.slot.put(Frame {
                 data,
                 layout,

@@ -3,6 +3,7 @@
 //! lens and the vehicle's attitude; both the CPU reference and the ground-truth renderer
 //! walk the same plan, so they differ only in where the colour comes from.
 
+use crate::geometry::shutter::ShutterTable;
 use crate::geometry::view::{crop, lens_from_world};
 use crate::geometry::{Euler, Projection, rotation::direction};
 use crate::layout::{Layout, LayoutError, Rect, Slot, layout};
@@ -21,6 +22,12 @@ pub const TILE_MARGIN: f64 = 1.6;
 /// The side of the square a camera that the layout does not show is measured in.
 pub const UNSHOWN_VIEW: u32 = 540;
 pub const TILE_FOV_RANGE: (f64, f64) = (0.02, 1.2);
+/// How often a rolling-shutter frame's ray is projected again with the rotation of the row it
+/// landed on ([`FramePlan::lens_pixel`]; SHUTTER_STEPS in shaders/views.wgsl). One step (as
+/// Gyroflow) leaves a point that moved across rows during the readout up to a quarter pixel off at
+/// 90°/s and a 25 ms readout at 4K (0.265 px); two leave 0.005 px
+/// (tests/it/rolling_shutter.rs).
+pub const SHUTTER_STEPS: usize = 2;
 
 /// How a view's pixels find their colour.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,7 +58,10 @@ pub struct FramePlan {
     pub views: Vec<PlannedView>,
     /// The lens at the fisheye frame's size.
     pub lens: Lens,
+    /// The lens's orientation when the fisheye frame's middle row was read.
     pub lens_from_world: DMat3,
+    /// The rolling shutter's rotations, row by row (None: a global shutter).
+    pub shutter: Option<ShutterTable>,
 }
 
 impl FramePlan {
@@ -96,6 +106,7 @@ impl FramePlan {
             views,
             lens: lens.clone(),
             lens_from_world,
+            shutter: None,
         };
         for i in 0..plan.views.len() {
             plan.views[i].samples = plan.samples_for(&plan.views[i]);
@@ -136,6 +147,7 @@ impl FramePlan {
             }],
             lens: lens.clone(),
             lens_from_world,
+            shutter: None,
         };
         plan.views[0].samples = plan.samples_for(&plan.views[0]);
         plan
@@ -164,6 +176,7 @@ impl FramePlan {
             views: vec![],
             lens: lens.clone(),
             lens_from_world,
+            shutter: None,
         };
         for (i, &(yaw, pitch, fov)) in aims.iter().enumerate() {
             let i = i as u32;
@@ -215,6 +228,37 @@ impl FramePlan {
         }
     }
 
+    /// The same plan for a frame read out by a rolling shutter: `shutter` is its table (from
+    /// [`ShutterTable::new`], around the middle row, whose attitude the plan was made with).
+    pub fn with_shutter(mut self, shutter: Option<ShutterTable>) -> FramePlan {
+        self.shutter = shutter;
+        self
+    }
+
+    /// Where a ray in the lens frame (as the lens was at the middle row) lands in the fisheye
+    /// (OpenCV pixels), whether or not inside the frame; None outside the lens's fov. With a
+    /// rolling shutter, projected again [`SHUTTER_STEPS`] times with the rotation of the row
+    /// it landed on: the point where the row read saw the ray.
+    pub fn lens_pixel(&self, ray: DVec3) -> Option<DVec2> {
+        let mut q = self.lens.project(ray)?;
+        if let Some(shutter) = &self.shutter {
+            for _ in 0..SHUTTER_STEPS {
+                q = self.lens.project(shutter.at(q) * ray)?;
+            }
+        }
+        Some(q)
+    }
+
+    /// The ray in the lens frame (as the lens was at the middle row) that fisheye point `q`
+    /// saw when its row was read; None where the lens model has no ray.
+    pub fn lens_ray(&self, q: DVec2) -> Option<DVec3> {
+        let ray = self.lens.unproject(q)?;
+        Some(match &self.shutter {
+            Some(shutter) => shutter.at(q).conjugate() * ray,
+            None => ray,
+        })
+    }
+
     /// Whether the frame draws camera `i`'s view (a debug panel does not count).
     pub fn shows_camera(&self, i: usize) -> bool {
         matches!(self.layout.views.get(i), Some(&(_, slot)) if slot != Slot::Debug)
@@ -243,9 +287,7 @@ impl FramePlan {
             ViewMap::Rays {
                 projection,
                 world_from_view,
-            } => self
-                .lens
-                .project(self.lens_from_world * world_from_view * projection.ray(p))?,
+            } => self.lens_pixel(self.lens_from_world * world_from_view * projection.ray(p))?,
             ViewMap::Fisheye { origin, scale } => {
                 let q = origin + p * scale - DVec2::splat(0.5);
                 self.lens.unproject(q)?;
@@ -265,7 +307,7 @@ impl FramePlan {
                 projection,
                 world_from_view,
             } => Some(world_from_view * projection.ray(p)),
-            _ => Some(self.lens_from_world.transpose() * self.lens.unproject(q)?),
+            _ => Some(self.lens_from_world.transpose() * self.lens_ray(q)?),
         }
     }
 
@@ -279,7 +321,7 @@ impl FramePlan {
                 world_from_view,
             } => Some(world_from_view * projection.ray(p)),
             ViewMap::Fisheye { origin, scale } => {
-                Some(self.lens_from_world.transpose() * self.lens.unproject(origin + p * scale)?)
+                Some(self.lens_from_world.transpose() * self.lens_ray(origin + p * scale)?)
             }
             ViewMap::Black => None,
         }
@@ -294,7 +336,7 @@ impl FramePlan {
                 world_from_view,
             } => projection.point(world_from_view.transpose() * ray)?,
             ViewMap::Fisheye { origin, scale } => {
-                let q = self.lens.project(self.lens_from_world * ray)?;
+                let q = self.lens_pixel(self.lens_from_world * ray)?;
                 (q + DVec2::splat(0.5) - origin) / scale
             }
             ViewMap::Black => return None,

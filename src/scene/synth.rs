@@ -3,8 +3,9 @@
 
 use super::World;
 use crate::geometry::ground::to_ned;
+use crate::geometry::shutter::Readout;
 use crate::geometry::view::lens_from_world;
-use crate::geometry::{GeoPoint, GeoPosition};
+use crate::geometry::{Euler, GeoPoint, GeoPosition};
 use crate::image_ops::{sample_offsets, to_rgb8};
 use crate::lens::Lens;
 use crate::render::FramePlan;
@@ -69,6 +70,29 @@ pub fn fisheye(world: &dyn World, lens: &Lens, state: &State) -> RgbImage {
     // Sample points measured from the top-left corner; OpenCV pixel coordinates are 0.5 less.
     supersample(lens.width, lens.height, SYNTH_SAMPLES, |p| {
         let ray = lens.unproject(p - DVec2::splat(0.5))?;
+        Some(world.colour(eye, world_from_lens * ray, t))
+    })
+}
+
+/// The fisheye frame a rolling-shutter camera reading out as `readout` captures: as
+/// [`fisheye`], but each sample is seen with the vehicle's attitude when its row was read,
+/// `attitude(dt_us)` at `dt_us` microseconds after the frame's middle row (the state's own
+/// attitude is not used; its position, mount and time are).
+pub fn rolling_fisheye(
+    world: &dyn World,
+    lens: &Lens,
+    state: &State,
+    readout: &Readout,
+    attitude: impl Fn(f64) -> Euler + Sync,
+) -> RgbImage {
+    let mount = state.mount.euler();
+    let (eye, t) = (eye(state), state.time);
+    let size = (lens.width, lens.height);
+    supersample(lens.width, lens.height, SYNTH_SAMPLES, |p| {
+        let q = p - DVec2::splat(0.5);
+        let ray = lens.unproject(q)?;
+        let world_from_lens =
+            lens_from_world(attitude(readout.point_us(q, size)), mount).transpose();
         Some(world.colour(eye, world_from_lens * ray, t))
     })
 }

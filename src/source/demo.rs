@@ -10,6 +10,7 @@ use crate::frame::{PixelFormat, PlaneLayout};
 use crate::geometry::Euler;
 use crate::geometry::GeoPosition;
 use crate::geometry::ground::from_ned;
+use crate::geometry::shutter::Readout;
 use crate::geometry::view::lens_from_world;
 use crate::lens::Lens;
 use crate::scene::GridWorld;
@@ -37,6 +38,10 @@ pub struct DemoConfig {
     /// Draw each frame's capture time (ms) as a barcode at the image centre, for
     /// glass-to-glass latency (scripts/latency.sh; 4:2:0 formats only).
     pub stamp: bool,
+    /// A rolling shutter: milliseconds from the first row read (top) to the last, each row
+    /// seen at the vehicle's attitude then; frames are stamped with their first row's time
+    /// (0: a global shutter).
+    pub readout_ms: f64,
 }
 
 impl Default for DemoConfig {
@@ -49,6 +54,7 @@ impl Default for DemoConfig {
             spin: false,
             format: PixelFormat::Nv12,
             stamp: false,
+            readout_ms: 0.0,
         }
     }
 }
@@ -131,6 +137,8 @@ pub struct DemoCamera {
     mount: Euler,
     /// The lens's image centre, pixels.
     centre: DVec2,
+    /// How the sensor reads its rows out (top to bottom, stamped at the first).
+    readout: Readout,
 }
 
 impl DemoCamera {
@@ -161,7 +169,15 @@ impl DemoCamera {
             rays,
             mount,
             centre: lens.centre(),
+            readout: Readout::default(),
         }
+    }
+
+    /// The same camera with a rolling shutter reading out top to bottom in `readout_ms`, its
+    /// frames stamped with their first row's time.
+    pub fn with_readout(mut self, readout_ms: f64) -> DemoCamera {
+        self.readout = Readout::top_to_bottom(readout_ms);
+        self
     }
 
     pub fn layout(&self) -> &PlaneLayout {
@@ -172,25 +188,40 @@ impl DemoCamera {
         &self.world
     }
 
-    /// The frame seen at `attitude` from `position` at scene time `t` through `sensor` (the
-    /// exposure and gain; `number` varies its noise from frame to frame), with `stamp` (when
-    /// given, and the layout 4:2:0) drawn as the [`stamp`] barcode at the image centre.
+    /// The frame seen from `position` at scene time `t` through `sensor` (the exposure and
+    /// gain; `number` varies its noise from frame to frame), with `stamp` (when given, and
+    /// the layout 4:2:0) drawn as the [`stamp`] barcode at the image centre. Each row is seen
+    /// at `attitude(dt_us)`, `dt_us` after the frame's first row was read (0 for every row
+    /// of a global shutter).
     pub fn frame(
         &self,
-        attitude: Euler,
+        attitude: impl Fn(f64) -> Euler + Sync,
         position: &GeoPosition,
         t: f64,
         sensor: (SensorModel, u64),
         stamp: Option<u32>,
     ) -> Vec<u8> {
         let (sensor, number) = sensor;
-        let world_from_lens: DMat3 = lens_from_world(attitude, self.mount).transpose();
         let eye = eye_at(position);
         let (bw, bh) = self.blocks;
+        let size = (self.layout.width, self.layout.height);
+        let stamp_to_middle = self.readout.middle_after_stamp_us();
+        // The lens's orientation as each row of blocks was read.
+        let world_from_lens: Vec<DMat3> = (0..bh)
+            .map(|by| {
+                let row = DVec2::new(0.0, 2.0 * by as f64 + 0.5);
+                let dt = match self.readout.is_global() {
+                    true => 0.0,
+                    false => self.readout.point_us(row, size) + stamp_to_middle,
+                };
+                lens_from_world(attitude(dt), self.mount).transpose()
+            })
+            .collect();
         // The world at every block centre, rows in parallel.
         let colours: Vec<DVec3> = (0..bh)
             .into_par_iter()
             .flat_map_iter(|by| {
+                let world_from_lens = world_from_lens[by];
                 (0..bw).map(move |bx| match self.rays[by * bw + bx] {
                     Some((r, size)) => {
                         let ray = world_from_lens * r.as_dvec3();

@@ -40,6 +40,23 @@ fn landmark_errors(
     frames: usize,
     meanwhile: impl FnOnce(u16) + Send + 'static,
 ) -> (Vec<f64>, Vec<f64>, f64) {
+    landmark_errors_with(attitude_sample, Readouts::default(), frames, meanwhile)
+}
+
+/// A rolling shutter: the demo camera's readout (ms) and the one the head corrects.
+#[derive(Clone, Copy, Default)]
+pub struct Readouts {
+    pub camera_ms: f64,
+    pub corrected_ms: f64,
+}
+
+/// [`landmark_errors`] with the demo camera and the head reading out as `readouts` says.
+pub fn landmark_errors_with(
+    attitude_sample: &str,
+    readouts: Readouts,
+    frames: usize,
+    meanwhile: impl FnOnce(u16) + Send + 'static,
+) -> (Vec<f64>, Vec<f64>, f64) {
     let dir = tempfile::tempdir().unwrap();
     let state = four_view_state(7);
     let state_file = dir.path().join("state.toml");
@@ -49,9 +66,10 @@ fn landmark_errors(
     std::fs::write(
         &config,
         format!(
-            "[demo]\nspin = true\nwidth = {}\nheight = {}\n\n[mavlink]\nendpoint = \
-             \"udpin:127.0.0.1:{port}\"\nattitude_sample = \"{attitude_sample}\"\n",
-            DEMO.0, DEMO.1
+            "[demo]\nspin = true\nwidth = {}\nheight = {}\nreadout_ms = {}\n\n[mavlink]\n\
+             endpoint = \"udpin:127.0.0.1:{port}\"\nattitude_sample = \"{attitude_sample}\"\n\n\
+             [readout]\ntime_ms = {}\n",
+            DEMO.0, DEMO.1, readouts.camera_ms, readouts.corrected_ms
         ),
     )
     .unwrap();
@@ -99,12 +117,12 @@ fn landmark_errors(
 }
 
 /// The median and worst of sorted errors (infinite when there are none).
-fn spread(errors: &[f64]) -> (f64, f64) {
+pub fn spread(errors: &[f64]) -> (f64, f64) {
     let at = |i: usize| errors.get(i).copied().unwrap_or(f64::INFINITY);
     (at(errors.len() / 2), at(errors.len().wrapping_sub(1)))
 }
 
-fn summary(what: &str, errors: &[f64], small: &[f64], fps: f64) -> (f64, f64) {
+pub fn summary(what: &str, errors: &[f64], small: &[f64], fps: f64) -> (f64, f64) {
     let (median, worst) = spread(errors);
     let (s_median, s_worst) = spread(small);
     eprintln!(

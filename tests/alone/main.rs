@@ -18,6 +18,7 @@ mod detect_motion;
 mod detect_onnx;
 mod exposure;
 mod klv_flight;
+mod rolling_video;
 mod serve_video;
 mod services;
 mod tracking;

@@ -36,6 +36,7 @@ mod protocol_system;
 mod publish;
 mod pymavlink;
 mod render_video;
+mod rolling_shutter;
 mod services;
 mod trust_mavlink;
 mod trust_web;

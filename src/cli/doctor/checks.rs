@@ -231,7 +231,7 @@ fn demo_frame(cfg: &Config, lens_cal: Option<&Path>) -> Outcome {
             gain: state.sensor.gain,
         });
         let pose = (state.vehicle.attitude.euler(), state.vehicle.position);
-        camera.frame(pose.0, &pose.1, 0.0, (sensor, 0), None);
+        camera.frame(|_| pose.0, &pose.1, 0.0, (sensor, 0), None);
         Ok(format!(
             "demo: a {}x{} {} frame in {} ms",
             d.width,

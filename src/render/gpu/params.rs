@@ -6,6 +6,7 @@
 use super::GpuError;
 use crate::frame::PlaneLayout;
 use crate::geometry::Projection;
+use crate::geometry::shutter::KNOTS;
 use crate::lens::Lens;
 use crate::render::plan::{FramePlan, PlannedView, ViewMap};
 use bytemuck::{Pod, Zeroable};
@@ -38,8 +39,13 @@ pub struct GpuParams {
     pub input: [u32; 4],
     pub input_planes: [u32; 4],
     pub lens: GpuLens,
+    /// The rolling shutter's knot coordinate (`ShutterTable::line`, xyz) and whether the frame
+    /// has one (w: 1 or 0).
+    pub shutter_line: [f32; 4],
+    /// `ShutterTable::knots`, quaternions (x, y, z, w).
+    pub shutter: [[f32; 4]; KNOTS],
 }
-const _: () = assert!(size_of::<GpuParams>() == 64 + 224);
+const _: () = assert!(size_of::<GpuParams>() == 64 + 224 + 16 + 16 * KNOTS);
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -58,6 +64,9 @@ pub(super) const KIND_BLACK: u32 = 0;
 pub(super) const KIND_RECTILINEAR: u32 = 1;
 pub(super) const KIND_PANORAMA: u32 = 2;
 pub(super) const KIND_FISHEYE: u32 = 3;
+/// The bit of VIEW_KINDS (shaders/views.wgsl) that says the frame has a rolling shutter to
+/// correct: the draw pipelines of frames without one leave its code out.
+pub(super) const SHUTTER_BIT: u32 = 4;
 
 fn packed<const N: usize>(coefficients: &[f64]) -> [[f32; 4]; N] {
     let mut out = [[0.0; 4]; N];
@@ -187,6 +196,14 @@ pub fn frame_params(
         input: [input.width, input.height, input.stride, input.chroma_stride],
         input_planes: [input.chroma[0], input.chroma[1], levels, 0],
         lens: gpu_lens(&plan.lens)?,
+        shutter_line: [0.0; 4],
+        shutter: [[0.0, 0.0, 0.0, 1.0]; KNOTS],
     };
+    let mut params = params;
+    if let Some(table) = &plan.shutter {
+        let l = table.line;
+        params.shutter_line = [l.x as f32, l.y as f32, l.z as f32, 1.0];
+        params.shutter = table.knots.map(|q| [q.x, q.y, q.z, q.w].map(|v| v as f32));
+    }
     Ok((params, views))
 }

@@ -17,8 +17,9 @@ use std::sync::mpsc;
 pub(super) const WORKGROUP: u32 = 8;
 /// Invocations in a `draw_mixed` workgroup, one block each.
 pub(super) const MIXED_WORKGROUP: u32 = 64;
-/// The VIEW_KINDS of the generic draw pipelines, which draw every kind (a bit per `KIND_*`).
-const ALL_KINDS: u32 = 0xf;
+/// The VIEW_KINDS of the generic draw pipelines, which draw every kind (a bit per `KIND_*`)
+/// and correct a rolling shutter (`SHUTTER_BIT`) when the frame has one.
+const ALL_KINDS: u32 = 0x1f;
 
 /// What the draw pipelines are built for: every override constant of shaders/render.wgsl.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

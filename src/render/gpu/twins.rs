@@ -6,13 +6,15 @@
 use super::blocks::{MIXED, NO_VIEW};
 use super::params::{
     GpuLens, GpuParams, GpuView, KIND_BLACK, KIND_FISHEYE, KIND_PANORAMA, KIND_RECTILINEAR,
-    MAX_VIEWS,
+    MAX_VIEWS, SHUTTER_BIT,
 };
 use super::pipelines::{MIXED_WORKGROUP, WORKGROUP};
 use super::planes::{IngestTargets, MipStep, Region};
 use super::shaders::passes;
 use crate::frame::{PixelFormat, yuv};
+use crate::geometry::shutter::KNOTS;
 use crate::render::Filter;
+use crate::render::plan::SHUTTER_STEPS;
 use naga::{Expression, Literal, Module, TypeInner};
 use std::mem::offset_of;
 
@@ -42,7 +44,7 @@ fn constants() -> Vec<(String, f64)> {
 
 #[test]
 fn every_wgsl_constant_with_a_rust_twin_has_its_value() {
-    let twins: [(&str, f64); 15] = [
+    let twins: [(&str, f64); 18] = [
         ("FORMAT_RGBA", PixelFormat::Rgba.shader_code() as f64),
         ("FORMAT_I420", PixelFormat::I420.shader_code() as f64),
         ("FORMAT_NV12", PixelFormat::Nv12.shader_code() as f64),
@@ -53,6 +55,9 @@ fn every_wgsl_constant_with_a_rust_twin_has_its_value() {
         ("KIND_PANORAMA", KIND_PANORAMA as f64),
         ("KIND_FISHEYE", KIND_FISHEYE as f64),
         ("MAX_VIEWS", MAX_VIEWS as f64),
+        ("SHUTTER_BIT", SHUTTER_BIT as f64),
+        ("SHUTTER_STEPS", SHUTTER_STEPS as f64),
+        ("KNOTS", KNOTS as f64),
         ("MIXED", MIXED as f64),
         ("NO_VIEW", NO_VIEW as i32 as f64),
         ("KR", yuv::KR as f32 as f64),
@@ -112,7 +117,15 @@ fn every_wgsl_struct_with_a_rust_twin_has_its_layout() {
     same_layout!(
         GpuParams,
         "Params",
-        [output, output_planes, input, input_planes, lens]
+        [
+            output,
+            output_planes,
+            input,
+            input_planes,
+            lens,
+            shutter_line,
+            shutter
+        ]
     );
     same_layout!(
         GpuLens,

@@ -7,7 +7,7 @@
 use super::super::blocks::{BLOCK_H, BLOCK_W};
 use super::super::draw::{BlockBuffer, Target};
 use super::super::input::Input;
-use super::super::params::{GpuParams, GpuView, MAX_VIEWS, frame_params};
+use super::super::params::{GpuParams, GpuView, MAX_VIEWS, SHUTTER_BIT, frame_params};
 use super::super::pipelines::{DrawKey, MIXED_WORKGROUP, PipelineKey, Pipelines, bind, groups};
 use super::super::{Gpu, GpuError};
 use super::OUTPUT_ALIGN;
@@ -131,7 +131,10 @@ impl Output {
         let (params, views) =
             frame_params(plan, &input.padded, &target.layout, input.levels, mixed)?;
         // The draw pipeline leaves out the code of view kinds the frame lacks.
-        let kinds = views.iter().fold(0, |kinds, v| kinds | 1 << v.kind[0]);
+        let shutter = (plan.shutter.is_some() as u32) << SHUTTER_BIT;
+        let kinds = views
+            .iter()
+            .fold(shutter, |kinds, v| kinds | 1 << v.kind[0]);
         let wanted = DrawKey {
             lens_model: plan.lens.radial.model.code(),
             output: self.format,
