@@ -9,6 +9,7 @@ use crate::autopilot::{Endpoint, LinkStatus, MavlinkConfig};
 use crate::cameras::Cameras;
 use crate::control::AutopilotStatus;
 use crate::head::{DemoAutopilot, Head};
+use crate::http::NotStarted;
 use crate::protocol::params::Autopilot;
 use crate::stream::Preview;
 use std::sync::Arc;
@@ -35,6 +36,17 @@ impl crate::http::Video for Video {
     }
     fn preview(&self) -> Arc<Preview> {
         self.0.preview.clone()
+    }
+    fn estimate_readout(&self, seconds: f64) -> Result<serde_json::Value, NotStarted> {
+        use crate::head::readout_probe::StartError;
+        match self.0.readout_probe.start(seconds) {
+            Ok(status) => Ok(serde_json::to_value(status).unwrap_or_default()),
+            Err(e @ StartError::Seconds(_)) => Err(NotStarted::Bad(e.to_string())),
+            Err(e @ StartError::Busy(_)) => Err(NotStarted::Busy(e.to_string())),
+        }
+    }
+    fn readout_estimate(&self) -> serde_json::Value {
+        serde_json::to_value(self.0.readout_probe.status()).unwrap_or_default()
     }
 }
 

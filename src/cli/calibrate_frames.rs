@@ -1,10 +1,10 @@
 //! Where `lens calibrate` reads its frames: a directory of pictures (in name order) or a video
 //! (any file GStreamer decodes, every Nth frame), each as its luma, the board finder's input.
 
-use crate::frame::{Frame, PixelFormat};
+use crate::frame::Frame;
 use crate::source::{FileFrames, SourceSpec};
 use anyhow::{Context, Result, bail};
-use image::{DynamicImage, GrayImage, RgbaImage};
+use image::{DynamicImage, GrayImage};
 use std::path::{Path, PathBuf};
 
 /// A video longer than this many frames is looked at every Nth frame by default, N chosen to
@@ -145,28 +145,9 @@ impl Pictures {
     }
 }
 
-/// A decoded frame's luma: the Y plane as it is, or RGBA's luma.
+/// A decoded frame's luma.
 fn luma(frame: &Frame) -> Result<GrayImage> {
-    let l = &frame.layout;
-    let picture = if l.format == PixelFormat::Rgba {
-        let rows: Vec<u8> = frame
-            .data
-            .chunks(l.stride as usize)
-            .take(l.height as usize)
-            .flat_map(|row| &row[..(l.width * 4) as usize])
-            .copied()
-            .collect();
-        RgbaImage::from_raw(l.width, l.height, rows)
-            .map(|rgba| DynamicImage::ImageRgba8(rgba).to_luma8())
-    } else {
-        let rows: Vec<u8> = frame
-            .data
-            .chunks(l.stride as usize)
-            .take(l.height as usize)
-            .flat_map(|row| &row[..l.width as usize])
-            .copied()
-            .collect();
-        GrayImage::from_raw(l.width, l.height, rows)
-    };
-    picture.context("a decoded frame smaller than its layout")
+    frame
+        .luma()
+        .context("a decoded frame smaller than its layout")
 }

@@ -72,6 +72,27 @@ pub struct Frame {
     pub captured_us: u64,
 }
 
+impl Frame {
+    /// The frame's luma: the Y plane as it is, or RGBA's luma; None for a buffer smaller than
+    /// its layout.
+    pub fn luma(&self) -> Option<image::GrayImage> {
+        let l = &self.layout;
+        let rows = |bytes: u32| -> Vec<u8> {
+            self.data
+                .chunks(l.stride as usize)
+                .take(l.height as usize)
+                .flat_map(|row| row.get(..bytes as usize).unwrap_or(&[]))
+                .copied()
+                .collect()
+        };
+        if l.format == PixelFormat::Rgba {
+            let rgba = image::RgbaImage::from_raw(l.width, l.height, rows(l.width * 4))?;
+            return Some(image::DynamicImage::ImageRgba8(rgba).to_luma8());
+        }
+        image::GrayImage::from_raw(l.width, l.height, rows(l.width))
+    }
+}
+
 /// One plane's rows in a frame's buffer, in bytes: where the first starts, how far apart they
 /// are, how many bytes of picture each holds (the rest is padding), and how many there are.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -314,6 +314,8 @@ impl Head {
         let plan = FramePlan::new(&s, &lens)
             .map_err(|e| RenderFailure::Frame(e.to_string()))?
             .with_shutter(self.shutter(&s, &lens, middle_us));
+        let camera = (&lens, s.mount.euler());
+        (self.readout_probe).offer(frame, camera, self.cfg.readout, &self.telemetry);
         let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(truth) = truth.as_ref() {
             let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());

@@ -23,6 +23,7 @@ pub mod health;
 pub mod latency;
 mod no_signal;
 pub mod pacing;
+pub mod readout_probe;
 mod source_thread;
 mod supervise;
 mod view_pacing;
@@ -120,6 +121,8 @@ pub struct Head {
     /// Where the demo's movers are, while the demo runs; the tracker scored against them.
     demo_truth: Mutex<Option<detection::score::DemoTruth>>,
     demo_score: Mutex<Option<detection::score::Score>>,
+    /// The readout estimate, when one is asked for.
+    pub readout_probe: Arc<readout_probe::ReadoutProbe>,
     /// The figures over the last second.
     health: Mutex<health::Health>,
     exposure: exposure::ExposureStage,
@@ -206,6 +209,7 @@ impl Head {
             klv: Mutex::default(),
             demo_truth: Mutex::default(),
             demo_score: Mutex::default(),
+            readout_probe: Arc::default(),
             health: Mutex::default(),
             exposure,
             scans: detection::ScanSlot::default(),

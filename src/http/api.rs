@@ -25,6 +25,49 @@ pub(super) fn routes() -> Router<Web> {
         .route("/api/status", get(status))
         .route("/api/lenses", get(lenses))
         .route("/api/captures", get(captures))
+        .route(
+            "/api/readout/estimate",
+            get(readout_estimate).post(estimate_readout),
+        )
+}
+
+/// Where the readout estimate stands (`state`: idle, collecting, fitting, done, failed) and,
+/// once done, its `fit`.
+async fn readout_estimate(State(web): State<Web>) -> Response {
+    match &web.video {
+        Some(v) => Json(v.readout_estimate()).into_response(),
+        None => ApiError(StatusCode::NOT_FOUND, "no video (--no-video)".into()).into_response(),
+    }
+}
+
+/// Starts measuring the camera's readout over `?seconds=` (default 10) of frames while the
+/// vehicle turns: a change (it loads the head), asked of the one policy as a SET is.
+async fn estimate_readout(
+    State(web): State<Web>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    Query(query): Query<HashMap<String, String>>,
+) -> Response {
+    use crate::policy::{Act, Peer};
+    let policy = &web.controller.policy;
+    if let Err(e) = policy.allow(Peer::Net(peer.ip()), Act::Change, "readout estimate") {
+        return ApiError(StatusCode::FORBIDDEN, e.0.into()).into_response();
+    }
+    let Some(video) = &web.video else {
+        return ApiError(StatusCode::NOT_FOUND, "no video (--no-video)".into()).into_response();
+    };
+    let seconds = match query.get("seconds").map(|s| s.parse::<f64>()) {
+        None => 10.0,
+        Some(Ok(s)) => s,
+        Some(Err(_)) => {
+            let message = "seconds: give a number of seconds".to_string();
+            return ApiError(StatusCode::BAD_REQUEST, message).into_response();
+        }
+    };
+    match video.estimate_readout(seconds) {
+        Ok(status) => (StatusCode::ACCEPTED, Json(status)).into_response(),
+        Err(super::NotStarted::Bad(e)) => ApiError(StatusCode::BAD_REQUEST, e).into_response(),
+        Err(super::NotStarted::Busy(e)) => ApiError(StatusCode::CONFLICT, e).into_response(),
+    }
 }
 
 fn kind_of(name: &str) -> Result<ParamType, ApiError> {

@@ -83,6 +83,19 @@ pub trait Video: Send + Sync {
     fn status(&self) -> serde_json::Value;
     /// The page's viewers of the stream.
     fn preview(&self) -> Arc<Preview>;
+    /// Starts measuring the camera's readout over `seconds` of frames (docs/serve.md,
+    /// "Measuring the readout").
+    fn estimate_readout(&self, seconds: f64) -> Result<serde_json::Value, NotStarted>;
+    /// Where the readout estimate stands, and its answer.
+    fn readout_estimate(&self) -> serde_json::Value;
+}
+
+/// Why a readout estimate did not start.
+pub enum NotStarted {
+    /// A value out of range: what is wrong with it.
+    Bad(String),
+    /// One is running already.
+    Busy(String),
 }
 
 /// What the handlers reach.

@@ -22,12 +22,8 @@ pub const TILE_MARGIN: f64 = 1.6;
 /// The side of the square a camera that the layout does not show is measured in.
 pub const UNSHOWN_VIEW: u32 = 540;
 pub const TILE_FOV_RANGE: (f64, f64) = (0.02, 1.2);
-/// How often a rolling-shutter frame's ray is projected again with the rotation of the row it
-/// landed on ([`FramePlan::lens_pixel`]; SHUTTER_STEPS in shaders/views.wgsl). One step (as
-/// Gyroflow) leaves a point that moved across rows during the readout up to a quarter pixel off at
-/// 90°/s and a 25 ms readout at 4K (0.265 px); two leave 0.005 px
-/// (tests/it/rolling_shutter.rs).
-pub const SHUTTER_STEPS: usize = 2;
+/// [`crate::geometry::shutter::STEPS`], re-exported for the GPU twins.
+pub const SHUTTER_STEPS: usize = crate::geometry::shutter::STEPS;
 
 /// How a view's pixels find their colour.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -240,13 +236,10 @@ impl FramePlan {
     /// rolling shutter, projected again [`SHUTTER_STEPS`] times with the rotation of the row
     /// it landed on: the point where the row read saw the ray.
     pub fn lens_pixel(&self, ray: DVec3) -> Option<DVec2> {
-        let mut q = self.lens.project(ray)?;
-        if let Some(shutter) = &self.shutter {
-            for _ in 0..SHUTTER_STEPS {
-                q = self.lens.project(shutter.at(q) * ray)?;
-            }
+        match &self.shutter {
+            Some(shutter) => shutter.project(ray, |r| self.lens.project(r)),
+            None => self.lens.project(ray),
         }
-        Some(q)
     }
 
     /// The ray in the lens frame (as the lens was at the middle row) that fisheye point `q`

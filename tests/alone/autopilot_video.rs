@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 const DEMO: (u32, u32) = (1280, 720);
 
-fn spinning(t: f64) -> DVec3 {
+pub fn spinning(t: f64) -> DVec3 {
     let e = digiview::source::demo::spin(Euler::default(), t);
     DVec3::new(e.yaw, e.pitch, e.roll)
 }

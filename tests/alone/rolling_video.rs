@@ -42,3 +42,64 @@ fn a_rolling_shutter_spinning_with_the_vehicle_is_corrected_in_the_decoded_views
          {r_worst:.2} px"
     );
 }
+
+/// The readout estimate on the live head (`POST /api/readout/estimate`): the demo camera
+/// reads out over 25 ms while it spins and the simulated autopilot reports the spin; the
+/// head, told nothing of the readout, finds it within 2 ms from 10 s of frames.
+#[test]
+fn the_live_head_measures_the_spinning_demo_cameras_readout() {
+    use crate::common::autopilot::{SimAutopilot, free_udp_port};
+    use crate::common::raw_request;
+    use crate::common::serve::Serve;
+    use std::time::{Duration, Instant};
+    let _alone = crate::one_at_a_time();
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_udp_port();
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[demo]\nspin = true\nreadout_ms = 25\n\n[mavlink]\nendpoint = \
+             \"udpin:127.0.0.1:{port}\"\n"
+        ),
+    )
+    .unwrap();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let serve = Serve::start_video(&["--config", config.to_str().unwrap(), "--mavlink", &link]);
+    let _sim = SimAutopilot::start(
+        &format!("udpout:127.0.0.1:{port}"),
+        super::autopilot_video::spinning,
+    );
+    let http = serve.http.as_ref().unwrap();
+    let addr = http.trim_start_matches("http://").trim_end_matches('/');
+    let ask = |method: &str, path: &str| {
+        let (status, body) = raw_request(addr, method, path, &[("Host", addr)], "").unwrap();
+        (
+            status,
+            serde_json::from_str::<serde_json::Value>(&body).unwrap(),
+        )
+    };
+    // Refused with a reason, state untouched: a length out of range.
+    let (status, body) = ask("POST", "/api/readout/estimate?seconds=600");
+    assert_eq!(status, 400, "{body}");
+    assert!(body["error"].as_str().unwrap().contains("1..=60"), "{body}");
+    assert_eq!(ask("GET", "/api/readout/estimate").1["state"], "idle");
+    std::thread::sleep(Duration::from_secs(2));
+    let (status, body) = ask("POST", "/api/readout/estimate?seconds=10");
+    assert_eq!(status, 202, "{body}");
+    assert_eq!(ask("POST", "/api/readout/estimate").0, 409, "one at a time");
+    let start = Instant::now();
+    let done = loop {
+        let (_, body) = ask("GET", "/api/readout/estimate");
+        if !matches!(body["state"].as_str(), Some("collecting" | "fitting")) {
+            break body;
+        }
+        assert!(start.elapsed() < Duration::from_secs(90), "still {body}");
+        std::thread::sleep(Duration::from_millis(500));
+    };
+    eprintln!("after {:.1} s: {done}", start.elapsed().as_secs_f64());
+    assert_eq!(done["state"], "done", "{done}");
+    let found = done["fit"]["readout_ms"].as_f64().unwrap();
+    assert!(found > 23.0 && found < 27.0, "estimated {found} ms for 25");
+    assert!(done["frames"].as_u64().unwrap() >= 250, "{done}");
+}

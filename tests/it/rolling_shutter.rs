@@ -281,3 +281,64 @@ fn two_steps_find_where_the_rolling_rows_saw_a_ray_at_4k() {
         assert!(two <= 0.02, "{turn:?}: off by {two:.4} px");
     }
 }
+
+/// The readout estimate (docs/serve.md, "Measuring the readout") on 4 s of the demo camera
+/// spinning (yaw 90°/s, roll ±20° at 1 Hz) with a `readout_ms` readout, as the head collects
+/// them: luma at half size, attitudes by the clock the spin follows.
+fn estimated(readout_ms: f64) -> digiview::render::shutter_fit::Fit {
+    use digiview::frame::{Frame, PixelFormat, PlaneLayout};
+    use digiview::render::shutter_fit::{FitFrame, estimate};
+    use digiview::source::demo::{DemoCamera, spin};
+    let state = State::default();
+    let (w, h) = (640, 360);
+    let lens = lens_cal()
+        .find("CIL216")
+        .unwrap()
+        .lens()
+        .for_frame(w, h, None);
+    let layout = PlaneLayout::tight(PixelFormat::Nv12, w, h).unwrap();
+    let camera = DemoCamera::new(&lens, layout, state.mount.euler()).with_readout(readout_ms);
+    let sensor = digiview::exposure::SensorModel::new(digiview::exposure::Setting {
+        exposure_us: state.sensor.exposure_us,
+        gain: state.sensor.gain,
+    });
+    let position = state.vehicle.position;
+    let frames: Vec<FitFrame> = (0..120)
+        .map(|i| {
+            let stamp = 100.0 + i as f64 / 30.0;
+            let at = |dt_us: f64| spin(Euler::default(), stamp + dt_us * 1e-6);
+            let data = camera.frame(at, &position, stamp, (sensor, i), None);
+            let frame = Frame {
+                data,
+                layout,
+                captured_us: 0,
+            };
+            FitFrame::new(frame.luma().unwrap(), |t| Some(at(t as f64))).unwrap()
+        })
+        .collect();
+    let fit = estimate(
+        &frames,
+        &lens,
+        state.mount.euler(),
+        Readout::default(),
+        |_, _| {},
+    );
+    let fit = fit.unwrap();
+    eprintln!(
+        "{readout_ms} ms: estimated {:.2} ms from {} pairs of {} points: disagreement {:.2} vs \
+         {:.2} uncorrected",
+        fit.readout_ms, fit.pairs, fit.points, fit.disagreement, fit.disagreement_global
+    );
+    fit
+}
+
+#[test]
+fn the_readout_of_the_spinning_demo_is_estimated_within_2_ms() {
+    for readout_ms in [READOUT_MS, 0.0, 45.0] {
+        let fit = estimated(readout_ms);
+        assert!(
+            (fit.readout_ms - readout_ms).abs() <= 2.0,
+            "{readout_ms} ms: {fit:?}"
+        );
+    }
+}
