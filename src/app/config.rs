@@ -361,6 +361,14 @@ mod tests {
             ("[mavlink]\nsigning_key = \"  \"", "signing_key is empty"),
             ("publish_views = [\"udp://h:5600\"]", "CAMERA=URL"),
             ("publish_views = [\"1=udp://h\"]", "needs a port"),
+            (
+                "[readout]\ntime_ms = 250",
+                "readout time_ms 250.0 is outside 0..=100",
+            ),
+            ("[readout]\ntime_ms = nan", "readout time_ms NaN"),
+            ("[readout]\ndirection = \"sideways\"", "top_to_bottom"),
+            ("[readout]\ntimestamp = \"now\"", "start"),
+            ("[demo]\nreadout_ms = -1", "demo readout_ms -1.0"),
         ] {
             let e = Config::parse(text).unwrap_err().to_string();
             assert!(e.contains(says), "{text:?}: {e}");

@@ -6,7 +6,7 @@
 use super::detection::score::rings;
 use super::pacing::Pacer;
 use super::supervise::Fault;
-use super::views::ViewOutputs;
+use super::views::{Framed, ViewOutputs};
 use super::{Head, HeadError, no_signal};
 use crate::clock::{Stamps, clock_us, unix_us};
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
@@ -44,6 +44,7 @@ struct Rendered {
     lens: Lens,
     unix_us: u64,
     klv: Option<Arc<[u8]>>,
+    shutter: Option<ShutterTable>,
 }
 
 /// What the status should say: running while frames flow; error once the source failed or
@@ -161,7 +162,12 @@ impl Head {
             let mut klv = None;
             let rendered = match (&last_frame, signal) {
                 (Some(frame), true) => self.render(&mut renderer, frame, &state).map(|r| {
-                    framed = Some((r.state, r.lens, r.unix_us));
+                    framed = Some(Framed {
+                        state: r.state,
+                        lens: r.lens,
+                        unix_us: r.unix_us,
+                        shutter: r.shutter,
+                    });
                     klv = r.klv;
                     (r.data, r.layout)
                 }),
@@ -215,10 +221,10 @@ impl Head {
             self.stats
                 .encoder_dropped
                 .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
-            let context = framed.as_ref().map(|(s, lens, t)| (s, lens, *t));
+            let context = framed.as_ref();
             self.render_views(&mut views, &mut renderer, context, pts, state.output.fps);
-            if let (Some(frame), Some((s, lens, _))) = (&last_frame, context) {
-                self.offer_scan(&mut scans, &mut renderer, frame, s, lens);
+            if let (Some(frame), Some(framed)) = (&last_frame, context) {
+                self.offer_scan(&mut scans, &mut renderer, frame, framed);
             }
             views.frame_done(taken.elapsed());
             let now_ok = health(signal, self.source_error().is_some(), last_frame.is_some());
@@ -311,9 +317,10 @@ impl Head {
             .lenses()
             .for_frame(s.lens, size, s.sensor.roi())
             .map_err(|e| RenderFailure::Frame(e.to_string()))?;
+        let shutter = self.shutter(&s, &lens, middle_us);
         let plan = FramePlan::new(&s, &lens)
             .map_err(|e| RenderFailure::Frame(e.to_string()))?
-            .with_shutter(self.shutter(&s, &lens, middle_us));
+            .with_shutter(shutter.clone());
         let camera = (&lens, s.mount.euler());
         (self.readout_probe).offer(frame, camera, self.cfg.readout, &self.telemetry);
         let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
@@ -345,6 +352,7 @@ impl Head {
             lens,
             unix_us: time_us,
             klv,
+            shutter,
         })
     }
 }

@@ -9,6 +9,7 @@
 use super::view_pacing::ViewPacing;
 use super::{Head, no_signal};
 use crate::frame::{PixelFormat, PlaneLayout};
+use crate::geometry::shutter::ShutterTable;
 use crate::lens::Lens;
 use crate::render::gpu::{GpuError, OutputId, Renderer};
 use crate::render::{Filter, FramePlan};
@@ -63,9 +64,18 @@ impl ViewOutputs {
     }
 }
 
-/// The state and lens the frame last uploaded to the renderer was rendered with, and its
-/// capture time (UNIX µs, for the views' KLV); None while the source is down.
-pub(super) type Rendered<'a> = Option<(&'a State, &'a Lens, u64)>;
+/// What the frame last uploaded to the renderer was rendered with: the state, the lens at the
+/// frame's size, its capture time (UNIX µs, for the views' KLV) and its rolling shutter's
+/// table, which the views alone and the detection scans draw it with too.
+pub(super) struct Framed {
+    pub state: State,
+    pub lens: Lens,
+    pub unix_us: u64,
+    pub shutter: Option<ShutterTable>,
+}
+
+/// The frame last rendered; None while the source is down.
+pub(super) type Rendered<'a> = Option<&'a Framed>;
 
 impl Head {
     /// Feeds the watched views' streams that are due (`ViewPacing`) and takes the stills
@@ -111,16 +121,10 @@ impl Head {
             return;
         }
         let pictures = match rendered {
-            Some((state, lens, time_us)) => {
+            Some(framed) => {
                 let size = self.cfg.view_size;
                 let objects = self.cfg.klv_objects;
-                let pictures = draw_views(
-                    outs,
-                    renderer,
-                    (state, lens, time_us),
-                    &wanted,
-                    (size, objects),
-                );
+                let pictures = draw_views(outs, renderer, framed, &wanted, (size, objects));
                 let took = now.elapsed();
                 outs.pacing.drawn(&wanted, took, now);
                 self.stats
@@ -213,13 +217,14 @@ impl Head {
 fn draw_views(
     outs: &mut ViewOutputs,
     renderer: &mut Renderer,
-    (state, lens, time_us): (&State, &Lens, u64),
+    framed: &Framed,
     wanted: &[usize],
     ((w, h), objects): ((u32, u32), bool),
 ) -> Vec<(Picture, Option<Arc<[u8]>>)> {
+    let (state, lens, time_us) = (&framed.state, &framed.lens, framed.unix_us);
     let plans: Vec<_> = wanted
         .iter()
-        .map(|&i| FramePlan::single_view(state, lens, i, w, h))
+        .map(|&i| FramePlan::single_view(state, lens, i, w, h).with_shutter(framed.shutter.clone()))
         .collect();
     let mut jobs = Vec::with_capacity(wanted.len());
     let drawn = wanted.iter().zip(&plans).try_for_each(|(&i, plan)| {

@@ -22,7 +22,6 @@ use crate::detect::{AngularBox, Detector, MotionDetector, OnnxDetector, OnnxErro
 use crate::frame::{Frame, PixelFormat};
 use crate::geometry::GeoPoint;
 use crate::geometry::ground::to_ned;
-use crate::lens::Lens;
 use crate::render::Filter;
 use crate::render::gpu::{GpuError, OutputId, Renderer};
 use crate::state::State;
@@ -131,9 +130,9 @@ impl Head {
         scans: &mut ScanRenderer,
         renderer: &mut Renderer,
         frame: &Frame,
-        state: &State,
-        lens: &Lens,
+        framed: &super::views::Framed,
     ) {
+        let (state, lens) = (&framed.state, &framed.lens);
         let size = (frame.layout.width as u64) << 32 | frame.layout.height as u64;
         self.frame_size.store(size, Ordering::Relaxed);
         if !self.detecting(state) {
@@ -176,6 +175,8 @@ impl Head {
         if views.is_empty() {
             return;
         }
+        // Drawn as the frame was: a rolling shutter's rows each with their own attitude.
+        let plan = plan.with_shutter(framed.shutter.clone());
         let output = if crops.is_empty() {
             &mut scans.scan
         } else {
