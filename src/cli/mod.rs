@@ -12,6 +12,7 @@ mod lens_entry;
 pub mod locate;
 mod output;
 mod readout_args;
+mod readout_cmd;
 mod render_cmd;
 mod render_video;
 pub(crate) mod serve_cmd;
@@ -60,6 +61,8 @@ pub enum Command {
     Doctor(doctor::DoctorArgs),
     /// Send the demo's flight as a MAVLink autopilot, to try a setup without a drone.
     SimAutopilot(sim_cmd::SimArgs),
+    /// Measure a running head's rolling-shutter readout while the vehicle turns.
+    Readout(readout_cmd::ReadoutCmdArgs),
 }
 
 /// Which renderer `render` and `bench` use.
@@ -181,6 +184,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Doctor(args) => doctor::doctor(cli.lens_cal.as_deref(), args),
         Command::Ctl(args) => ctl_cmd::run(args),
         Command::SimAutopilot(args) => sim_cmd::sim_autopilot(args),
+        Command::Readout(args) => readout_cmd::run(args),
     }
 }
 

@@ -25,8 +25,9 @@ pub const MAX_SECONDS: f64 = 60.0;
 pub struct ProbeStatus {
     /// idle, collecting, fitting, done or failed.
     pub state: &'static str,
-    /// Frames collected, and the seconds of them asked for.
+    /// Frames collected, the seconds they span, and the seconds asked for.
     pub frames: usize,
+    pub collected_s: f64,
     pub seconds: f64,
     /// The search's steps done and to do.
     pub steps: (usize, usize),
@@ -142,6 +143,8 @@ impl ReadoutProbe {
         }
         let mut status = self.status.lock().unwrap_or_else(|e| e.into_inner());
         status.frames = c.done.len();
+        let first = until - c.span_us;
+        status.collected_s = (frame.captured_us.min(until).saturating_sub(first)) as f64 / 1e6;
         if !c.full || !c.pending.is_empty() {
             return;
         }

@@ -43,9 +43,10 @@ fn a_rolling_shutter_spinning_with_the_vehicle_is_corrected_in_the_decoded_views
     );
 }
 
-/// The readout estimate on the live head (`POST /api/readout/estimate`): the demo camera
-/// reads out over 25 ms while it spins and the simulated autopilot reports the spin; the
-/// head, told nothing of the readout, finds it within 2 ms from 10 s of frames.
+/// The readout estimate on the live head (`digiview readout`, which asks the head's
+/// `/api/readout/estimate`): the demo camera reads out over 25 ms while it spins and the
+/// simulated autopilot reports the spin; the head, told nothing of the readout, finds it
+/// within 2 ms from 10 s of frames.
 #[test]
 fn the_live_head_measures_the_spinning_demo_cameras_readout() {
     use crate::common::autopilot::{SimAutopilot, free_udp_port};
@@ -85,18 +86,21 @@ fn the_live_head_measures_the_spinning_demo_cameras_readout() {
     assert!(body["error"].as_str().unwrap().contains("1..=60"), "{body}");
     assert_eq!(ask("GET", "/api/readout/estimate").1["state"], "idle");
     std::thread::sleep(Duration::from_secs(2));
-    let (status, body) = ask("POST", "/api/readout/estimate?seconds=10");
-    assert_eq!(status, 202, "{body}");
-    assert_eq!(ask("POST", "/api/readout/estimate").0, 409, "one at a time");
+    // As a user measures it: `digiview readout`, which asks, follows and prints.
     let start = Instant::now();
-    let done = loop {
-        let (_, body) = ask("GET", "/api/readout/estimate");
-        if !matches!(body["state"].as_str(), Some("collecting" | "fitting")) {
-            break body;
-        }
-        assert!(start.elapsed() < Duration::from_secs(90), "still {body}");
-        std::thread::sleep(Duration::from_millis(500));
-    };
+    let command = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["readout", "--http", http, "--seconds", "10", "--json"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(2));
+    let (status, body) = ask("POST", "/api/readout/estimate");
+    assert_eq!(status, 409, "one at a time: {body}");
+    let out = command.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "digiview readout: {stderr}");
+    let done: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     eprintln!("after {:.1} s: {done}", start.elapsed().as_secs_f64());
     assert_eq!(done["state"], "done", "{done}");
     let found = done["fit"]["readout_ms"].as_f64().unwrap();
