@@ -129,6 +129,7 @@ fn pixel_ray(live: &Live, s: &State, i: usize, x: f64, y: f64) -> Result<DVec3, 
         .for_frame(s.lens, sensor, s.sensor.roi())
         .map_err(Refusal::data)?;
     let plan = FramePlan::new(s, &lens).map_err(Refusal::data)?;
+    let plan = plan.with_shutter(live.rendered_shutter(sensor));
     let view = plan.camera_view(s, i);
     let (w, h) = (view.rect.w as f64, view.rect.h as f64);
     let p = DVec2::new(w / 2.0 + x * w, h / 2.0 + y * h);

@@ -96,7 +96,8 @@ pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
         .lenses()
         .for_frame(state.lens, sensor, state.sensor.roi())
         .ok()
-        .and_then(|lens| FramePlan::new(state, &lens).ok());
+        .and_then(|lens| FramePlan::new(state, &lens).ok())
+        .map(|plan| plan.with_shutter(live.rendered_shutter(sensor)));
     let Some(plan) = plan else {
         return vec![vec![]; state.tracked.len()];
     };

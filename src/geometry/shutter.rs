@@ -165,6 +165,22 @@ impl ShutterTable {
         (self.knots[i] * (1.0 - f) + self.knots[i + 1] * f).normalize()
     }
 
+    /// The same table for the frame scaled from `from` to `to` pixels (a lens planned at the
+    /// sensor's size for a frame that arrived smaller): the same rows, their pixel
+    /// coordinates scaled as `Lens::for_frame` scales them (q' + ½ = (q + ½) · s).
+    pub fn resized(&self, from: (u32, u32), to: (u32, u32)) -> ShutterTable {
+        let s = DVec2::new(
+            to.0.max(1) as f64 / from.0.max(1) as f64,
+            to.1.max(1) as f64 / from.1.max(1) as f64,
+        );
+        let l = self.line;
+        let half = 0.5 / s - 0.5;
+        ShutterTable {
+            line: DVec3::new(l.x / s.x, l.y / s.y, l.z + l.x * half.x + l.y * half.y),
+            knots: self.knots,
+        }
+    }
+
     /// Where a ray in the lens frame (as the lens was at the middle row) lands, `project`
     /// being the lens's projection: projected, then projected again [`STEPS`] times with
     /// the rotation of the row it landed on. None where any projection is.
@@ -209,6 +225,24 @@ mod tests {
         let half = 0.5 * last / 640.0;
         assert!((k(LeftToRight, DVec2::new(0.0, 7.0)) - half).abs() < 1e-12);
         assert!((k(RightToLeft, DVec2::new(0.0, 7.0)) - (last - half)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_table_resized_reads_the_same_rows_at_the_scaled_points() {
+        let yaw = |dt: f64| Euler::new(1.5 * dt * 1e-6, 0.0, 0.0).matrix().transpose();
+        for direction in [ReadoutDirection::TopToBottom, ReadoutDirection::RightToLeft] {
+            let readout = Readout {
+                direction,
+                ..Readout::top_to_bottom(25.0)
+            };
+            let small = ShutterTable::new(&readout, (640, 360), yaw).unwrap();
+            let big = small.resized((640, 360), (3840, 2160));
+            let made = ShutterTable::new(&readout, (3840, 2160), yaw).unwrap();
+            assert!(big.line.abs_diff_eq(made.line, 1e-15) && big.knots == made.knots);
+            let q = DVec2::new(100.25, 200.75);
+            let scaled = (q + 0.5) * 6.0 - 0.5;
+            assert!(small.at(q).angle_between(big.at(scaled)) < 1e-12);
+        }
     }
 
     #[test]

@@ -318,6 +318,8 @@ impl Head {
             .for_frame(s.lens, size, s.sensor.roi())
             .map_err(|e| RenderFailure::Frame(e.to_string()))?;
         let shutter = self.shutter(&s, &lens, middle_us);
+        let frame_size = (lens.width, lens.height);
+        (self.live).set_rendered_shutter(shutter.clone().map(|t| (t, frame_size)));
         let plan = FramePlan::new(&s, &lens)
             .map_err(|e| RenderFailure::Frame(e.to_string()))?
             .with_shutter(shutter.clone());

@@ -11,6 +11,7 @@
 use super::capture::Capturer;
 use super::services::Services;
 use super::{Invalid, State};
+use crate::geometry::shutter::ShutterTable;
 use crate::lens::{LensCal, Lenses};
 use arc_swap::ArcSwap;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
@@ -61,6 +62,8 @@ pub struct Live {
     /// drawn over that frame is placed with it (the state's own attitude is not the
     /// autopilot's, which only the telemetry follows).
     rendered: Mutex<Option<(u64, super::Vehicle)>>,
+    /// That frame's rolling-shutter table and the frame's size (None: a global shutter).
+    rendered_shutter: Mutex<Option<(ShutterTable, (u32, u32))>>,
 }
 
 impl Live {
@@ -79,12 +82,33 @@ impl Live {
             sensor_refusal: Mutex::new(None),
             services: Services::default(),
             rendered: Mutex::new(None),
+            rendered_shutter: Mutex::new(None),
         })
     }
 
     /// The frame captured at `captured_us` was rendered with `vehicle`.
     pub fn set_rendered(&self, captured_us: u64, vehicle: super::Vehicle) {
         *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some((captured_us, vehicle));
+    }
+
+    /// ...and, for a rolling shutter, with `shutter` for a frame of `size` pixels.
+    pub fn set_rendered_shutter(&self, shutter: Option<(ShutterTable, (u32, u32))>) {
+        *self
+            .rendered_shutter
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) = shutter;
+    }
+
+    /// The last frame's rolling-shutter table for a lens planned at `size` pixels, so what a
+    /// service places on a view maps pixels as the frame was drawn (None: global shutter).
+    pub fn rendered_shutter(&self, size: (u32, u32)) -> Option<ShutterTable> {
+        let shutter = self
+            .rendered_shutter
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        shutter
+            .as_ref()
+            .map(|(table, from)| table.resized(*from, size))
     }
 
     /// `state` as the last frame rendered showed it: the vehicle as it was then, the tracked

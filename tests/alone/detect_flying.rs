@@ -6,10 +6,10 @@
 
 use crate::common;
 
+use common::Load;
 use common::gcs::http_get;
 use common::serve::Serve;
 use serde_json::Value;
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 /// Seconds each condition flies (DIGIVIEW_FLIGHT_S; the figures in docs/detection.md are of
@@ -17,27 +17,6 @@ use std::time::Duration;
 fn flight() -> Duration {
     let s = std::env::var("DIGIVIEW_FLIGHT_S").ok();
     Duration::from_secs(s.and_then(|s| s.parse().ok()).unwrap_or(24))
-}
-
-/// A process that keeps one core busy until dropped.
-struct Load(Child);
-
-impl Load {
-    fn start() -> Load {
-        let child = Command::new("sh")
-            .args(["-c", "while :; do :; done"])
-            .stdout(Stdio::null())
-            .spawn()
-            .unwrap();
-        Load(child)
-    }
-}
-
-impl Drop for Load {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 fn status(serve: &Serve) -> Value {

@@ -312,3 +312,25 @@ pub fn off_the_movers_circles(at: glam::DVec2) -> f64 {
         .map(|m| (at.distance(m.centre) - m.orbit).abs())
         .fold(f64::INFINITY, f64::min)
 }
+
+/// A process that keeps one core busy until dropped: the load generator of the tests that
+/// measure under load.
+pub struct Load(std::process::Child);
+
+impl Load {
+    pub fn start() -> Load {
+        let child = std::process::Command::new("sh")
+            .args(["-c", "while :; do :; done"])
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        Load(child)
+    }
+}
+
+impl Drop for Load {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
