@@ -42,6 +42,8 @@ pub struct Health {
     pub klv: Option<crate::stream::klv::ViewMetadata>,
     /// On the demo: the tracker against the demo's own movers, since detection started.
     pub demo_score: Option<super::detection::score::Score>,
+    /// The rolling-shutter readout corrected, ms (0: a global shutter, nothing corrected).
+    pub readout_ms: f64,
 }
 
 /// The counters at one moment.
@@ -190,6 +192,7 @@ impl Head {
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .clone(),
+            readout_ms: self.cfg.readout.time_ms,
         }
     }
 
