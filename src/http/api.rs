@@ -10,6 +10,7 @@ use crate::protocol::edit::{self, Given};
 use crate::protocol::{Param, ParamType};
 use axum::Json;
 use axum::Router;
+use axum::extract::rejection::JsonRejection;
 use axum::extract::{ConnectInfo, Path, Query, State};
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -240,13 +241,18 @@ async fn put_param(
     State(web): State<Web>,
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
     Path(name): Path<String>,
-    body: Option<Json<Value>>,
+    body: Result<Json<Value>, JsonRejection>,
 ) -> Response {
-    let Some(Json(body)) = body else {
-        return text(
-            StatusCode::BAD_REQUEST,
-            "the body is a JSON object of fields (Content-Type: application/json)",
-        );
+    let body = match body {
+        Ok(Json(body)) => body,
+        Err(JsonRejection::MissingJsonContentType(_)) => {
+            let message = "the body is a JSON object of fields (Content-Type: application/json)";
+            return ApiError(StatusCode::BAD_REQUEST, message.into()).into_response();
+        }
+        Err(e) => {
+            let message = format!("the body is not JSON: {}", e.body_text());
+            return ApiError(StatusCode::BAD_REQUEST, message).into_response();
+        }
     };
     match set_json(&web, peer.ip(), &name, &body) {
         Ok(v) => Json(v).into_response(),

@@ -161,18 +161,11 @@ pub async fn serve(
     }
 }
 
-/// A plain-text error response.
+/// An error response: `{"error": message}`, as every error of the server is (the JSON API's
+/// and the rest alike), so a script reads each the same way.
 fn text(status: StatusCode, message: impl Into<String>) -> Response {
-    let mut body = message.into();
-    if !body.ends_with('\n') {
-        body.push('\n');
-    }
-    (
-        status,
-        [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
-        body,
-    )
-        .into_response()
+    let message: String = message.into();
+    (status, axum::Json(serde_json::json!({ "error": message }))).into_response()
 }
 
 /// Basic authentication, when a login is set.

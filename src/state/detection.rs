@@ -7,6 +7,9 @@ use serde::{Deserialize, Serialize};
 
 /// A score field of 255 means "keep the current value".
 pub const KEEP: u8 = 255;
+/// The least and most boxes DETECTION's crop_box_limit and var_box_limit take (the protocol
+/// clamps to them; state files and flags are refused outside them).
+pub const BOX_LIMITS: (u16, u16) = (10, 500);
 
 /// How detections are kept and shown (DETECTION, and GENERAL_SETTINGS' run_ai). Field names
 /// are the seed's; ratios are in [0, 1).
@@ -93,8 +96,8 @@ impl DetectionSettings {
                 *field = v;
             }
         }
-        d.crop_box_limit = p.crop_box_limit.clamp(10, 500);
-        d.var_box_limit = p.var_box_limit.clamp(10, 500);
+        d.crop_box_limit = p.crop_box_limit.clamp(BOX_LIMITS.0, BOX_LIMITS.1);
+        d.var_box_limit = p.var_box_limit.clamp(BOX_LIMITS.0, BOX_LIMITS.1);
         for (field, v) in [
             (&mut d.creation_score_scale, p.creation_score_scale),
             (&mut d.bonus_detection_scale, p.bonus_detection_scale),

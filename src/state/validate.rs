@@ -1,6 +1,7 @@
 //! The one check every way into the state goes through (state files, flags, the control
 //! protocol, and what comes later): every field against the range the protocol allows.
 
+use super::detection::BOX_LIMITS;
 use super::{FPS_RANGE, MAX_GAIN, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, RATIO_RANGE, State};
 use crate::geometry::view::{LockFlags, clamp_fov, control, crop, fov_range};
 use crate::layout::{LAYOUT_MODES, OVERLAY_MODES};
@@ -176,6 +177,18 @@ impl State {
                 return invalid(format!("detection {name} {v} is outside [0, 0.99)"));
             }
         }
+        for (name, v) in [
+            ("crop_box_limit", d.crop_box_limit),
+            ("var_box_limit", d.var_box_limit),
+        ] {
+            // What DETECTION clamps them to, refused from every other path.
+            if !(BOX_LIMITS.0..=BOX_LIMITS.1).contains(&v) {
+                return invalid(format!(
+                    "detection {name} {v} is outside {}..={}",
+                    BOX_LIMITS.0, BOX_LIMITS.1
+                ));
+            }
+        }
         if d.sorting_mode > 2 {
             return invalid(format!(
                 "detection sorting_mode {} is outside 0..=2",
@@ -228,6 +241,19 @@ impl State {
             }
         }
         for (i, c) in self.cameras.iter().enumerate() {
+            // As CAM_ORIENTATION takes them: yaw and pitch wrap (one turn either way is
+            // taken), roll is clamped to ±π/2 (so more is refused, not changed).
+            if c.yaw.abs() > 2.0 * PI + slack
+                || c.pitch.abs() > 2.0 * PI + slack
+                || c.roll.abs() > FRAC_PI_2 + slack
+            {
+                return invalid(format!(
+                    "camera {i}: yaw {}, pitch {}, roll {} rad is outside ±2π, ±2π, ±π/2",
+                    num(c.yaw),
+                    num(c.pitch),
+                    num(c.roll)
+                ));
+            }
             if let Some(t) = &c.target
                 && (!(-90.0..=90.0).contains(&t.lat)
                     || !(-180.0..=180.0).contains(&t.lon)

@@ -359,6 +359,26 @@ fn state_files_and_lens_cal_mistakes_are_named() {
         !o.status.success() && e.contains("sensor crop 5000x5000 at 0,0 does not fit"),
         "{e}"
     );
+    // What the protocol would clamp or refuse, refused from a file too, naming the field.
+    for (text, says) in [
+        (
+            "[detection]\ncrop_box_limit = 5\n",
+            "detection crop_box_limit 5 is outside 10..=500",
+        ),
+        (
+            "[detection]\nvar_box_limit = 60000\n",
+            "detection var_box_limit 60000 is outside 10..=500",
+        ),
+        (
+            "[vehicle.position]\nlat = 47.4\nlon = 8.5\nalt = nan\nrelative_alt = 30\n",
+            "vehicle altitude NaN m",
+        ),
+    ] {
+        std::fs::write(&state, text).unwrap();
+        let o = synth(&["--state", &state]);
+        let e = stderr(&o);
+        assert!(!o.status.success() && e.contains(says), "{text:?}: {e}");
+    }
 
     // An empty lens.cal is an error, not an empty list.
     let empty = dir.path().join("empty.cal");
@@ -627,6 +647,8 @@ fn careless_values_are_refused_with_what_to_change() {
         ),
         ("--mount", "pitch=1e300", "mount yaw"),
         ("--track", "size=-4deg", "tracked object 0: size"),
+        ("--cam", "0:roll=3", "roll 3 rad is outside ±2π, ±2π, ±π/2"),
+        ("--cam", "1:pitch=1e300", "pitch 1e300"),
     ] {
         let o = bin(&["render", "--input", "f.png", "--out", "o.png", flag, value]);
         assert!(!o.status.success(), "{flag} {value} succeeded");

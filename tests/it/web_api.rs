@@ -70,9 +70,40 @@ async fn a_script_reads_and_sets_over_rest_and_the_event_socket() {
             "{body}: no reason"
         );
     }
+    // A body that is not JSON, or says it is not: the API's JSON error all the same; so is
+    // every other refusal (a name the server does not answer to).
+    let raw = |headers: &[(&str, &str)], body: &str| {
+        let (code, body) =
+            common::raw_request(host, "PUT", "/api/params/CAM_FOV", headers, body).unwrap();
+        (
+            code,
+            serde_json::from_str::<Value>(&body).unwrap_or(Value::Null),
+        )
+    };
+    for (headers, body, says) in [
+        (
+            &[("Host", host)][..],
+            "{\"cam_id\": 1, fov",
+            "the body is not JSON",
+        ),
+        (&[("Host", host)][..], "", "Content-Type: application/json"),
+        (
+            &[("Host", "evil.example")][..],
+            "{}",
+            "does not answer to the name",
+        ),
+    ] {
+        let (code, why) = raw(headers, body);
+        let error = why["error"].as_str().unwrap_or_default();
+        assert!(
+            code >= 400 && error.contains(says),
+            "{body:?}: {code} {why}"
+        );
+    }
     assert_eq!(request(host, "GET", "/api/params/LENS", None).1, lens);
-    let (code, _) = request(host, "GET", "/api/params/NO_SUCH", None);
+    let (code, why) = request(host, "GET", "/api/params/NO_SUCH", None);
     assert_eq!(code, 404);
+    assert!(why["error"].is_string(), "{why}");
     assert!(
         (fov_of(&mut client, 1) - 40.0 * DEG).abs() < 1e-3,
         "the refusals changed nothing"
