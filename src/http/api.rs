@@ -229,12 +229,29 @@ pub(crate) fn set_json(
     if let Some(cam) = param.cam_id() {
         let _ = query.set_field("cam_id", cam as f64);
     }
-    Ok(
-        match web.controller.get(&query).ok().and_then(|mut v| v.pop()) {
-            Some(now) if !matches!(kind, ParamType::CamOffset | ParamType::CamTarget) => json!(now),
-            _ => json!({ "result": "set" }),
-        },
-    )
+    let now = web.controller.get(&query).ok().and_then(|mut v| v.pop());
+    let Some(now) = now.filter(|_| !matches!(kind, ParamType::CamOffset | ParamType::CamTarget))
+    else {
+        return Ok(json!({ "result": "set" }));
+    };
+    let mut reply = json!(now);
+    // What the protocol's rules changed (clamped, wrapped, ignored), said rather than hidden.
+    let (asked, set) = (json!(param), reply.clone());
+    let clamped: Map<String, Value> = fields
+        .keys()
+        .filter(|k| !is_delta && !matches!(k.as_str(), "cam_id" | "is_delta"))
+        .filter_map(|k| {
+            let (a, s) = (asked.get(k)?.as_f64()?, set.get(k)?.as_f64()?);
+            let differs = (a - s).abs() > 1e-6 * a.abs().max(1.0);
+            differs.then(|| (k.clone(), json!({ "asked": a, "set": s })))
+        })
+        .collect();
+    if !clamped.is_empty()
+        && let Some(object) = reply.as_object_mut()
+    {
+        object.insert("clamped".into(), Value::Object(clamped));
+    }
+    Ok(reply)
 }
 
 async fn put_param(

@@ -100,6 +100,29 @@ async fn a_script_reads_and_sets_over_rest_and_the_event_socket() {
             "{body:?}: {code} {why}"
         );
     }
+    // A value the protocol clamps or ignores is set as the protocol has it, and the reply
+    // says so; one it takes as given says nothing more.
+    let path = "/api/params/VIDEO_OUTPUT";
+    let (code, reply) = request(
+        host,
+        "PUT",
+        path,
+        Some(&json!({"fps": 99, "layout_mode": 9})),
+    );
+    assert_eq!(code, 200, "{reply}");
+    assert_eq!(
+        reply["clamped"]["fps"],
+        json!({"asked": 99.0, "set": 30.0}),
+        "{reply}"
+    );
+    assert_eq!(reply["clamped"]["layout_mode"]["asked"], 9.0, "{reply}");
+    assert_eq!(reply["fps"], 30);
+    let (_, reply) = request(host, "PUT", path, Some(&json!({"fps": 25})));
+    assert!(
+        reply.get("clamped").is_none() && reply["fps"] == 25,
+        "{reply}"
+    );
+    request(host, "PUT", path, Some(&json!({"fps": 30})));
     assert_eq!(request(host, "GET", "/api/params/LENS", None).1, lens);
     let (code, why) = request(host, "GET", "/api/params/NO_SUCH", None);
     assert_eq!(code, 404);
