@@ -2,7 +2,8 @@
 //! work (its format, its directory, and that it is none of the inputs, by whatever path or
 //! link), written under a hidden temporary name beside it, and renamed into place only once
 //! complete. A failed or interrupted command leaves no partial file, and never replaces an
-//! input.
+//! input. An output that is a symbolic link is written through (the file it names replaced,
+//! the link kept), and a file replaced keeps its mode.
 
 use anyhow::{Context, Result, bail};
 use image::ImageFormat;
@@ -15,13 +16,34 @@ use std::sync::atomic::{AtomicBool, Ordering};
 pub struct Output {
     path: PathBuf,
     temp: tempfile::TempPath,
+    /// The mode of the file replaced, kept (None: a new file, made as the umask says).
+    mode: Option<u32>,
+}
+
+/// Where writing `path` lands: through a symbolic link, the file the link names (so the link
+/// stays a link), else `path` itself.
+fn written_path(path: &Path) -> PathBuf {
+    let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    if !is_link {
+        return path.to_path_buf();
+    }
+    std::fs::canonicalize(path).unwrap_or_else(|_| {
+        // A link to a file not made yet: the path it names, from the link's directory.
+        let named = std::fs::read_link(path).unwrap_or_default();
+        path.parent().unwrap_or(Path::new(".")).join(named)
+    })
 }
 
 impl Output {
     /// Refuses `path` when it is one of `inputs`, and makes its temporary file (which shows
     /// that the directory exists and can be written).
     pub fn create(path: &Path, inputs: &[&Path]) -> Result<Output> {
+        use std::os::unix::fs::PermissionsExt;
         refuse_inputs(path, inputs)?;
+        let path = &written_path(path);
+        let mode = std::fs::metadata(path)
+            .ok()
+            .map(|m| m.permissions().mode() & 0o7777);
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
@@ -46,6 +68,7 @@ impl Output {
         Ok(Output {
             path: path.to_path_buf(),
             temp,
+            mode,
         })
     }
 
@@ -56,6 +79,11 @@ impl Output {
 
     /// Renames the complete file into place (replacing any file there that is not an input).
     pub fn keep(self) -> Result<PathBuf> {
+        if let Some(mode) = self.mode {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&self.temp, std::fs::Permissions::from_mode(mode))
+                .with_context(|| format!("cannot keep the mode of {}", self.path.display()))?;
+        }
         self.temp
             .persist(&self.path)
             .map_err(|e| e.error)

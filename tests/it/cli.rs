@@ -139,6 +139,30 @@ fn import_through_a_link_writes_the_linked_file_and_keeps_its_mode() {
 }
 
 #[test]
+fn an_output_through_a_link_writes_the_linked_file_and_keeps_its_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let real = dir.path().join("real.png");
+    std::fs::write(&real, b"an older picture").unwrap();
+    std::fs::set_permissions(&real, std::fs::Permissions::from_mode(0o640)).unwrap();
+    let link = dir.path().join("fish.png");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let out = link.to_str().unwrap();
+    let o = digiview(&["synth", "--sensor", "320x240", "--out", out], &shipped());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let is_link = std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink();
+    assert!(is_link, "the link is still a link");
+    assert_eq!(image::image_dimensions(&real).unwrap(), (320, 240));
+    let mode = std::fs::metadata(&real).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o640, "mode {mode:o}");
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(names.len(), 2, "no temporary file left: {names:?}");
+}
+
+#[test]
 fn import_writes_a_new_lens_and_replaces_only_when_asked() {
     let dir = tempfile::tempdir().unwrap();
     let cal = dir.path().join("lens.cal");
