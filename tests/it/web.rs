@@ -482,6 +482,54 @@ async fn sets_without_permission_and_other_sites_pages_are_refused() {
     b.close().await;
 }
 
+/// A field typed out of range, or emptied, in real Chromium: the field then shows what the
+/// server holds (not what was typed) and the page says why; the server keeps its rules.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_field_shows_the_servers_value_back_and_says_when_it_differs_from_what_was_typed() {
+    let serve = Serve::start(&[]);
+    let http = serve.http.clone().unwrap();
+    let b = Browser::start(1024, 768).await;
+    b.client.goto(&http).await.unwrap();
+    b.until(
+        "the page has the state",
+        Duration::from_secs(10),
+        "return window.digiview && window.digiview.api.params",
+    )
+    .await;
+    // Typed as a user types and leaves it focused: the change goes out, the answer comes back.
+    let typed = |value: &str| {
+        format!(
+            "const el = document.getElementById('output-fps'); el.focus(); el.value = '{value}';
+             el.dispatchEvent(new Event('change')); return true;"
+        )
+    };
+    let field_and_message = "return [document.getElementById('output-fps').value,
+                              document.getElementById('message').textContent]";
+    for (value, says) in [
+        ("99", "fps 99 is not taken: it is 30"),
+        ("", "fps: give a value"),
+    ] {
+        b.js(&typed(value), vec![]).await;
+        let seen = b
+            .until_with(
+                &format!("the page answers fps {value:?}"),
+                Duration::from_secs(5),
+                &format!(
+                    "const [v, m] = (() => {{ {field_and_message} }})();
+                     return v === '30' && m.includes(arguments[0]) ? [v, m] : null"
+                ),
+                vec![json!(says)],
+            )
+            .await;
+        println!("typed {value:?}: {seen}");
+    }
+    let fps = b
+        .js("return window.digiview.api.params.VIDEO_OUTPUT.fps", vec![])
+        .await;
+    assert_eq!(fps, 30, "the server kept its fps");
+    b.close().await;
+}
+
 /// On a phone (390x844), with the demo's movers tracked: the status panel gives the
 /// detection's scans a second and the objects tracked, and every label over the picture
 /// ("cam N", "#n") is at least 11 CSS pixels tall and clear of every other (read from where

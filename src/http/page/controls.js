@@ -68,8 +68,10 @@ function input(kind, options) {
   return el;
 }
 
-function show(el, kind, value) {
-  if (document.activeElement === el || value === undefined || value === null) return;
+// Shows `value` in a field, unless it is being typed in (`force`: after its own change, when
+// the server's value replaces what was typed).
+function show(el, kind, value, force = false) {
+  if ((!force && document.activeElement === el) || value === undefined || value === null) return;
   if (kind === 'bool') el.checked = value !== 0;
   else if (kind === 'deg') el.value = deg(value).toFixed(2);
   else if (kind === 'ratio') el.value = Number(value).toFixed(3);
@@ -104,7 +106,14 @@ export class Controls {
         el.id = id;
         el.name = name;
         form.append(l, el);
-        el.addEventListener('change', () => this.set(param, { [name]: read(el, kind) }));
+        el.addEventListener('change', () => {
+          if (el.value === '' && kind !== 'bool') {
+            this.say(`${label}: give a value`, true);
+            this.showBack(param, null);
+            return;
+          }
+          this.set(param, { [name]: read(el, kind) });
+        });
         this.fields.push({ param, name, kind, el, perCamera: false });
       }
     }
@@ -150,11 +159,40 @@ export class Controls {
     this.set('CAM_TARGET', fields);
   }
 
+  // SETs the fields, then shows what the server holds in them (not what was typed) and says
+  // so where it differs: a value the protocol clamped or ignored (the reply's `clamped`).
   set(param, fields) {
     this.api
       .set(param, fields)
-      .then(() => this.say(`${param} set`))
-      .catch((e) => this.say(`${param}: ${e.message}`, true));
+      .then((now) => {
+        this.showBack(param, now);
+        const clamped = Object.entries((now && now.clamped) || {});
+        if (clamped.length === 0) {
+          this.say(`${param} set`);
+          return;
+        }
+        const field = (name) => this.fields.find((f) => f.param === param && f.name === name);
+        const shown = (name, v) => (field(name) && field(name).kind === 'deg' ? `${deg(v).toFixed(2)}°` : v);
+        const told = clamped.map(([name, c]) => `${name} ${shown(name, c.asked)} is not taken: it is ${shown(name, c.set)}`);
+        this.say(`${param}: ${told.join('; ')}`, true);
+      })
+      .catch((e) => {
+        this.say(`${param}: ${e.message}`, true);
+        this.showBack(param, null);
+      });
+  }
+
+  // The server's values in `param`'s fields: `now` (a SET's reply, for this camera), else
+  // the state the page has.
+  showBack(param, now) {
+    for (const f of this.fields.filter((g) => g.param === param)) {
+      let value = now;
+      if (!value && this.params) {
+        value = this.params[param];
+        if (f.perCamera) value = value && value[this.cam];
+      }
+      show(f.el, f.kind, value ? value[f.name] : undefined, true);
+    }
   }
 
   lenses(list) {
