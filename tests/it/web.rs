@@ -426,14 +426,7 @@ async fn sets_without_permission_and_other_sites_pages_are_refused() {
         .trim_start_matches("http://")
         .trim_end_matches('/')
         .to_string();
-    let b = Browser::start(1024, 768).await;
-    b.client.goto(&http).await.unwrap();
-    b.until(
-        "the page has the state",
-        Duration::from_secs(10),
-        "return window.digiview && window.digiview.api.params",
-    )
-    .await;
+    let b = page_with_state(&http).await;
 
     // Over HTTP (fetch from the page) and over its event WebSocket alike: 403, and why.
     let put = b
@@ -482,20 +475,26 @@ async fn sets_without_permission_and_other_sites_pages_are_refused() {
     b.close().await;
 }
 
-/// A field typed out of range, or emptied, in real Chromium: the field then shows what the
-/// server holds (not what was typed) and the page says why; the server keeps its rules.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_field_shows_the_servers_value_back_and_says_when_it_differs_from_what_was_typed() {
-    let serve = Serve::start(&[]);
-    let http = serve.http.clone().unwrap();
+/// Chromium at 1024x768 on the page at `http`, once the page has the state.
+async fn page_with_state(http: &str) -> Browser {
     let b = Browser::start(1024, 768).await;
-    b.client.goto(&http).await.unwrap();
+    b.client.goto(http).await.unwrap();
     b.until(
         "the page has the state",
         Duration::from_secs(10),
         "return window.digiview && window.digiview.api.params",
     )
     .await;
+    b
+}
+
+/// A field typed out of range, or emptied, in real Chromium: the field then shows what the
+/// server holds (not what was typed) and the page says why; the server keeps its rules.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_field_shows_the_servers_value_back_and_says_when_it_differs_from_what_was_typed() {
+    let serve = Serve::start(&[]);
+    let http = serve.http.clone().unwrap();
+    let b = page_with_state(&http).await;
     // Typed as a user types and leaves it focused: the change goes out, the answer comes back.
     let typed = |value: &str| {
         format!(
