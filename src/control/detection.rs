@@ -79,7 +79,15 @@ pub struct Seen {
     pub x: f64,
     pub y: f64,
     pub radius: f64,
+    /// How fast the centre moves across the view, output pixels a second, as the tracker
+    /// predicts the object (0 for one it has no velocity for): the page moves the ring on
+    /// every frame it draws between updates.
+    pub vx: f64,
+    pub vy: f64,
 }
+
+/// How far ahead the ring's velocity is measured, µs.
+const AHEAD_US: u64 = 100_000;
 
 /// The smallest radius a mark is drawn with, in output pixels.
 const MIN_RADIUS: f64 = 4.0;
@@ -87,6 +95,15 @@ const MIN_RADIUS: f64 = 4.0;
 /// For each tracked object (in DETECTED_ROI 255's order), every view of the layout showing its
 /// centre. Empty lists when the lens or the layout cannot be planned.
 pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
+    // Where each object will be AHEAD_US after the frame, as the tracker predicts it.
+    let ahead: Vec<_> = match live.rendered_us() {
+        Some(t) => state
+            .tracked
+            .iter()
+            .map(|o| Some(o.at(t + AHEAD_US)))
+            .collect(),
+        None => vec![None; state.tracked.len()],
+    };
     // Placed as the frame last rendered shows them: with the vehicle's attitude then (a
     // view that turns with the vehicle, as the fisheye layout's, shows the world turned),
     // each object where it had got to by that frame's capture time.
@@ -105,7 +122,8 @@ pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
     state
         .tracked
         .iter()
-        .map(|t| {
+        .zip(ahead)
+        .map(|(t, ahead)| {
             let ray = direction(t.yaw, t.pitch);
             plan.views[..shown]
                 .iter()
@@ -113,11 +131,17 @@ pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
                 .filter_map(|(cam, view)| {
                     let (centre, radius) = plan.view_circle(view, ray, t.size)?;
                     let at = centre + DVec2::new(view.rect.x as f64, view.rect.y as f64);
+                    let later = ahead
+                        .as_ref()
+                        .and_then(|a| plan.view_point(view, direction(a.yaw, a.pitch)));
+                    let v = later.map_or(DVec2::ZERO, |p| (p - centre) / (AHEAD_US as f64 * 1e-6));
                     Some(Seen {
                         cam: cam as u8,
                         x: at.x,
                         y: at.y,
                         radius: radius.max(MIN_RADIUS),
+                        vx: v.x,
+                        vy: v.y,
                     })
                 })
                 .collect()
@@ -183,5 +207,18 @@ mod tests {
         );
         // Which is not where the state's own attitude would put it.
         assert!(want.distance(placed(&live, &state)) > 20.0);
+        // Its velocity, for a frame 1 s after the sighting (within the prediction's reach):
+        // where the tracker has it 0.1 s on, less where it is, per second.
+        live.set_rendered(2_000_000, then.vehicle.clone());
+        let s = seen(&live, &state)[0][0];
+        let [mut now, mut later] = [then.clone(), then.clone()];
+        now.tracked[0] = state.tracked[0].at(2_000_000);
+        later.tracked[0] = state.tracked[0].at(2_100_000);
+        let v = (placed(&live, &later) - placed(&live, &now)) / 0.1;
+        assert!(v.length() > 1.0, "the object moves: {v}");
+        assert!(
+            DVec2::new(s.vx, s.vy).distance(v) < 1e-6,
+            "{s:?} against {v}"
+        );
     }
 }

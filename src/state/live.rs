@@ -91,6 +91,12 @@ impl Live {
         *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some((captured_us, vehicle));
     }
 
+    /// The capture time of the last frame rendered (None before any).
+    pub fn rendered_us(&self) -> Option<u64> {
+        let rendered = self.rendered.lock().unwrap_or_else(|e| e.into_inner());
+        rendered.as_ref().map(|r| r.0)
+    }
+
     /// ...and, for a rolling shutter, with `shutter` for a frame of `size` pixels.
     pub fn set_rendered_shutter(&self, shutter: Option<(ShutterTable, (u32, u32))>) {
         *self

@@ -577,6 +577,38 @@ async fn on_a_phone_the_labels_are_legible_and_apart_and_the_panel_says_what_det
             assert!(apart, "labels overlap: {a:.1?} and {b:.1?}");
         }
     }
+    // The rings move on every frame the page draws, at the tracker's velocity, not only when
+    // an update comes (about every 100 ms).
+    let frames = b
+        .js(
+            "return new Promise(done => {
+               const c = document.getElementById('overlay');
+               const seen = [];
+               const step = () => {
+                 seen.push(c.dataset.rings);
+                 if (seen.length < 10) requestAnimationFrame(step); else done(seen);
+               };
+               requestAnimationFrame(step);
+             })",
+            vec![],
+        )
+        .await;
+    let frames: Vec<&str> = frames
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap_or(""))
+        .collect();
+    let moved = frames.windows(2).filter(|w| w[0] != w[1]).count();
+    eprintln!(
+        "rings moved in {moved} of {} drawn frames",
+        frames.len() - 1
+    );
+    assert_eq!(
+        moved,
+        frames.len() - 1,
+        "the rings stood still between frames: {frames:?}"
+    );
     let shot = b.client.screenshot().await.unwrap();
     std::fs::write(
         concat!(env!("CARGO_MANIFEST_DIR"), "/target/web-phone-390x844.png"),

@@ -8,6 +8,7 @@ const LAYOUT_DEBUG = 6; // the whole fisheye frame: no camera to steer
 const MIN_FOV = 0.02;
 const MAX_FOV = Math.PI;
 const LABEL_PX = 13; // the labels' text height on screen, CSS pixels
+const MAX_AHEAD_S = 1.0; // the longest a ring is moved on past the last update (the tracker's 1 s in sight)
 
 export class Views {
   constructor(overlay, api, onMessage) {
@@ -37,7 +38,29 @@ export class Views {
     this.output = params.VIDEO_OUTPUT;
     this.fovs = (params.CAM_FOV || []).map((f) => (f ? f.fov : null));
     this.objects = (params.DETECTED_ROI || []).filter((o) => o.total_detections > 0);
+    this.received = performance.now();
     this.draw();
+    this.animate();
+  }
+
+  // While a ring moves, it is drawn on every frame the browser paints: moved on from where
+  // the last update put it at its velocity (the tracker's prediction), for at most
+  // MAX_AHEAD_S, until the next update.
+  animate() {
+    const moving = this.objects.some((o) => (o.views || []).some((m) => m.vx || m.vy));
+    if (!moving || this.animating) return;
+    this.animating = true;
+    const step = () => {
+      const ahead = (performance.now() - this.received) / 1000;
+      const still = !this.objects.some((o) => (o.views || []).some((m) => m.vx || m.vy));
+      if (still || ahead > MAX_AHEAD_S) {
+        this.animating = false;
+        return;
+      }
+      this.draw();
+      requestAnimationFrame(step);
+    };
+    requestAnimationFrame(step);
   }
 
   draw() {
@@ -76,8 +99,12 @@ export class Views {
       label(text, sized(text, v.x + pad, v.y + pad), '#fff');
     });
     g.strokeStyle = 'rgba(255, 170, 40, 0.95)';
+    const ahead = Math.min((performance.now() - (this.received || 0)) / 1000, MAX_AHEAD_S);
+    const rings = [];
     for (const object of this.objects) {
-      for (const m of object.views || []) {
+      for (const seen of object.views || []) {
+        const m = { ...seen, x: seen.x + (seen.vx || 0) * ahead, y: seen.y + (seen.vy || 0) * ahead };
+        rings.push({ index: object.index, x: m.x, y: m.y });
         g.beginPath();
         g.arc(m.x, m.y, m.radius, 0, 2 * Math.PI);
         g.stroke();
@@ -90,9 +117,10 @@ export class Views {
         if (box) label(text, box, 'rgba(255, 170, 40, 0.95)');
       }
     }
-    // Where the labels lie and their text's height, in the canvas's pixels (for tests and
-    // tools).
+    // Where the labels lie and their text's height, and where the rings are, in the canvas's
+    // pixels (for tests and tools).
     this.overlay.dataset.labels = JSON.stringify(placed.map((b) => ({ ...b, font })));
+    this.overlay.dataset.rings = JSON.stringify(rings);
   }
 
   // The tracked object ringed at output point (x, y), if any (a little slack around the ring).
