@@ -197,7 +197,7 @@ mod tests {
         let mut then = state.clone();
         then.vehicle.attitude.yaw = 40f64.to_radians();
         then.vehicle.attitude.roll = 5f64.to_radians();
-        live.set_rendered(3_000_000, then.vehicle.clone());
+        live.set_rendered(3_000_000, then.vehicle.clone(), None);
         then.tracked[0] = then.tracked[0].at(3_000_000);
         let want = placed(&live, &then);
         assert!(
@@ -209,7 +209,7 @@ mod tests {
         assert!(want.distance(placed(&live, &state)) > 20.0);
         // Its velocity, for a frame 1 s after the sighting (within the prediction's reach):
         // where the tracker has it 0.1 s on, less where it is, per second.
-        live.set_rendered(2_000_000, then.vehicle.clone());
+        live.set_rendered(2_000_000, then.vehicle.clone(), None);
         let s = seen(&live, &state)[0][0];
         let [mut now, mut later] = [then.clone(), then.clone()];
         now.tracked[0] = state.tracked[0].at(2_000_000);

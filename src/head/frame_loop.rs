@@ -309,8 +309,6 @@ impl Head {
         }
         // Tiles, and views that follow an object, follow it between scans.
         s.moved_on_to(frame.captured_us);
-        // What the web page and the services draw over this frame is placed with this.
-        self.live.set_rendered(frame.captured_us, s.vehicle.clone());
         let size = (frame.layout.width, frame.layout.height);
         let lens = self
             .live
@@ -318,13 +316,16 @@ impl Head {
             .for_frame(s.lens, size, s.sensor.roi())
             .map_err(|e| RenderFailure::Frame(e.to_string()))?;
         let shutter = self.shutter(&s, &lens, middle_us);
-        let frame_size = (lens.width, lens.height);
-        (self.live).set_rendered_shutter(shutter.clone().map(|t| (t, frame_size)));
+        // What the web page and the services draw over this frame is placed with these.
+        let drawn = shutter.clone().map(|t| (t, (lens.width, lens.height)));
+        self.live
+            .set_rendered(frame.captured_us, s.vehicle.clone(), drawn);
         let plan = FramePlan::new(&s, &lens)
             .map_err(|e| RenderFailure::Frame(e.to_string()))?
             .with_shutter(shutter.clone());
         let camera = (&lens, s.mount.euler());
-        (self.readout_probe).offer(frame, camera, self.cfg.readout, &self.telemetry);
+        self.readout_probe
+            .offer(frame, camera, self.cfg.readout, &self.telemetry);
         let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(truth) = truth.as_ref() {
             let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());

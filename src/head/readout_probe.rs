@@ -21,7 +21,7 @@ pub const MAX_WIDTH: u32 = 640;
 pub const MAX_SECONDS: f64 = 60.0;
 
 /// Where an estimate stands, as the API answers it.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Serialize)]
 pub struct ProbeStatus {
     /// idle, collecting, fitting, done or failed.
     pub state: &'static str,
@@ -33,6 +33,20 @@ pub struct ProbeStatus {
     pub steps: (usize, usize),
     pub fit: Option<Fit>,
     pub error: Option<String>,
+}
+
+impl Default for ProbeStatus {
+    fn default() -> Self {
+        ProbeStatus {
+            state: "idle",
+            frames: 0,
+            collected_s: 0.0,
+            seconds: 0.0,
+            steps: (0, 0),
+            fit: None,
+            error: None,
+        }
+    }
 }
 
 /// What is collected for one estimate.

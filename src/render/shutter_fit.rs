@@ -9,10 +9,10 @@
 //! rolling shutter at all.
 
 use crate::geometry::shutter::{MAX_READOUT_MS, Readout, ShutterTable};
-use crate::geometry::{Euler, lens_from_world};
+use crate::geometry::{AttitudeTrack, Euler, lens_from_world};
 use crate::image_ops::bilinear_luma;
 use crate::lens::Lens;
-use glam::{DQuat, DVec2};
+use glam::DVec2;
 use image::GrayImage;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -44,31 +44,28 @@ const TOLERANCE_MS: f64 = 0.05;
 #[derive(Clone, Debug)]
 pub struct FitFrame {
     pub luma: GrayImage,
-    /// The attitude at the capture stamp + (i × [`ATTITUDE_STEP_US`] − [`ATTITUDE_SPAN_US`]).
-    pub attitudes: Vec<DQuat>,
+    /// The attitude every [`ATTITUDE_STEP_US`] from [`ATTITUDE_SPAN_US`] before the capture
+    /// stamp to as long after, timed from the first of them.
+    attitudes: AttitudeTrack,
 }
 
 impl FitFrame {
-    /// Samples `attitude(t_us)` (µs from the capture stamp) as the frame keeps it.
+    /// Samples `attitude(t_us)` (µs from the capture stamp) as the frame keeps it; None
+    /// where the history has none.
     pub fn new(luma: GrayImage, attitude: impl Fn(i64) -> Option<Euler>) -> Option<FitFrame> {
         let n = 2 * ATTITUDE_SPAN_US / ATTITUDE_STEP_US + 1;
-        let attitudes = (0..n)
-            .map(|i| {
-                let t = (i * ATTITUDE_STEP_US) as i64 - ATTITUDE_SPAN_US as i64;
-                attitude(t).map(|e| e.quat())
-            })
-            .collect::<Option<Vec<_>>>()?;
+        let mut attitudes = AttitudeTrack::new(n as usize);
+        for i in 0..n {
+            let t = i * ATTITUDE_STEP_US;
+            attitudes.push(t, attitude(t as i64 - ATTITUDE_SPAN_US as i64)?);
+        }
         Some(FitFrame { luma, attitudes })
     }
 
     /// The attitude `t_us` from the capture stamp (slerp between the samples kept).
     fn attitude(&self, t_us: f64) -> Euler {
-        let last = (self.attitudes.len() - 1) as f64;
-        let k = ((t_us + ATTITUDE_SPAN_US as f64) / ATTITUDE_STEP_US as f64).clamp(0.0, last);
-        let i = (k.floor() as usize).min(self.attitudes.len() - 2);
-        let (a, b) = (self.attitudes[i], self.attitudes[i + 1]);
-        let b = if a.dot(b) < 0.0 { -b } else { b };
-        Euler::from_quat(a.slerp(b, k - i as f64))
+        let t = (t_us + ATTITUDE_SPAN_US as f64).round().max(0.0) as u64;
+        self.attitudes.at(t).expect("a frame keeps its samples")
     }
 }
 

@@ -210,10 +210,7 @@ impl DemoCamera {
         let world_from_lens: Vec<DMat3> = (0..bh)
             .map(|by| {
                 let row = DVec2::new(0.0, 2.0 * by as f64 + 0.5);
-                let dt = match self.readout.is_global() {
-                    true => 0.0,
-                    false => self.readout.point_us(row, size) + stamp_to_middle,
-                };
+                let dt = self.readout.point_us(row, size) + stamp_to_middle;
                 lens_from_world(attitude(dt), self.mount).transpose()
             })
             .collect();

@@ -58,12 +58,18 @@ pub struct Live {
     sensor_refusal: Mutex<Option<String>>,
     /// The supervised services that have failed.
     pub services: Services,
-    /// The vehicle as the last frame rendered saw it, and that frame's capture time: what is
-    /// drawn over that frame is placed with it (the state's own attitude is not the
-    /// autopilot's, which only the telemetry follows).
-    rendered: Mutex<Option<(u64, super::Vehicle)>>,
-    /// That frame's rolling-shutter table and the frame's size (None: a global shutter).
-    rendered_shutter: Mutex<Option<(ShutterTable, (u32, u32))>>,
+    /// The last frame rendered: what is drawn over it is placed with it.
+    rendered: Mutex<Option<RenderedFrame>>,
+}
+
+/// What the last frame was rendered with: its capture time, the vehicle as it saw it (the
+/// state's own attitude is not the autopilot's, which only the telemetry follows), and its
+/// rolling-shutter table with the frame's size (None: a global shutter).
+#[derive(Clone)]
+struct RenderedFrame {
+    captured_us: u64,
+    vehicle: super::Vehicle,
+    shutter: Option<(ShutterTable, (u32, u32))>,
 }
 
 impl Live {
@@ -82,39 +88,42 @@ impl Live {
             sensor_refusal: Mutex::new(None),
             services: Services::default(),
             rendered: Mutex::new(None),
-            rendered_shutter: Mutex::new(None),
         })
     }
 
-    /// The frame captured at `captured_us` was rendered with `vehicle`.
-    pub fn set_rendered(&self, captured_us: u64, vehicle: super::Vehicle) {
-        *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some((captured_us, vehicle));
+    /// The frame captured at `captured_us` was rendered with `vehicle` and, for a rolling
+    /// shutter, with `shutter` for a frame of `size` pixels: one record, so a reader never
+    /// sees one frame's vehicle with another's table.
+    pub fn set_rendered(
+        &self,
+        captured_us: u64,
+        vehicle: super::Vehicle,
+        shutter: Option<(ShutterTable, (u32, u32))>,
+    ) {
+        *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some(RenderedFrame {
+            captured_us,
+            vehicle,
+            shutter,
+        });
+    }
+
+    fn last_rendered(&self) -> Option<RenderedFrame> {
+        self.rendered
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     /// The capture time of the last frame rendered (None before any).
     pub fn rendered_us(&self) -> Option<u64> {
-        let rendered = self.rendered.lock().unwrap_or_else(|e| e.into_inner());
-        rendered.as_ref().map(|r| r.0)
-    }
-
-    /// ...and, for a rolling shutter, with `shutter` for a frame of `size` pixels.
-    pub fn set_rendered_shutter(&self, shutter: Option<(ShutterTable, (u32, u32))>) {
-        *self
-            .rendered_shutter
-            .lock()
-            .unwrap_or_else(|e| e.into_inner()) = shutter;
+        self.last_rendered().map(|r| r.captured_us)
     }
 
     /// The last frame's rolling-shutter table for a lens planned at `size` pixels, so what a
     /// service places on a view maps pixels as the frame was drawn (None: global shutter).
     pub fn rendered_shutter(&self, size: (u32, u32)) -> Option<ShutterTable> {
-        let shutter = self
-            .rendered_shutter
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        shutter
-            .as_ref()
-            .map(|(table, from)| table.resized(*from, size))
+        let (table, from) = self.last_rendered()?.shutter?;
+        Some(table.resized(from, size))
     }
 
     /// `state` as the last frame rendered showed it: the vehicle as it was then, the tracked
@@ -122,14 +131,9 @@ impl Live {
     /// as it is before any frame was rendered.
     pub fn as_rendered(&self, state: &State) -> State {
         let mut s = state.clone();
-        let rendered = self
-            .rendered
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone();
-        if let Some((captured_us, vehicle)) = rendered {
-            s.vehicle = vehicle;
-            s.moved_on_to(captured_us);
+        if let Some(r) = self.last_rendered() {
+            s.vehicle = r.vehicle;
+            s.moved_on_to(r.captured_us);
         }
         s
     }

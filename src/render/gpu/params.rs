@@ -180,7 +180,7 @@ pub fn frame_params(
     if views.len() > MAX_VIEWS {
         return Err(GpuError::TooManyViews(views.len(), MAX_VIEWS));
     }
-    let params = GpuParams {
+    let mut params = GpuParams {
         output: [
             output.width,
             output.height,
@@ -199,7 +199,6 @@ pub fn frame_params(
         shutter_line: [0.0; 4],
         shutter: [[0.0, 0.0, 0.0, 1.0]; KNOTS],
     };
-    let mut params = params;
     if let Some(table) = &plan.shutter {
         let l = table.line;
         params.shutter_line = [l.x as f32, l.y as f32, l.z as f32, 1.0];
