@@ -8,7 +8,7 @@ use crate::geometry::view::lens_from_world;
 use crate::layout::layout;
 use crate::protocol::params::DetectedRoi;
 use crate::render::FramePlan;
-use crate::state::{Live, State, Tracked};
+use crate::state::{Live, RenderedFrame, State, Tracked};
 use glam::DVec2;
 use serde::Serialize;
 
@@ -93,28 +93,31 @@ const AHEAD_US: u64 = 100_000;
 const MIN_RADIUS: f64 = 4.0;
 
 /// For each tracked object (in DETECTED_ROI 255's order), every view of the layout showing its
-/// centre. Empty lists when the lens or the layout cannot be planned.
-pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
+/// centre, placed on `frame` (the frame last rendered; None before any: the state as it is).
+/// None for an object not sighted within [`IN_SIGHT`](crate::state::IN_SIGHT) of the frame's capture (a scan running
+/// late): a ring on a guess marks empty ground. Empty lists when the lens or the layout cannot
+/// be planned.
+pub fn seen(live: &Live, state: &State, frame: Option<&RenderedFrame>) -> Vec<Vec<Seen>> {
     // Where each object will be AHEAD_US after the frame, as the tracker predicts it.
-    let ahead: Vec<_> = match live.rendered_us() {
-        Some(t) => state
+    let ahead: Vec<_> = match frame {
+        Some(f) => state
             .tracked
             .iter()
-            .map(|o| Some(o.at(t + AHEAD_US)))
+            .map(|o| Some(o.at(f.captured_us + AHEAD_US)))
             .collect(),
         None => vec![None; state.tracked.len()],
     };
-    // Placed as the frame last rendered shows them: with the vehicle's attitude then (a
-    // view that turns with the vehicle, as the fisheye layout's, shows the world turned),
-    // each object where it had got to by that frame's capture time.
-    let state = &live.as_rendered(state);
+    // Placed as the frame shows them: with the vehicle's attitude then (a view that turns
+    // with the vehicle, as the fisheye layout's, shows the world turned), each object where
+    // it had got to by that frame's capture time.
+    let state = &frame.map_or_else(|| state.clone(), |f| f.shown(state));
     let sensor = (state.sensor.width, state.sensor.height);
     let plan = live
         .lenses()
         .for_frame(state.lens, sensor, state.sensor.roi())
         .ok()
         .and_then(|lens| FramePlan::new(state, &lens).ok())
-        .map(|plan| plan.with_shutter(live.rendered_shutter(sensor)));
+        .map(|plan| plan.with_shutter(frame.and_then(|f| f.shutter_for(sensor))));
     let Some(plan) = plan else {
         return vec![vec![]; state.tracked.len()];
     };
@@ -124,6 +127,9 @@ pub fn seen(live: &Live, state: &State) -> Vec<Vec<Seen>> {
         .iter()
         .zip(ahead)
         .map(|(t, ahead)| {
+            if frame.is_some_and(|f| !t.in_sight_at(f.captured_us)) {
+                return vec![];
+            }
             let ray = direction(t.yaw, t.pitch);
             plan.views[..shown]
                 .iter()
@@ -188,17 +194,22 @@ mod tests {
             ..Tracked::default()
         }];
         let ring = |live: &Live| {
-            let s = &seen(live, &state)[0][0];
+            let s = &seen(live, &state, live.rendered().as_ref())[0][0];
             DVec2::new(s.x, s.y)
         };
         // Before any frame: the state as it is.
         assert!(ring(&live).distance(placed(&live, &state)) < 1e-6);
-        // A frame rendered 2 s after the sighting with the vehicle turned 40° and tilted.
+        // A frame rendered 0.9 s after the sighting with the vehicle turned 40° and tilted.
         let mut then = state.clone();
         then.vehicle.attitude.yaw = 40f64.to_radians();
         then.vehicle.attitude.roll = 5f64.to_radians();
-        live.set_rendered(3_000_000, then.vehicle.clone(), None);
-        then.tracked[0] = then.tracked[0].at(3_000_000);
+        live.set_rendered(RenderedFrame {
+            captured_us: 1_900_000,
+            pts_us: 0,
+            vehicle: then.vehicle.clone(),
+            shutter: None,
+        });
+        then.tracked[0] = then.tracked[0].at(1_900_000);
         let want = placed(&live, &then);
         assert!(
             ring(&live).distance(want) < 1e-6,
@@ -209,8 +220,13 @@ mod tests {
         assert!(want.distance(placed(&live, &state)) > 20.0);
         // Its velocity, for a frame 1 s after the sighting (within the prediction's reach):
         // where the tracker has it 0.1 s on, less where it is, per second.
-        live.set_rendered(2_000_000, then.vehicle.clone(), None);
-        let s = seen(&live, &state)[0][0];
+        live.set_rendered(RenderedFrame {
+            captured_us: 2_000_000,
+            pts_us: 0,
+            vehicle: then.vehicle.clone(),
+            shutter: None,
+        });
+        let s = seen(&live, &state, live.rendered().as_ref())[0][0];
         let [mut now, mut later] = [then.clone(), then.clone()];
         now.tracked[0] = state.tracked[0].at(2_000_000);
         later.tracked[0] = state.tracked[0].at(2_100_000);
@@ -220,5 +236,17 @@ mod tests {
             DVec2::new(s.vx, s.vy).distance(v) < 1e-6,
             "{s:?} against {v}"
         );
+        // A frame more than 1 s after the last sighting (the scans running late): where it
+        // is is a guess, so no ring.
+        for captured_us in [2_100_000, 5_000_000] {
+            live.set_rendered(RenderedFrame {
+                captured_us,
+                pts_us: 0,
+                vehicle: then.vehicle.clone(),
+                shutter: None,
+            });
+            let rings = &seen(&live, &state, live.rendered().as_ref())[0];
+            assert!(rings.is_empty(), "{captured_us}: {rings:?}");
+        }
     }
 }

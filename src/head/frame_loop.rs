@@ -16,6 +16,7 @@ use crate::head::capture::Still;
 use crate::lens::Lens;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::render::{Filter, FramePlan};
+use crate::state::RenderedFrame;
 use crate::state::{Failure, RunStatus, State};
 use crate::stream::Encoder;
 use crate::stream::encoder::{AccessUnit, Side};
@@ -161,7 +162,7 @@ impl Head {
             let mut framed = None;
             let mut klv = None;
             let rendered = match (&last_frame, signal) {
-                (Some(frame), true) => self.render(&mut renderer, frame, &state).map(|r| {
+                (Some(frame), true) => self.render(&mut renderer, frame, &state, pts).map(|r| {
                     framed = Some(Framed {
                         state: r.state,
                         lens: r.lens,
@@ -283,7 +284,7 @@ impl Head {
         ShutterTable::new(&self.cfg.readout, (lens.width, lens.height), at)
     }
 
-    /// Renders `frame` with `state`, the vehicle as the telemetry had it at capture time;
+    /// Renders `frame`, shown at `pts` in the composed stream, with `state`, the vehicle as the telemetry had it at capture time;
     /// also gives that state, the lens at the frame's size and the KLV packet of the view
     /// `klv_camera` in it.
     fn render(
@@ -291,6 +292,7 @@ impl Head {
         renderer: &mut Renderer,
         frame: &Frame,
         state: &State,
+        pts: Duration,
     ) -> Result<Rendered, RenderFailure> {
         let mut s = state.clone();
         // A rolling shutter's frame is drawn as its middle row saw the world.
@@ -318,8 +320,12 @@ impl Head {
         let shutter = self.shutter(&s, &lens, middle_us);
         // What the web page and the services draw over this frame is placed with these.
         let drawn = shutter.clone().map(|t| (t, (lens.width, lens.height)));
-        self.live
-            .set_rendered(frame.captured_us, s.vehicle.clone(), drawn);
+        self.live.set_rendered(RenderedFrame {
+            captured_us: frame.captured_us,
+            pts_us: pts.as_micros() as u64,
+            vehicle: s.vehicle.clone(),
+            shutter: drawn,
+        });
         let plan = FramePlan::new(&s, &lens)
             .map_err(|e| RenderFailure::Frame(e.to_string()))?
             .with_shutter(shutter.clone());

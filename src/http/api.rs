@@ -122,19 +122,24 @@ pub(crate) fn snapshot(web: &Web) -> Value {
 }
 
 /// DETECTED_ROI 255's replies, each known object's with its `id`, its `label` (what it is:
-/// "moving", a model's class; the binary reply has no room for it) and `views`: the views
-/// showing it, with its centre and radius in output pixels (what the page draws over the
-/// picture). All from one snapshot of the state.
+/// "moving", a model's class; the binary reply has no room for it), `views`: the views
+/// showing it, with its centre, radius and velocity in output pixels (what the page draws
+/// over the picture), and `pts_us`: the presentation time, in the composed stream, of the
+/// frame they are placed on (the page moves each ring on from it to the frame it shows).
+/// All from one snapshot of the state.
 fn objects(web: &Web) -> Value {
     let c = &web.controller;
     let state = c.live.snapshot();
     let replies = crate::control::detection::detected_roi(&state, 255).unwrap_or_default();
-    let seen = crate::control::detection::seen(&c.live, &state);
+    let frame = c.live.rendered();
+    let seen = crate::control::detection::seen(&c.live, &state, frame.as_ref());
+    let pts_us = frame.map(|f| f.pts_us);
     let mut list: Vec<Value> = replies.iter().map(|p| json!(p)).collect();
     for ((object, views), tracked) in list.iter_mut().zip(seen).zip(&state.tracked) {
         object["views"] = json!(views);
         object["id"] = json!(tracked.id);
         object["label"] = json!(tracked.label);
+        object["pts_us"] = json!(pts_us);
     }
     Value::Array(list)
 }

@@ -62,14 +62,34 @@ pub struct Live {
     rendered: Mutex<Option<RenderedFrame>>,
 }
 
-/// What the last frame was rendered with: its capture time, the vehicle as it saw it (the
-/// state's own attitude is not the autopilot's, which only the telemetry follows), and its
-/// rolling-shutter table with the frame's size (None: a global shutter).
+/// What a frame was rendered with: its capture time, the presentation time the composed
+/// stream gives it, the vehicle as it saw it (the state's own attitude is not the
+/// autopilot's, which only the telemetry follows), and its rolling-shutter table with the
+/// frame's size (None: a global shutter).
 #[derive(Clone)]
-struct RenderedFrame {
-    captured_us: u64,
-    vehicle: super::Vehicle,
-    shutter: Option<(ShutterTable, (u32, u32))>,
+pub struct RenderedFrame {
+    pub captured_us: u64,
+    pub pts_us: u64,
+    pub vehicle: super::Vehicle,
+    pub shutter: Option<(ShutterTable, (u32, u32))>,
+}
+
+impl RenderedFrame {
+    /// The frame's rolling-shutter table for a lens planned at `size` pixels, so what a
+    /// service places on a view maps pixels as the frame was drawn (None: global shutter).
+    pub fn shutter_for(&self, size: (u32, u32)) -> Option<ShutterTable> {
+        let (table, from) = self.shutter.as_ref()?;
+        Some(table.resized(*from, size))
+    }
+
+    /// `state` as this frame showed it: the vehicle as it was then, the tracked objects moved
+    /// on to the frame's capture time, the following views aimed.
+    pub fn shown(&self, state: &State) -> State {
+        let mut s = state.clone();
+        s.vehicle = self.vehicle.clone();
+        s.moved_on_to(self.captured_us);
+        s
+    }
 }
 
 impl Live {
@@ -91,51 +111,24 @@ impl Live {
         })
     }
 
-    /// The frame captured at `captured_us` was rendered with `vehicle` and, for a rolling
-    /// shutter, with `shutter` for a frame of `size` pixels: one record, so a reader never
-    /// sees one frame's vehicle with another's table.
-    pub fn set_rendered(
-        &self,
-        captured_us: u64,
-        vehicle: super::Vehicle,
-        shutter: Option<(ShutterTable, (u32, u32))>,
-    ) {
-        *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some(RenderedFrame {
-            captured_us,
-            vehicle,
-            shutter,
-        });
+    /// The frame last rendered, as one record, so a reader never sees one frame's vehicle
+    /// with another's table or time.
+    pub fn set_rendered(&self, frame: RenderedFrame) {
+        *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some(frame);
     }
 
-    fn last_rendered(&self) -> Option<RenderedFrame> {
+    /// The frame last rendered (None before any).
+    pub fn rendered(&self) -> Option<RenderedFrame> {
         self.rendered
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clone()
     }
 
-    /// The capture time of the last frame rendered (None before any).
-    pub fn rendered_us(&self) -> Option<u64> {
-        self.last_rendered().map(|r| r.captured_us)
-    }
-
-    /// The last frame's rolling-shutter table for a lens planned at `size` pixels, so what a
-    /// service places on a view maps pixels as the frame was drawn (None: global shutter).
+    /// The last frame's rolling-shutter table for a lens planned at `size` pixels (None:
+    /// global shutter).
     pub fn rendered_shutter(&self, size: (u32, u32)) -> Option<ShutterTable> {
-        let (table, from) = self.last_rendered()?.shutter?;
-        Some(table.resized(from, size))
-    }
-
-    /// `state` as the last frame rendered showed it: the vehicle as it was then, the tracked
-    /// objects moved on to that frame's capture time, the following views aimed. `state`
-    /// as it is before any frame was rendered.
-    pub fn as_rendered(&self, state: &State) -> State {
-        let mut s = state.clone();
-        if let Some(r) = self.last_rendered() {
-            s.vehicle = r.vehicle;
-            s.moved_on_to(r.captured_us);
-        }
-        s
+        self.rendered()?.shutter_for(size)
     }
 
     /// The state now: what the renderer uses for one frame.

@@ -18,7 +18,7 @@ pub mod services;
 mod validate;
 
 pub use file::StateError;
-pub use live::{Failure, Live, RunStatus};
+pub use live::{Failure, Live, RenderedFrame, RunStatus};
 pub use validate::Invalid;
 
 use crate::geometry::view::{LockFlags, Steering, control, crop};
@@ -244,23 +244,36 @@ pub struct Tracked {
     pub seen_us: u64,
 }
 
-/// Prediction reaches this far past an object's last sighting at most, seconds.
+/// An object no scan or crop has found for this long, seconds, is lost to sight: where it is
+/// is a guess, and a tile or a ring placed on the guess shows empty ground.
+pub const IN_SIGHT: f64 = 1.0;
+
+/// Prediction reaches this far from an object's last sighting at most, seconds.
 pub const MAX_PREDICTION: f64 = 2.0;
 
 /// Where a thing seen at `centre` (a unit direction), its direction moving at `velocity` a
-/// second, should be `seconds` later: 0 to [`MAX_PREDICTION`] of that motion.
+/// second, should be `seconds` later (before, for a negative `seconds`: a frame captured
+/// before the scan that saw it): up to [`MAX_PREDICTION`] of that motion either way.
 pub fn moved_on(centre: glam::DVec3, velocity: glam::DVec3, seconds: f64) -> glam::DVec3 {
-    let seconds = seconds.clamp(0.0, MAX_PREDICTION);
+    let seconds = seconds.clamp(-MAX_PREDICTION, MAX_PREDICTION);
     (centre + velocity * seconds)
         .try_normalize()
         .unwrap_or(centre)
 }
 
 impl Tracked {
-    /// The object where it should be at `t_us` (`crate::clock::clock_us`), moving as it did.
+    /// Whether a frame captured at `t_us` shows the object where the tracker has it: within
+    /// [`IN_SIGHT`] of its last sighting, either way.
+    pub fn in_sight_at(&self, t_us: u64) -> bool {
+        (t_us as f64 - self.seen_us as f64).abs() * 1e-6 <= IN_SIGHT
+    }
+
+    /// The object where it should be at `t_us` (`crate::clock::clock_us`), moving as it did:
+    /// after its sighting, or before it (a frame captured before the scan that saw it shows
+    /// it further back).
     pub fn at(&self, t_us: u64) -> Tracked {
-        let since = t_us.saturating_sub(self.seen_us) as f64 * 1e-6;
-        if since <= 0.0 || self.velocity == [0.0; 3] {
+        let since = (t_us as f64 - self.seen_us as f64) * 1e-6;
+        if since == 0.0 || self.velocity == [0.0; 3] {
             return self.clone();
         }
         let seen = crate::geometry::rotation::direction(self.yaw, self.pitch);

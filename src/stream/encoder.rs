@@ -71,6 +71,9 @@ pub struct AccessUnit {
     pub stamps: Option<Stamps>,
     /// The frame's KLV metadata as pushed (`Side::klv`), for the MPEG-TS outputs.
     pub klv: Option<Arc<[u8]>>,
+    /// The presentation time the frame was pushed with (the encoder shifts its output's by
+    /// an offset of its own): what the frame loop and the page's rings know it by.
+    pub pushed_pts: Option<Duration>,
 }
 
 /// What a frame carries to its access unit besides its picture.
@@ -84,8 +87,9 @@ pub struct Side {
 
 type Sink = Box<dyn Fn(AccessUnit) + Send + Sync>;
 
-/// The frames in the encoder, oldest first: when each was pushed, and what it carries.
-type Pending = Arc<Mutex<VecDeque<(Instant, Side)>>>;
+/// The frames in the encoder, oldest first: when each was pushed, its presentation time, and
+/// what it carries.
+type Pending = Arc<Mutex<VecDeque<(Instant, Duration, Side)>>>;
 
 pub struct Encoder {
     pipeline: gst::Pipeline,
@@ -196,8 +200,9 @@ impl Encoder {
                         .lock()
                         .unwrap_or_else(|e| e.into_inner())
                         .pop_front();
-                    let encode_time = pushed.as_ref().map(|(at, _)| at.elapsed());
-                    let side = pushed.map(|(_, side)| side).unwrap_or_default();
+                    let encode_time = pushed.as_ref().map(|(at, _, _)| at.elapsed());
+                    let pushed_pts = pushed.as_ref().map(|(_, pts, _)| *pts);
+                    let side = pushed.map(|(_, _, side)| side).unwrap_or_default();
                     let stamps = side.stamps.map(|s| Stamps {
                         encoded: clock_us(),
                         ..s
@@ -209,6 +214,7 @@ impl Encoder {
                         encode_time,
                         stamps,
                         klv: side.klv,
+                        pushed_pts,
                     });
                     Ok(gst::FlowSuccess::Ok)
                 })
@@ -285,6 +291,7 @@ impl Encoder {
         if layout.format != PixelFormat::I420 {
             return Err(StreamError::Format(layout.format));
         }
+        let pushed_pts = pts;
         let pts = gst::ClockTime::from_nseconds(pts.as_nanos() as u64);
         loop {
             let mut q = self.pending.lock().unwrap_or_else(|e| e.into_inner());
@@ -293,7 +300,7 @@ impl Encoder {
                     encoder_in: clock_us(),
                     ..s
                 });
-                q.push_back((Instant::now(), Side { stamps, ..side }));
+                q.push_back((Instant::now(), pushed_pts, Side { stamps, ..side }));
                 break;
             }
             if !self.blocking {

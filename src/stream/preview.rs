@@ -51,7 +51,13 @@ impl Preview {
         };
         let unit = PreviewUnit {
             key: au.key,
-            pts_us: au.buffer.pts().map_or(0, |t| t.useconds()),
+            // As the frame loop stamped it (the encoder offsets its own), so the page can
+            // match the rings placed on a frame to the frame it shows.
+            pts_us: au
+                .pushed_pts
+                .map(|t| t.as_micros() as u64)
+                .or_else(|| au.buffer.pts().map(|t| t.useconds()))
+                .unwrap_or(0),
             data: map.as_slice().to_vec(),
         };
         // Err only when every viewer left meanwhile.

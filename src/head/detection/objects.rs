@@ -14,15 +14,11 @@ use crate::geometry::rotation::{direction, yaw_pitch};
 use crate::layout::layout;
 use crate::lens::Lens;
 use crate::render::FramePlan;
-use crate::state::{Invalid, State, Tracked};
+use crate::state::{IN_SIGHT, Invalid, State, Tracked};
 use tracing::{info, warn};
 
 /// The track step looks again for this many objects at most, those in the tiles first.
 const MAX_CROPS: usize = 6;
-
-/// An object no scan or crop has found for this long, seconds, is lost to sight: where it is
-/// is a guess, and a tile aimed at the guess shows empty ground.
-const IN_SIGHT: f64 = 1.0;
 
 /// Clicks taken on by the detection stage and not yet in the live state: the camera, the
 /// click's time (`Follow::since_us`) and the object it became.

@@ -20,6 +20,8 @@ const views = new Views($('overlay'), api, say);
 const controls = new Controls(api, say);
 window.digiview = { api, preview, views, controls };
 views.onObject = (o) => aimAt(o);
+// The rings are placed for the frame the picture shows, drawn with it.
+preview.addEventListener('frame', (e) => views.shown(e.detail.pts));
 
 api.on('params', (params) => {
   views.update(params);

@@ -42,7 +42,7 @@ class CodecsSink {
       this.codec = codec;
       this.decoder = new VideoDecoder({
         output: (frame) => {
-          this.preview.draw(frame, frame.displayWidth, frame.displayHeight);
+          this.preview.draw(frame, frame.displayWidth, frame.displayHeight, frame.timestamp);
           frame.close();
         },
         error: (e) => this.preview.failed(e, () => { this.codec = null; }),
@@ -68,12 +68,13 @@ class MseSink {
     this.sequence = 0;
     this.last = null;
     this.duration = 33333;
+    this.times = []; // [media time, presentation time] of the recent units, µs
     this.watch();
   }
 
   watch() {
-    const drawn = () => {
-      this.preview.draw(this.video, this.video.videoWidth, this.video.videoHeight);
+    const drawn = (now, meta) => {
+      this.preview.draw(this.video, this.video.videoWidth, this.video.videoHeight, this.ptsAt(meta.mediaTime));
       this.video.requestVideoFrameCallback(drawn);
     };
     this.video.requestVideoFrameCallback(drawn);
@@ -81,6 +82,17 @@ class MseSink {
 
   backlog() {
     return this.queue.length;
+  }
+
+  // The stream's presentation time (µs) of the unit the media timeline plays at `media`
+  // seconds (the timeline runs without the stream's gaps), or null.
+  ptsAt(media) {
+    const t = media * 1e6;
+    let best = null;
+    for (const [at, pts] of this.times) {
+      if (best === null || Math.abs(at - t) < Math.abs(best[0] - t)) best = [at, pts];
+    }
+    return best && Math.abs(best[0] - t) < this.duration ? best[1] : null;
   }
 
   // A new stream (first key frame, or new parameter sets): a new MediaSource.
@@ -116,6 +128,8 @@ class MseSink {
     if (gap > 0 && gap < 200000) this.duration = gap;
     this.last = timestamp;
     this.queue.push(fragment(++this.sequence, key, this.time, this.duration, units));
+    this.times.push([this.time, timestamp]);
+    if (this.times.length > 120) this.times.shift();
     this.time += this.duration;
     this.feed();
     return true;
@@ -229,7 +243,9 @@ export class Preview extends EventTarget {
     this.waitingForKey = true;
   }
 
-  draw(image, w, h) {
+  // Draws a decoded frame, presented at `pts` µs in the stream (null: not known), and tells
+  // the listeners ('frame': { frames, pts }).
+  draw(image, w, h, pts) {
     if (!w || !h) return;
     if (this.canvas.width !== w || this.canvas.height !== h) {
       this.canvas.width = w;
@@ -239,6 +255,6 @@ export class Preview extends EventTarget {
     this.context.drawImage(image, 0, 0);
     this.frames++;
     if (this.frames === 1) this.show('');
-    this.dispatchEvent(new CustomEvent('frame', { detail: { frames: this.frames } }));
+    this.dispatchEvent(new CustomEvent('frame', { detail: { frames: this.frames, pts: pts ?? null } }));
   }
 }

@@ -8,7 +8,8 @@ const LAYOUT_DEBUG = 6; // the whole fisheye frame: no camera to steer
 const MIN_FOV = 0.02;
 const MAX_FOV = Math.PI;
 const LABEL_PX = 13; // the labels' text height on screen, CSS pixels
-const MAX_AHEAD_S = 1.0; // the longest a ring is moved on past the last update (the tracker's 1 s in sight)
+const MAX_AHEAD_S = 1.0; // the furthest a ring is moved on from the frame it was placed on (the tracker's 1 s in sight)
+const FRAMED_MS = 500; // the picture's frames time the rings while one came this recently
 
 export class Views {
   constructor(overlay, api, onMessage) {
@@ -43,9 +44,32 @@ export class Views {
     this.animate();
   }
 
-  // While a ring moves, it is drawn on every frame the browser paints: moved on from where
-  // the last update put it at its velocity (the tracker's prediction), for at most
-  // MAX_AHEAD_S, until the next update.
+  // The picture now shows the frame presented at `pts` µs (null: not known): the rings are
+  // drawn again, for it.
+  shown(pts) {
+    this.shownPts = pts;
+    this.shownAt = performance.now();
+    this.draw();
+  }
+
+  // Whether the picture's frames time the rings: frames are coming, with their times.
+  framed() {
+    return this.shownPts != null && performance.now() - this.shownAt < FRAMED_MS;
+  }
+
+  // How far (s) `object`'s rings are moved on at their velocity from the frame they were
+  // placed on: to the frame the picture shows, or without a picture, for the time since the
+  // update came. Within MAX_AHEAD_S either way.
+  ahead(object) {
+    const s = this.framed() && object.pts_us != null
+      ? (this.shownPts - object.pts_us) / 1e6
+      : (performance.now() - (this.received || 0)) / 1000;
+    return Math.max(-MAX_AHEAD_S, Math.min(s, MAX_AHEAD_S));
+  }
+
+  // Without a picture to time them, moving rings are drawn on every frame the browser
+  // paints, moved on from where the last update put it at its velocity (the tracker's
+  // prediction), for at most MAX_AHEAD_S, until the next update.
   animate() {
     const moving = this.objects.some((o) => (o.views || []).some((m) => m.vx || m.vy));
     if (!moving || this.animating) return;
@@ -57,7 +81,7 @@ export class Views {
         this.animating = false;
         return;
       }
-      this.draw();
+      if (!this.framed()) this.draw();
       requestAnimationFrame(step);
     };
     requestAnimationFrame(step);
@@ -99,12 +123,12 @@ export class Views {
       label(text, sized(text, v.x + pad, v.y + pad), '#fff');
     });
     g.strokeStyle = 'rgba(255, 170, 40, 0.95)';
-    const ahead = Math.min((performance.now() - (this.received || 0)) / 1000, MAX_AHEAD_S);
     const rings = [];
     for (const object of this.objects) {
+      const ahead = this.ahead(object);
       for (const seen of object.views || []) {
         const m = { ...seen, x: seen.x + (seen.vx || 0) * ahead, y: seen.y + (seen.vy || 0) * ahead };
-        rings.push({ index: object.index, x: m.x, y: m.y });
+        rings.push({ index: object.index, x: m.x, y: m.y, moving: Boolean(m.vx || m.vy) });
         g.beginPath();
         g.arc(m.x, m.y, m.radius, 0, 2 * Math.PI);
         g.stroke();
@@ -121,6 +145,7 @@ export class Views {
     // pixels (for tests and tools).
     this.overlay.dataset.labels = JSON.stringify(placed.map((b) => ({ ...b, font })));
     this.overlay.dataset.rings = JSON.stringify(rings);
+    this.overlay.dataset.pts = this.framed() ? String(this.shownPts) : '';
   }
 
   // The tracked object ringed at output point (x, y), if any (a little slack around the ring).
