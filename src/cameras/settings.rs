@@ -310,3 +310,40 @@ fn escape(s: &str) -> String {
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::state::rules;
+
+    /// Each parameter a ground station sets offers the values the state's rule takes (the
+    /// one table): all of them, but for the crop modes, where only the known ones are
+    /// offered, and the lenses, which are lens.cal's.
+    #[test]
+    fn the_options_are_the_values_the_table_takes() {
+        let lenses = [(0, "CIL216".to_string())];
+        for s in settings(&lenses) {
+            let key = match s.name {
+                "LAYOUT" => "output.layout",
+                "OVERLAY" => "output.overlay",
+                "CROP" => "camera.crop",
+                "LOCK" => "camera.lock",
+                "CONTROL" => "camera.control",
+                "SORTING" => "detection.sorting_mode",
+                "DETECTION" => "detection.run_ai",
+                _ => continue,
+            };
+            let rule = rules::of_key(key).unwrap();
+            let values: Vec<f64> = s.options.iter().map(|o| o.0 as f64).collect();
+            assert!(
+                values.iter().all(|&v| rule.holds(v)),
+                "{}: {values:?}",
+                s.name
+            );
+            if !matches!(s.name, "CROP" | "DETECTION") {
+                let all: Vec<f64> = (rule.lo as u32..=rule.hi as u32).map(f64::from).collect();
+                assert_eq!(values, all, "{}", s.name);
+            }
+        }
+    }
+}

@@ -3,17 +3,18 @@
 //! (CAM_TARGET) queries, computed with the same frame plan the renderer draws.
 
 use super::Refusal;
+use crate::geometry::GeoPoint;
 use crate::geometry::ground::ground_point;
 use crate::geometry::rotation::yaw_pitch;
 use crate::geometry::view::{aim, clamp_fov, control, crop, relative_angles, zoomed_fov};
-use crate::geometry::{GeoPoint, wrap_pi};
+use crate::protocol::ParamType;
 use crate::protocol::params::{
     CamControlMode, CamCropMode, CamEuler, CamFov, CamLockFlags, CamOffset, CamTarget, CamZoom,
 };
 use crate::render::FramePlan;
+use crate::state::rules;
 use crate::state::{Camera, Live, State};
 use glam::{DVec2, DVec3};
-use std::f64::consts::FRAC_PI_2;
 
 pub fn euler(c: &Camera, cam_id: u8) -> CamEuler {
     CamEuler {
@@ -33,9 +34,14 @@ pub fn set_euler(c: &mut Camera, p: &CamEuler) -> Result<(), Refusal> {
     } else {
         (p.yaw, p.pitch, p.roll)
     };
-    c.yaw = wrap_pi(yaw);
-    c.pitch = wrap_pi(pitch);
-    c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
+    let take = |field: &str, v: f64, was: f64| {
+        rules::of(ParamType::CamEuler, field)
+            .apply(v, was)
+            .unwrap_or(was)
+    };
+    c.yaw = take("yaw", yaw, c.yaw);
+    c.pitch = take("pitch", pitch, c.pitch);
+    c.roll = take("roll", roll, c.roll);
     c.steer_by_hand();
     Ok(())
 }
@@ -63,7 +69,8 @@ pub fn lock_flags(c: &Camera, cam_id: u8) -> CamLockFlags {
 
 /// Only the low three bits mean anything (the seed); the rest are dropped.
 pub fn set_lock_flags(c: &mut Camera, p: &CamLockFlags) -> Result<(), Refusal> {
-    c.lock = p.flags & 7;
+    let rule = rules::of(ParamType::CamLockFlags, "flags");
+    c.lock = rule.apply(p.flags as f64, c.lock as f64).unwrap_or(0.0) as u8;
     Ok(())
 }
 

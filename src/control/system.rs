@@ -2,13 +2,14 @@
 //! LENS, CAM_SENSOR and GENERAL_SETTINGS, with the seed's rules field by field.
 
 use super::Refusal;
-use crate::geometry::wrap_pi;
-use crate::layout::{LAYOUT_MODES, OVERLAY_MODES, Rect, TILE_SIZE, layout};
+use crate::layout::{Rect, TILE_SIZE, layout};
+use crate::protocol::ParamType;
 use crate::protocol::params::{
     CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
 };
 use crate::protocol::{BoundingBox, ViewBoxes};
-use crate::state::{FPS_RANGE, Live, MAX_GAIN, MAX_OUTPUT, MIN_OUTPUT, State};
+use crate::state::rules;
+use crate::state::{Live, State};
 use tracing::warn;
 
 pub fn system_status(live: &Live) -> SystemStatus {
@@ -49,21 +50,28 @@ pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
 /// ignored (both kept, so the frame never gets an unasked-for shape). Sizes are rounded down
 /// to even numbers for 4:2:0 video. fps is clamped; an unknown layout or overlay is ignored.
 pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), Refusal> {
-    let (w, h) = (
-        (p.width as u32).min(MAX_OUTPUT.0),
-        (p.height as u32).min(MAX_OUTPUT.1),
-    );
+    // Each field as its rule has the protocol take it; width and height together (one below
+    // its minimum keeps both: the frame never gets an unasked-for shape).
+    let take = |field: &str, v: f64, was: f64| {
+        rules::of(ParamType::VideoOutput, field)
+            .apply(v, was)
+            .unwrap_or(was)
+    };
     let o = &mut s.output;
-    if w >= MIN_OUTPUT.0 && h >= MIN_OUTPUT.1 {
-        (o.width, o.height) = (w, h);
+    let (w, h) = (
+        take("width", p.width as f64, 0.0),
+        take("height", p.height as f64, 0.0),
+    );
+    if w > 0.0 && h > 0.0 {
+        (o.width, o.height) = (w as u32, h as u32);
     }
-    o.fps = (p.fps as u32).clamp(FPS_RANGE.0, FPS_RANGE.1);
-    if p.layout_mode < LAYOUT_MODES {
-        o.layout = p.layout_mode;
-    }
-    if p.detection_overlay_mode < OVERLAY_MODES {
-        o.overlay = p.detection_overlay_mode;
-    }
+    o.fps = take("fps", p.fps as f64, o.fps as f64) as u32;
+    o.layout = take("layout_mode", p.layout_mode as f64, o.layout as f64) as u8;
+    o.overlay = take(
+        "detection_overlay_mode",
+        p.detection_overlay_mode as f64,
+        o.overlay as f64,
+    ) as u8;
     s.even_output();
     let o = &s.output;
     layout(o.width, o.height, o.layout, o.overlay)
@@ -127,11 +135,21 @@ pub fn set_sensor(live: &Live, s: &mut State, p: &CamSensor) -> Result<(), Refus
         return Err(Refusal::Data(why));
     }
     let longest = s.sensor.longest_exposure_us();
+    let take = |field: &str, v: f64, was: f64| {
+        rules::of(ParamType::CamSensor, field)
+            .apply(v, was)
+            .unwrap_or(was)
+    };
     let sensor = &mut s.sensor;
-    sensor.ae = p.ae != 0;
-    sensor.target_brightness = p.target_brightness.clamp(1, 254);
-    sensor.exposure_us = p.exposure_value.clamp(1, longest);
-    sensor.gain = p.gain_value.clamp(1, MAX_GAIN);
+    sensor.ae = take("ae", p.ae as f64, sensor.ae as u8 as f64) != 0.0;
+    sensor.target_brightness = take(
+        "target_brightness",
+        p.target_brightness as f64,
+        sensor.target_brightness as f64,
+    ) as u8;
+    let exposure = take("exposure_value", p.exposure_value as f64, 0.0) as u32;
+    sensor.exposure_us = exposure.min(longest);
+    sensor.gain = take("gain_value", p.gain_value as f64, sensor.gain as f64) as u32;
     Ok(())
 }
 
@@ -174,9 +192,13 @@ pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<()
     // A faster camera has a shorter frame: the exposure follows it down.
     s.sensor.exposure_us = s.sensor.exposure_us.min(s.sensor.longest_exposure_us());
     s.sensor.roi = roi;
-    s.mount.yaw = wrap_pi(p.mount_yaw);
+    s.mount.yaw = rules::of(ParamType::GeneralSettings, "mount_yaw")
+        .apply(p.mount_yaw, s.mount.yaw)
+        .unwrap_or(s.mount.yaw);
     s.mount.pitch = p.mount_pitch;
     s.mount.roll = p.mount_roll;
-    s.detection.run_ai = p.run_ai != 0;
+    s.detection.run_ai = rules::of(ParamType::GeneralSettings, "run_ai")
+        .apply(p.run_ai as f64, 0.0)
+        .is_some_and(|on| on != 0.0);
     Ok(())
 }

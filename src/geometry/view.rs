@@ -136,7 +136,7 @@ pub const MAX_RECTILINEAR_FOV: f64 = 3.1;
 
 /// The fov range a view accepts in a crop mode: rectilinear views stop short of π, the others
 /// (panoramas, fisheye crops, debug) may take up to a full turn.
-pub fn fov_range(crop_mode: u8) -> (f64, f64) {
+pub const fn fov_range(crop_mode: u8) -> (f64, f64) {
     match crop_mode {
         crop::RECTILINEAR | crop::RECTIFIED_CROP => (MIN_FOV, MAX_RECTILINEAR_FOV),
         _ => (MIN_FOV, TAU),

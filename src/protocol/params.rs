@@ -13,12 +13,22 @@ pub trait FromNumber: Sized {
     fn from_number(v: f64) -> Option<Self>;
 }
 
+/// A field value read as a number (None: the field is not a number).
+pub trait ToNumber {
+    fn to_number(&self) -> Option<f64>;
+}
+
 macro_rules! from_integer {
     ($($t:ty),*) => {$(
         impl FromNumber for $t {
             fn from_number(v: f64) -> Option<$t> {
                 (v.fract() == 0.0 && v >= <$t>::MIN as f64 && v <= <$t>::MAX as f64)
                     .then_some(v as $t)
+            }
+        }
+        impl ToNumber for $t {
+            fn to_number(&self) -> Option<f64> {
+                Some(*self as f64)
             }
         }
     )*};
@@ -30,6 +40,21 @@ impl FromNumber for f64 {
         v.is_finite().then_some(v)
     }
 }
+impl ToNumber for f64 {
+    fn to_number(&self) -> Option<f64> {
+        Some(*self)
+    }
+}
+macro_rules! not_a_number {
+    ($($t:ty),*) => {$(
+        impl ToNumber for $t {
+            fn to_number(&self) -> Option<f64> {
+                None
+            }
+        }
+    )*};
+}
+not_a_number!(BoundingBox, ViewBoxes, TextValue);
 impl FromNumber for BoundingBox {
     fn from_number(_: f64) -> Option<BoundingBox> {
         None
@@ -69,6 +94,13 @@ macro_rules! wire_struct {
 
             fn decode(r: &mut Reader) -> Self {
                 $name { $($field: <$kind as Wire>::get(r),)* }
+            }
+
+            fn field(&self, name: &str) -> Option<f64> {
+                match name {
+                    $(stringify!($field) => self.$field.to_number(),)*
+                    _ => None,
+                }
             }
 
             fn set_field(&mut self, name: &str, v: f64) -> Result<(), FieldError> {
@@ -334,6 +366,13 @@ macro_rules! params {
                 let r = &mut Reader::new(data);
                 match param_type {
                     $(ParamType::$variant => Param::$variant($variant::decode(r)),)*
+                }
+            }
+
+            /// A field's value by its protocol name, where it is a number.
+            pub fn field(&self, name: &str) -> Option<f64> {
+                match self {
+                    $(Param::$variant(p) => p.field(name),)*
                 }
             }
 

@@ -1,15 +1,11 @@
 //! DETECTION's settings in the live state, and how the protocol's DETECTION reads and sets
 //! them (the seed's rules), so every path that sets them applies the same ones.
 
-use super::RATIO_RANGE;
 use crate::protocol::params::Detection;
 use serde::{Deserialize, Serialize};
 
 /// A score field of 255 means "keep the current value".
 pub const KEEP: u8 = 255;
-/// The least and most boxes DETECTION's crop_box_limit and var_box_limit take (the protocol
-/// clamps to them; state files and flags are refused outside them).
-pub const BOX_LIMITS: (u16, u16) = (10, 500);
 
 /// How detections are kept and shown (DETECTION, and GENERAL_SETTINGS' run_ai). Field names
 /// are the seed's; ratios are in [0, 1).
@@ -79,38 +75,68 @@ impl DetectionSettings {
     /// overlaps outside [0, 0.99) keep their value; box limits are clamped to 10..=500; a score
     /// field of 255 keeps its value.
     pub fn set(&mut self, p: &Detection) {
+        // Each field as its rule has the protocol take it (super::rules).
+        let take = |field: &str, v: f64, was: f64| {
+            super::rules::of(crate::protocol::ParamType::Detection, field)
+                .apply(v, was)
+                .unwrap_or(was)
+        };
         let d = self;
-        if p.sorting_mode <= 2 {
-            d.sorting_mode = p.sorting_mode;
-        }
-        for (field, v) in [
+        d.sorting_mode = take("sorting_mode", p.sorting_mode as f64, d.sorting_mode as f64) as u8;
+        for (name, field, v) in [
             (
+                "crop_confidence_threshold",
                 &mut d.crop_confidence_threshold,
                 p.crop_confidence_threshold,
             ),
-            (&mut d.var_confidence_threshold, p.var_confidence_threshold),
-            (&mut d.crop_box_overlap, p.crop_box_overlap),
-            (&mut d.var_box_overlap, p.var_box_overlap),
-        ] {
-            if RATIO_RANGE.contains(&v) {
-                *field = v;
-            }
-        }
-        d.crop_box_limit = p.crop_box_limit.clamp(BOX_LIMITS.0, BOX_LIMITS.1);
-        d.var_box_limit = p.var_box_limit.clamp(BOX_LIMITS.0, BOX_LIMITS.1);
-        for (field, v) in [
-            (&mut d.creation_score_scale, p.creation_score_scale),
-            (&mut d.bonus_detection_scale, p.bonus_detection_scale),
-            (&mut d.bonus_redetection_scale, p.bonus_redetection_scale),
-            (&mut d.missed_detection_penalty, p.missed_detection_penalty),
             (
+                "var_confidence_threshold",
+                &mut d.var_confidence_threshold,
+                p.var_confidence_threshold,
+            ),
+            (
+                "crop_box_overlap",
+                &mut d.crop_box_overlap,
+                p.crop_box_overlap,
+            ),
+            ("var_box_overlap", &mut d.var_box_overlap, p.var_box_overlap),
+        ] {
+            *field = take(name, v, *field);
+        }
+        for (name, field, v) in [
+            ("crop_box_limit", &mut d.crop_box_limit, p.crop_box_limit),
+            ("var_box_limit", &mut d.var_box_limit, p.var_box_limit),
+        ] {
+            *field = take(name, v as f64, *field as f64) as u16;
+        }
+        for (name, field, v) in [
+            (
+                "creation_score_scale",
+                &mut d.creation_score_scale,
+                p.creation_score_scale,
+            ),
+            (
+                "bonus_detection_scale",
+                &mut d.bonus_detection_scale,
+                p.bonus_detection_scale,
+            ),
+            (
+                "bonus_redetection_scale",
+                &mut d.bonus_redetection_scale,
+                p.bonus_redetection_scale,
+            ),
+            (
+                "missed_detection_penalty",
+                &mut d.missed_detection_penalty,
+                p.missed_detection_penalty,
+            ),
+            (
+                "missed_redetection_penalty",
                 &mut d.missed_redetection_penalty,
                 p.missed_redetection_penalty,
             ),
         ] {
-            if v != KEEP {
-                *field = v;
-            }
+            *field = take(name, v as f64, *field as f64) as u8;
         }
     }
 }

@@ -218,7 +218,7 @@ mod tests {
         let e = err("[output]\nwidht = 3\n");
         assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
         let e = err("[output]\nlayout = 9\n");
-        assert_eq!(e, "s.toml: layout 9 does not exist (0..=6)");
+        assert_eq!(e, "s.toml: output layout 9 is outside 0..=6");
         let e = err("[[camera]]\nyaw = \"north\"\n");
         assert!(e.starts_with("s.toml:2: "), "{e}");
         let e = err("[[camera]]\nfov = \"200deg\"\n");

@@ -248,7 +248,12 @@ mod tests {
             s.output.width = 5;
             Ok::<_, Invalid>(())
         });
-        assert!(invalid.unwrap_err().0.contains("output size 5x1080"));
+        assert!(
+            invalid
+                .unwrap_err()
+                .0
+                .contains("output width 5 is outside 640..=1920 px")
+        );
         assert_eq!(*live.snapshot(), *before);
         live.update(|s| {
             s.output.layout = 3;

@@ -14,6 +14,7 @@ pub mod file;
 pub mod flags;
 pub mod follow;
 pub mod live;
+pub mod rules;
 pub mod services;
 mod validate;
 
@@ -263,9 +264,10 @@ pub fn moved_on(centre: glam::DVec3, velocity: glam::DVec3, seconds: f64) -> gla
 
 impl Tracked {
     /// Whether a frame captured at `t_us` shows the object where the tracker has it: within
-    /// [`IN_SIGHT`] of its last sighting, either way.
+    /// [`IN_SIGHT`] of its last sighting, either way. An object with no sighting time (given
+    /// by a state file or a flag, held still) always is.
     pub fn in_sight_at(&self, t_us: u64) -> bool {
-        (t_us as f64 - self.seen_us as f64).abs() * 1e-6 <= IN_SIGHT
+        self.seen_us == 0 || (t_us as f64 - self.seen_us as f64).abs() * 1e-6 <= IN_SIGHT
     }
 
     /// The object where it should be at `t_us` (`crate::clock::clock_us`), moving as it did:
@@ -304,9 +306,6 @@ impl Default for Tracked {
 
 /// The largest fisheye frame, each way (GENERAL_SETTINGS's camera size).
 pub const MAX_SENSOR: u32 = 8192;
-
-/// Ratios the seed accepts: [0, 0.99).
-pub const RATIO_RANGE: std::ops::Range<f64> = 0.0..0.99;
 
 const FRAC_PI_4: f64 = std::f64::consts::FRAC_PI_4;
 

@@ -1,10 +1,8 @@
 //! The one check every way into the state goes through (state files, flags, the control
 //! protocol, and what comes later): every field against the range the protocol allows.
 
-use super::detection::BOX_LIMITS;
-use super::{FPS_RANGE, MAX_GAIN, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, RATIO_RANGE, State};
-use crate::geometry::view::{LockFlags, clamp_fov, control, crop, fov_range};
-use crate::layout::{LAYOUT_MODES, OVERLAY_MODES};
+use super::{State, rules};
+use crate::geometry::view::{clamp_fov, control, crop, fov_range};
 use crate::lens::Lenses;
 
 /// Why a state is refused: the field, its value and the range it must lie in.
@@ -57,57 +55,34 @@ impl State {
         Ok(())
     }
 
-    /// Every field against the range the protocol allows (what can be checked without
-    /// lens.cal; [`State::validate`] checks the rest).
+    /// Every field against its rule ([`rules::RULES`], what the protocol takes unchanged),
+    /// and the bounds that join fields (what can be checked without lens.cal;
+    /// [`State::validate`] checks the rest).
     pub fn validate_fields(&self) -> Result<(), Invalid> {
-        let o = &self.output;
-        let (lo, hi) = (MIN_OUTPUT, MAX_OUTPUT);
-        if !(lo.0..=hi.0).contains(&o.width) || !(lo.1..=hi.1).contains(&o.height) {
-            return invalid(format!(
-                "output size {}x{} is outside {}x{}..={}x{}",
-                o.width, o.height, lo.0, lo.1, hi.0, hi.1
-            ));
+        for (label, key, v) in self.values() {
+            let Some(rule) = rules::of_key(key) else {
+                return invalid(format!("{label}: no rule for `{key}` (a bug)"));
+            };
+            if !rule.holds(v) {
+                let also = match rule.also {
+                    "" => String::new(),
+                    a => format!(", and {a}"),
+                };
+                return invalid(format!(
+                    "{label} {} is outside {}{also}",
+                    num(v),
+                    rule.range()
+                ));
+            }
         }
+        let o = &self.output;
         if o.width % 2 == 1 || o.height % 2 == 1 {
             return invalid(format!(
                 "output size {}x{} is odd; 4:2:0 video needs even sizes",
                 o.width, o.height
             ));
         }
-        if !(FPS_RANGE.0..=FPS_RANGE.1).contains(&o.fps) {
-            return invalid(format!(
-                "output fps {} is outside {}..={}",
-                o.fps, FPS_RANGE.0, FPS_RANGE.1
-            ));
-        }
-        if o.layout >= LAYOUT_MODES {
-            return invalid(format!(
-                "layout {} does not exist (0..={})",
-                o.layout,
-                LAYOUT_MODES - 1
-            ));
-        }
-        if o.overlay >= OVERLAY_MODES {
-            return invalid(format!(
-                "overlay {} does not exist (0..={})",
-                o.overlay,
-                OVERLAY_MODES - 1
-            ));
-        }
         for (i, c) in self.cameras.iter().enumerate() {
-            if c.lock > LockFlags::ALL.0 {
-                return invalid(format!(
-                    "camera {i}: lock flags {} are outside 0..=7",
-                    c.lock
-                ));
-            }
-            if c.control > control::PASS {
-                return invalid(format!(
-                    "camera {i}: control mode {} is outside 0..={}",
-                    c.control,
-                    control::PASS
-                ));
-            }
             if clamp_fov(c.fov, c.crop) != c.fov && c.crop <= crop::DEBUG {
                 let (lo, hi) = fov_range(c.crop);
                 return invalid(format!(
@@ -122,166 +97,139 @@ impl State {
             }
         }
         let s = &self.sensor;
-        if !(1..=MAX_SENSOR).contains(&s.width) || !(1..=MAX_SENSOR).contains(&s.height) {
-            return invalid(format!(
-                "sensor size {}x{} is outside 1x1..={MAX_SENSOR}x{MAX_SENSOR}",
-                s.width, s.height
-            ));
-        }
-        if !(1..=240).contains(&s.fps) {
-            return invalid(format!("sensor fps {} is outside 1..=240", s.fps));
-        }
         let longest = s.longest_exposure_us();
-        if !(1..=longest).contains(&s.exposure_us) {
+        if s.exposure_us > longest {
             return invalid(format!(
                 "sensor exposure {} µs is outside 1..={longest} (the frame time at {} fps)",
                 s.exposure_us, s.fps
             ));
         }
-        if !(1..=MAX_GAIN).contains(&s.gain) {
-            return invalid(format!("sensor gain {} is outside 1..={MAX_GAIN}", s.gain));
-        }
-        if !(1..=254).contains(&s.target_brightness) {
-            return invalid(format!(
-                "sensor target brightness {} is outside 1..=254",
-                s.target_brightness
-            ));
-        }
-        let angles = self
-            .cameras
-            .iter()
-            .flat_map(|c| [c.yaw, c.pitch, c.roll, c.fov]);
-        let vehicle = &self.vehicle.attitude;
-        let frames = [
-            vehicle.yaw,
-            vehicle.pitch,
-            vehicle.roll,
-            self.mount.yaw,
-            self.mount.pitch,
-        ];
-        if !angles
-            .chain(frames)
-            .chain([self.mount.roll, self.time])
-            .all(f64::is_finite)
-        {
-            return invalid("angles and the scene time must be finite numbers".into());
-        }
-        let d = &self.detection;
-        for (name, v) in [
-            ("crop_confidence_threshold", d.crop_confidence_threshold),
-            ("var_confidence_threshold", d.var_confidence_threshold),
-            ("crop_box_overlap", d.crop_box_overlap),
-            ("var_box_overlap", d.var_box_overlap),
-        ] {
-            if !RATIO_RANGE.contains(&v) {
-                return invalid(format!("detection {name} {v} is outside [0, 0.99)"));
-            }
-        }
-        for (name, v) in [
-            ("crop_box_limit", d.crop_box_limit),
-            ("var_box_limit", d.var_box_limit),
-        ] {
-            // What DETECTION clamps them to, refused from every other path.
-            if !(BOX_LIMITS.0..=BOX_LIMITS.1).contains(&v) {
-                return invalid(format!(
-                    "detection {name} {v} is outside {}..={}",
-                    BOX_LIMITS.0, BOX_LIMITS.1
-                ));
-            }
-        }
-        if d.sorting_mode > 2 {
-            return invalid(format!(
-                "detection sorting_mode {} is outside 0..=2",
-                d.sorting_mode
-            ));
-        }
-        let p = &self.vehicle.position;
-        if !(-90.0..=90.0).contains(&p.lat) || !(-180.0..=180.0).contains(&p.lon) {
-            return invalid(format!(
-                "vehicle position {}, {} is not a latitude, longitude",
-                p.lat, p.lon
-            ));
-        }
-        for (name, m) in [("altitude", p.alt), ("height above home", p.relative_alt)] {
-            if !HEIGHTS.contains(&m) {
-                return invalid(format!(
-                    "vehicle {name} {} m is outside {}..={} m",
-                    num(m),
-                    HEIGHTS.start(),
-                    HEIGHTS.end()
-                ));
-            }
-        }
-        self.validate_frames()
-    }
-
-    /// The attitude, the mount, the cameras' targets and the tracked objects: angles within
-    /// what they can be, places on the globe.
-    fn validate_frames(&self) -> Result<(), Invalid> {
-        use std::f64::consts::{FRAC_PI_2, PI};
-        // The protocol carries angles in milliradians: -π/2 arrives as -1.571.
-        let slack = 1e-3;
-        let a = &self.vehicle.attitude;
-        let m = &self.mount;
-        for (what, e) in [
-            ("vehicle attitude", (a.yaw, a.pitch, a.roll)),
-            ("mount", (m.yaw, m.pitch, m.roll)),
-        ] {
-            let (yaw, pitch, roll) = e;
-            if yaw.abs() > 2.0 * PI + slack
-                || pitch.abs() > FRAC_PI_2 + slack
-                || roll.abs() > PI + slack
-            {
-                return invalid(format!(
-                    "{what} yaw {}, pitch {}, roll {} rad is outside ±2π, ±π/2, ±π",
-                    num(yaw),
-                    num(pitch),
-                    num(roll)
-                ));
-            }
-        }
-        for (i, c) in self.cameras.iter().enumerate() {
-            // As CAM_ORIENTATION takes them: yaw and pitch wrap (one turn either way is
-            // taken), roll is clamped to ±π/2 (so more is refused, not changed).
-            if c.yaw.abs() > 2.0 * PI + slack
-                || c.pitch.abs() > 2.0 * PI + slack
-                || c.roll.abs() > FRAC_PI_2 + slack
-            {
-                return invalid(format!(
-                    "camera {i}: yaw {}, pitch {}, roll {} rad is outside ±2π, ±2π, ±π/2",
-                    num(c.yaw),
-                    num(c.pitch),
-                    num(c.roll)
-                ));
-            }
-            if let Some(t) = &c.target
-                && (!(-90.0..=90.0).contains(&t.lat)
-                    || !(-180.0..=180.0).contains(&t.lon)
-                    || !HEIGHTS.contains(&t.alt))
-            {
-                return invalid(format!(
-                    "camera {i}: target {}, {}, {} m is not a latitude, longitude and altitude \
-                     ({}..={} m)",
-                    num(t.lat),
-                    num(t.lon),
-                    num(t.alt),
-                    HEIGHTS.start(),
-                    HEIGHTS.end()
-                ));
-            }
-        }
-        for o in &self.tracked {
-            let sound = o.size > 0.0 && o.size <= PI && o.yaw.is_finite() && o.pitch.is_finite();
-            if !sound {
-                return invalid(format!(
-                    "tracked object {}: size {} rad is outside (0, π], or its direction is no \
-                     number",
-                    o.id, o.size
-                ));
-            }
-        }
         Ok(())
     }
+
+    /// Every number the state holds: what it is to a reader, its key in [`rules::RULES`],
+    /// its value.
+    pub fn values(&self) -> Vec<(String, &'static str, f64)> {
+        let mut out: Vec<(String, &'static str, f64)> = vec![];
+        let mut put = |label: String, key: &'static str, v: f64| out.push((label, key, v));
+        let o = &self.output;
+        put("output width".into(), "output.width", o.width as f64);
+        put("output height".into(), "output.height", o.height as f64);
+        put("output fps".into(), "output.fps", o.fps as f64);
+        put("output layout".into(), "output.layout", o.layout as f64);
+        put("output overlay".into(), "output.overlay", o.overlay as f64);
+        put("lens_id".into(), "lens", self.lens as f64);
+        for (i, c) in self.cameras.iter().enumerate() {
+            let cam = |f: &str| format!("camera {i} {f}");
+            put(cam("yaw"), "camera.yaw", c.yaw);
+            put(cam("pitch"), "camera.pitch", c.pitch);
+            put(cam("roll"), "camera.roll", c.roll);
+            put(cam("fov"), "camera.fov", c.fov);
+            put(cam("zoom"), "camera.zoom", c.zoom as f64);
+            put(cam("crop mode"), "camera.crop", c.crop as f64);
+            put(cam("lock flags"), "camera.lock", c.lock as f64);
+            put(cam("control mode"), "camera.control", c.control as f64);
+            if let Some(t) = &c.target {
+                put(cam("target latitude"), "camera.target.lat", t.lat);
+                put(cam("target longitude"), "camera.target.lon", t.lon);
+                put(cam("target altitude"), "camera.target.alt", t.alt);
+            }
+        }
+        let a = &self.vehicle.attitude;
+        put("vehicle attitude yaw".into(), "vehicle.attitude.yaw", a.yaw);
+        put(
+            "vehicle attitude pitch".into(),
+            "vehicle.attitude.pitch",
+            a.pitch,
+        );
+        put(
+            "vehicle attitude roll".into(),
+            "vehicle.attitude.roll",
+            a.roll,
+        );
+        let p = &self.vehicle.position;
+        put("vehicle latitude".into(), "vehicle.position.lat", p.lat);
+        put("vehicle longitude".into(), "vehicle.position.lon", p.lon);
+        put("vehicle altitude".into(), "vehicle.position.alt", p.alt);
+        put(
+            "vehicle height above home".into(),
+            "vehicle.position.relative_alt",
+            p.relative_alt,
+        );
+        put("mount yaw".into(), "mount.yaw", self.mount.yaw);
+        put("mount pitch".into(), "mount.pitch", self.mount.pitch);
+        put("mount roll".into(), "mount.roll", self.mount.roll);
+        let s = &self.sensor;
+        put("sensor width".into(), "sensor.width", s.width as f64);
+        put("sensor height".into(), "sensor.height", s.height as f64);
+        put("sensor fps".into(), "sensor.fps", s.fps as f64);
+        for (name, v) in ["x", "y", "width", "height"]
+            .iter()
+            .zip(s.roi.unwrap_or_default())
+        {
+            put(format!("sensor crop {name}"), "sensor.roi", v as f64);
+        }
+        put("sensor ae".into(), "sensor.ae", s.ae as u8 as f64);
+        put(
+            "sensor target brightness".into(),
+            "sensor.target_brightness",
+            s.target_brightness as f64,
+        );
+        put(
+            "sensor exposure".into(),
+            "sensor.exposure_us",
+            s.exposure_us as f64,
+        );
+        put("sensor gain".into(), "sensor.gain", s.gain as f64);
+        let d = &self.detection;
+        for (name, v) in [
+            ("run_ai", d.run_ai as u8 as f64),
+            ("mode", d.mode as f64),
+            ("sorting_mode", d.sorting_mode as f64),
+            ("crop_confidence_threshold", d.crop_confidence_threshold),
+            ("var_confidence_threshold", d.var_confidence_threshold),
+            ("crop_box_limit", d.crop_box_limit as f64),
+            ("var_box_limit", d.var_box_limit as f64),
+            ("crop_box_overlap", d.crop_box_overlap),
+            ("var_box_overlap", d.var_box_overlap),
+            ("creation_score_scale", d.creation_score_scale as f64),
+            ("bonus_detection_scale", d.bonus_detection_scale as f64),
+            ("bonus_redetection_scale", d.bonus_redetection_scale as f64),
+            (
+                "missed_detection_penalty",
+                d.missed_detection_penalty as f64,
+            ),
+            (
+                "missed_redetection_penalty",
+                d.missed_redetection_penalty as f64,
+            ),
+        ] {
+            put(format!("detection {name}"), detection_key(name), v);
+        }
+        for t in &self.tracked {
+            let obj = |f: &str| format!("tracked object {} {f}", t.id);
+            put(obj("id"), "tracked.id", t.id as f64);
+            put(obj("yaw"), "tracked.yaw", t.yaw);
+            put(obj("pitch"), "tracked.pitch", t.pitch);
+            put(obj("size"), "tracked.size", t.size);
+            put(obj("score"), "tracked.score", t.score as f64);
+            for v in t.velocity {
+                put(obj("velocity"), "tracked.velocity", v);
+            }
+            put(obj("sighting time"), "tracked.seen_us", t.seen_us as f64);
+        }
+        put("scene time".into(), "time", self.time);
+        out
+    }
+}
+
+/// The rule key of DETECTION's field `name` (`detection.NAME`).
+fn detection_key(name: &str) -> &'static str {
+    rules::RULES
+        .iter()
+        .filter_map(|r| r.key)
+        .find(|k| k.strip_prefix("detection.") == Some(name))
+        .unwrap_or("detection.?")
 }
 
 /// `v` as a reader takes it in: as it is, or in scientific notation when huge.
@@ -291,6 +239,3 @@ fn num(v: f64) -> String {
         false => format!("{v:e}"),
     }
 }
-
-/// Altitudes and heights, metres: from below the Dead Sea to above any drone's ceiling.
-const HEIGHTS: std::ops::RangeInclusive<f64> = -1000.0..=20_000.0;

@@ -201,3 +201,75 @@ fn a_source_without_exposure_refuses_cam_sensor_set_and_says_why() {
         "{log}"
     );
 }
+
+/// Whether `img` is the head's "NO SIGNAL" frame (dark grey, limited-range Y 40, with white
+/// text): what the stream shows until the source's first frame.
+fn no_signal(img: &RgbImage) -> bool {
+    let grey = img
+        .pixels()
+        .filter(|p| (luma(p) - 28.0).abs() < 6.0)
+        .count();
+    grey * 10 > img.pixels().len() * 8
+}
+
+/// A manual exposure set the moment the head starts, while its auto exposure is climbing from
+/// too dark, holds: every frame decoded over 3 s of the camera's frames is within 10% of the picture that
+/// setting gives once settled, but for the frames already on their way when the SET came
+/// (decoded within 0.2 s of it: 3 frames at 15 fps) and "NO SIGNAL" frames before the
+/// source's first (both counted). `DIGIVIEW_RUNS=10` repeats it.
+#[test]
+fn a_manual_exposure_set_at_start_holds_from_the_first_frame() {
+    let _alone = crate::one_at_a_time();
+    let runs: usize = std::env::var("DIGIVIEW_RUNS").map_or(1, |r| r.parse().unwrap());
+    for run in 1..=runs {
+        let (serve, viewer, mut c) = start("ae=1,exposure=1000,gain=1000");
+        c.set(sensor(0, 128, 4000, 1000)).unwrap();
+        let t0 = Instant::now();
+        let mut frames = vec![(0.0, viewer.fresh_frame())];
+        // 3 s of the camera's frames (a loaded machine's source can take seconds to send its
+        // first: "NO SIGNAL" until then), 20 s at most.
+        let mut first: Option<f64> = None;
+        while t0.elapsed() < Duration::from_secs(20)
+            && first.is_none_or(|f| frames.last().unwrap().0 < f + 3.0)
+        {
+            let (t, f) = (t0.elapsed().as_secs_f64(), viewer.frame().0);
+            if first.is_none() && t >= 0.2 && !no_signal(&f) {
+                first = Some(t);
+            }
+            frames.push((t, f));
+        }
+        let blank = frames.iter().filter(|(_, f)| no_signal(f)).count();
+        let in_flight = frames.iter().filter(|(t, _)| *t < 0.2).count();
+        let camera: Vec<_> = frames
+            .iter()
+            .filter(|(t, f)| *t >= 0.2 && !no_signal(f))
+            .collect();
+        assert!(
+            camera.len() >= 15,
+            "run {run}: {} camera frames",
+            camera.len()
+        );
+        let circle = Circle::of(&viewer.frame_after(Duration::from_millis(500)));
+        let settled = circle.settled(&viewer);
+        let lumas: Vec<(f64, f64)> = camera.iter().map(|(t, f)| (*t, circle.luma(f))).collect();
+        let (lo, hi) = lumas
+            .iter()
+            .fold((f64::MAX, 0f64), |(lo, hi), &(_, l)| (lo.min(l), hi.max(l)));
+        println!(
+            "run {run}: {blank} NO SIGNAL frames, {in_flight} in flight, then {} camera frames \
+             from {:.2} s, luma {lo:.1}..{hi:.1}, settled {settled:.1}",
+            camera.len(),
+            camera[0].0
+        );
+        assert!(
+            lumas.iter().all(|(_, l)| (l / settled - 1.0).abs() <= 0.1),
+            "run {run}: the manual exposure did not hold (settled {settled:.1}): {lumas:?}"
+        );
+        assert_eq!(
+            c.get_one(ParamType::CamSensor.zeroed()).unwrap(),
+            sensor(0, 128, 4000, 1000),
+            "run {run}"
+        );
+        drop(serve);
+    }
+}

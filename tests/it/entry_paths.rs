@@ -22,10 +22,10 @@ use std::net::{IpAddr, Ipv4Addr};
 use std::sync::Arc;
 
 /// What one path made of a value: the state it produced, or its refusal.
-type Outcome = Result<State, String>;
+pub(crate) type Outcome = Result<State, String>;
 
 /// The control protocol: one SET from a loopback client on the default state.
-fn by_protocol(cal: &LensCal, p: Param) -> Outcome {
+pub(crate) fn by_protocol(cal: &LensCal, p: Param) -> Outcome {
     let live = Live::new(State::default(), cal, Box::new(NoVideo)).unwrap();
     let c = Controller::new(Arc::new(live), Arc::default());
     let frame = Message::new(Body::Set(p)).encode();
@@ -42,7 +42,7 @@ fn by_flags(cal: &LensCal, args: StateArgs) -> Outcome {
 }
 
 /// A state file with `toml` in it, read through `--state`.
-fn by_state_file(cal: &LensCal, toml: &str) -> Outcome {
+pub(crate) fn by_state_file(cal: &LensCal, toml: &str) -> Outcome {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("state.toml");
     std::fs::write(&path, toml).unwrap();
@@ -54,7 +54,7 @@ fn by_state_file(cal: &LensCal, toml: &str) -> Outcome {
 }
 
 /// A serve config naming a state file with `toml` in it, and optionally a lens.
-fn by_config(cal: &LensCal, toml: &str, lens: Option<&str>) -> Outcome {
+pub(crate) fn by_config(cal: &LensCal, toml: &str, lens: Option<&str>) -> Outcome {
     let dir = tempfile::tempdir().unwrap();
     let state = dir.path().join("state.toml");
     std::fs::write(&state, toml).unwrap();

@@ -37,6 +37,7 @@ mod publish;
 mod pymavlink;
 mod render_video;
 mod rolling_shutter;
+mod rules_table;
 mod services;
 mod trust_mavlink;
 mod trust_web;

@@ -1,0 +1,268 @@
+//! The one table of rules (`state::rules::RULES`) covers every field, and every entry path
+//! keeps to it: a field of a parameter type or of the state that the table leaves out fails
+//! the first test; the second sets random values of every field the table gives a state key
+//! through the control protocol, a state file and a serve configuration naming one, and
+//! checks that the files take a value exactly when the protocol takes it unchanged (wrapped
+//! angles one turn either way), and that the protocol does with the rest what the table says.
+
+use crate::common;
+use crate::entry_paths::{Outcome, by_config, by_protocol, by_state_file};
+
+use digiview::control::Controller;
+use digiview::protocol::{Param, ParamType};
+use digiview::state::capture::NoVideo;
+use digiview::state::rules::{Outside, RULES, Rule};
+use digiview::state::{Live, State, Tracked};
+use proptest::prelude::*;
+use serde_json::Value;
+use std::collections::BTreeSet;
+use std::sync::Arc;
+
+/// State keys no rule has: an object's label (text from the detector, any text).
+const TEXT: &[&str] = &["tracked.label"];
+
+/// The state with every optional part present: a camera target, a sensor crop, an object.
+fn full_state() -> State {
+    let mut s = State::default();
+    s.cameras[0].target = Some(digiview::geometry::GeoPoint {
+        lat: 47.0,
+        lon: 8.0,
+        alt: 400.0,
+    });
+    s.sensor.roi = Some([0, 0, 100, 100]);
+    s.tracked = vec![Tracked::default()];
+    s
+}
+
+/// Every leaf of `v` as a dotted key, list indices left out (`camera.target.lat`).
+fn leaves(v: &Value, at: &str, out: &mut BTreeSet<String>) {
+    let join = |k: &str| match at {
+        "" => k.to_string(),
+        _ => format!("{at}.{k}"),
+    };
+    match v {
+        Value::Object(m) => m.iter().for_each(|(k, v)| leaves(v, &join(k), out)),
+        Value::Array(a) if a.iter().any(|e| e.is_object()) => {
+            a.iter().for_each(|e| leaves(e, at, out))
+        }
+        // An optional part left out (the other cameras' targets).
+        Value::Null => {}
+        _ => {
+            out.insert(at.to_string());
+        }
+    }
+}
+
+#[test]
+fn every_field_of_every_parameter_type_and_of_the_state_has_one_rule() {
+    let mut missing = vec![];
+    let mut fields = 0;
+    for &kind in ParamType::ALL.iter().filter(|k| k.settable()) {
+        for f in kind.fields() {
+            fields += 1;
+            let n = RULES
+                .iter()
+                .filter(|r| r.param == Some((kind, f.name)))
+                .count();
+            if n != 1 {
+                missing.push(format!("{kind} {}: {n} rules", f.name));
+            }
+        }
+    }
+    // No rule names a field that is not there.
+    for r in RULES {
+        if let Some((kind, name)) = r.param
+            && !kind.fields().iter().any(|f| f.name == name)
+        {
+            missing.push(format!("a rule names {kind} {name}, which does not exist"));
+        }
+    }
+    // Every key of the state as a file writes it has a rule, and the one check reads each.
+    let state = full_state();
+    let mut keys = BTreeSet::new();
+    leaves(&serde_json::to_value(&state).unwrap(), "", &mut keys);
+    let keys: BTreeSet<_> = keys
+        .into_iter()
+        .map(|k| k.replacen("cameras.", "camera.", 1))
+        .filter(|k| !TEXT.contains(&k.as_str()))
+        .collect();
+    let ruled: BTreeSet<String> = RULES
+        .iter()
+        .filter_map(|r| r.key)
+        .map(String::from)
+        .collect();
+    let checked: BTreeSet<String> = state
+        .values()
+        .into_iter()
+        .map(|v| v.1.to_string())
+        .collect();
+    for k in &keys {
+        if !ruled.contains(k) {
+            missing.push(format!("state key {k} has no rule"));
+        }
+        if !checked.contains(k) {
+            missing.push(format!(
+                "state key {k} is not among State::values (never checked)"
+            ));
+        }
+    }
+    let types = ParamType::ALL.iter().filter(|k| k.settable()).count();
+    println!(
+        "{} rules: {fields} fields of {types} settable parameter types, {} state keys \
+         ({} set by no parameter type)",
+        RULES.len(),
+        keys.len(),
+        RULES.iter().filter(|r| r.param.is_none()).count()
+    );
+    assert!(
+        missing.is_empty(),
+        "left out of the table:\n{}",
+        missing.join("\n")
+    );
+}
+
+/// The rules a SET sets and a state file holds, compared across the paths (the sensor crop
+/// is joined with the lens and the camera's frame: `entry_paths` covers it; flags are on or
+/// off, a file's booleans).
+fn compared() -> Vec<&'static Rule> {
+    RULES
+        .iter()
+        .filter(|r| r.param.is_some_and(|(k, _)| k.settable()) && r.key.is_some())
+        .filter(|r| !matches!(r.outside, Outside::Flag) && r.key != Some("sensor.roi"))
+        .collect()
+}
+
+/// The SET of `kind` as the default state's GET gives it (camera 0), or zeros.
+fn base(cal: &digiview::lens::LensCal, kind: ParamType) -> Param {
+    let live = Live::new(State::default(), cal, Box::new(NoVideo)).unwrap();
+    let c = Controller::new(Arc::new(live), Arc::default());
+    let mut q = kind.zeroed();
+    let _ = q.set_field("cam_id", 0.0);
+    c.get(&q)
+        .ok()
+        .and_then(|v| v.into_iter().next())
+        .unwrap_or(q)
+}
+
+/// A state file holding what `p` sets: every field of its type that has a state key.
+fn state_file(p: &Param) -> String {
+    let kind = p.param_type();
+    let (mut top, mut camera, mut target) = (vec![], vec![], vec![]);
+    let mut sections = std::collections::BTreeMap::<&str, Vec<String>>::new();
+    for r in RULES
+        .iter()
+        .filter(|r| r.param.is_some_and(|(k, _)| k == kind))
+    {
+        let (Some(key), Some((_, field))) = (r.key, r.param) else {
+            continue;
+        };
+        // 0x0 on the wire is no crop, as a file without `roi` (`base` gives 0x0).
+        if key == "sensor.roi" {
+            continue;
+        }
+        let Some(v) = p.field(field) else { continue };
+        let v = match (r.outside, v.fract() == 0.0) {
+            (Outside::Flag, _) => format!("{}", v != 0.0),
+            (_, true) => format!("{v:.0}"),
+            _ => format!("{v:?}"),
+        };
+        match key.split('.').collect::<Vec<_>>()[..] {
+            [name] => top.push(format!("{name} = {v}")),
+            ["camera", "target", name] => target.push(format!("{name} = {v}")),
+            ["camera", name] => camera.push(format!("{name} = {v}")),
+            [section, name] => sections
+                .entry(section)
+                .or_default()
+                .push(format!("{name} = {v}")),
+            _ => panic!("key {key}"),
+        }
+    }
+    let mut text = top.join("\n") + "\n";
+    for (section, lines) in sections {
+        text += &format!("[{section}]\n{}\n", lines.join("\n"));
+    }
+    if !camera.is_empty() || !target.is_empty() {
+        text += "[[camera]]\nid = 0\n";
+        text += &camera.join("\n");
+        if !target.is_empty() {
+            text += &format!("\ntarget = {{ {} }}", target.join(", "));
+        }
+    }
+    text
+}
+
+/// The state's value under `key` (camera 0's, the first object's).
+fn value(s: &State, key: &str) -> f64 {
+    s.values()
+        .into_iter()
+        .find(|v| v.1 == key)
+        .map_or(f64::NAN, |v| v.2)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2048, ..ProptestConfig::default() })]
+
+    #[test]
+    fn every_field_in_the_table_is_taken_alike_by_the_protocol_and_the_files(
+        which in any::<prop::sample::Index>(), kind in 0u8..6, t in 0.0f64..1.0
+    ) {
+        let cal = common::lens_cal();
+        let rules = compared();
+        let rule = rules[which.index(rules.len())];
+        let (param, field) = rule.param.unwrap();
+        let key = rule.key.unwrap();
+        let span = (rule.hi - rule.lo).max(1.0);
+        let step = if rule.unit == "rad" { 0.01 } else { 1.0 };
+        let v = match kind {
+            0 => rule.lo,
+            1 => rule.hi,
+            2 => rule.lo - step,
+            3 => rule.hi + step,
+            _ => rule.lo - span + t * 3.0 * span,
+        };
+        let mut p = base(&cal, param);
+        let whole = !matches!(rule.unit, "rad" | "°" | "m" | "");
+        let v = if whole || p.field(field).is_some_and(|f| f.fract() == 0.0) && step == 1.0 {
+            v.round()
+        } else {
+            v
+        };
+        // The value the wire carries (an integer field takes only what its type holds).
+        if p.set_field(field, v).is_err() {
+            return Ok(());
+        }
+        let p = Param::decode(param, &p.encode());
+        let sent = p.field(field).unwrap();
+        let before = value(&State::default(), key);
+        let protocol: Outcome = by_protocol(&cal, p);
+        let toml = state_file(&p);
+        let files = [
+            ("state file", by_state_file(&cal, &toml)),
+            ("config", by_config(&cal, &toml, None)),
+        ];
+        prop_assert_eq!(files[0].1.is_ok(), files[1].1.is_ok(), "{:?} {:?}", files[0].1, files[1].1);
+        // What the protocol made of it, against the table.
+        let slack = if rule.unit == "rad" { 1.5e-3 } else { 1e-6 };
+        let same = |a: f64, b: f64| match rule.outside {
+            Outside::Wrap => (digiview::geometry::wrap_pi(a - b)).abs() <= slack,
+            _ => (a - b).abs() <= slack,
+        };
+        let even = |v: f64| if matches!(key, "output.width" | "output.height") { v - v % 2.0 } else { v };
+        let taken = protocol.as_ref().ok().map(|s| value(s, key));
+        // A wrapped angle is the same one turn either way; more, a file refuses.
+        let unchanged = taken.is_some_and(|got| same(got, even(sent)))
+            && (rule.outside != Outside::Wrap || sent.abs() <= std::f64::consts::TAU + slack);
+        prop_assert_eq!(
+            files[0].1.is_ok(), unchanged,
+            "{} {} = {}: {}: {:?}; protocol {:?} (was {})\n{}",
+            param, field, sent, key, files[0].1.as_ref().err(), taken, before, toml
+        );
+        if let Some(got) = taken.filter(|_| !unchanged && rule.also.is_empty()) {
+            let want = rule.apply(sent, before);
+            prop_assert!(
+                want.is_some_and(|w| same(got, even(w))),
+                "{} {} = {}: the protocol set {}, the table says {:?}", param, field, sent, got, want
+            );
+        }
+    }
+}
