@@ -218,8 +218,24 @@ pub(crate) fn set_json(
     let is_delta = fields
         .get("is_delta")
         .is_some_and(|v| v.as_f64().is_some_and(|d| d != 0.0) || v == &Value::Bool(true));
+    // A SET that starts from zeros sets every field it reads: one given nothing (`{}`), or a
+    // camera's without the camera, would set zeros nobody asked for.
+    let reads_first = edit::reads_first(kind, is_delta);
+    let named: Vec<&str> = kind.fields().iter().map(|f| f.name).collect();
+    if kind.per_camera() && !fields.contains_key("cam_id") {
+        return Err(bad(format!(
+            "{kind} needs cam_id; its fields: {}",
+            named.join(", ")
+        )));
+    }
+    if !reads_first && fields.keys().all(|k| k == "cam_id") {
+        return Err(bad(format!(
+            "{kind}: give the fields to set: {}",
+            named.join(", ")
+        )));
+    }
     let mut base = kind.zeroed();
-    if edit::reads_first(kind, is_delta) {
+    if reads_first {
         // The camera first, then that camera's current values.
         if let Some(cam) = fields.get("cam_id").and_then(Value::as_f64) {
             edit::set(&mut base, "cam_id", Given::Number(cam)).map_err(|e| bad(e.0))?;

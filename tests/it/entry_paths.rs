@@ -37,7 +37,7 @@ pub(crate) fn by_protocol(cal: &LensCal, p: Param) -> Outcome {
 }
 
 /// Flags (as `render`, `synth` and `serve` take them) on the default state.
-fn by_flags(cal: &LensCal, args: StateArgs) -> Outcome {
+pub(crate) fn by_flags(cal: &LensCal, args: StateArgs) -> Outcome {
     args.state(cal).map_err(|e| format!("{e:#}"))
 }
 

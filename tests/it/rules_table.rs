@@ -6,7 +6,7 @@
 //! angles one turn either way), and that the protocol does with the rest what the table says.
 
 use crate::common;
-use crate::entry_paths::{Outcome, by_config, by_protocol, by_state_file};
+use crate::entry_paths::{Outcome, by_config, by_flags, by_protocol, by_state_file};
 
 use digiview::control::Controller;
 use digiview::protocol::{Param, ParamType};
@@ -191,6 +191,43 @@ fn state_file(p: &Param) -> String {
     text
 }
 
+/// The flags (as `render`, `synth` and `serve` take them) that set what `p` sets for `key`,
+/// where flags set it (none set DETECTION, the camera's frame and rate, or a target).
+fn flags(key: &str, p: &Param) -> Option<Vec<String>> {
+    let (_, field) = RULES.iter().find(|r| r.key == Some(key))?.param?;
+    let v = p.field(field)?;
+    let n = |name: &str| p.field(name).unwrap_or_default();
+    let (flag, value) = match key.split('.').collect::<Vec<_>>()[..] {
+        ["output", "width" | "height"] => ("--size", format!("{}x{}", n("width"), n("height"))),
+        ["output", "fps"] => ("--fps", format!("{v}")),
+        ["output", "layout"] => ("--layout", format!("{v}")),
+        ["output", "overlay"] => ("--overlay", format!("{v}")),
+        ["lens"] => ("--lens", format!("{v}")),
+        ["camera", "target", _] => return None,
+        ["camera", name] => ("--cam", format!("0:{name}={v}")),
+        ["mount", name] => ("--mount", format!("{name}={v}")),
+        ["sensor", "target_brightness" | "exposure_us" | "gain"] => {
+            let name = key.strip_prefix("sensor.").unwrap();
+            ("--cam-sensor", format!("{name}={v}"))
+        }
+        _ => return None,
+    };
+    Some(vec![flag.to_string(), value])
+}
+
+/// `StateArgs` as the command line parses `args`.
+fn parsed(args: &[String]) -> Result<digiview::cli::StateArgs, String> {
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        state: digiview::cli::StateArgs,
+    }
+    use clap::Parser;
+    Cli::try_parse_from(std::iter::once("x".to_string()).chain(args.iter().cloned()))
+        .map(|c| c.state)
+        .map_err(|e| e.to_string())
+}
+
 /// The state's value under `key` (camera 0's, the first object's).
 fn value(s: &State, key: &str) -> f64 {
     s.values()
@@ -236,11 +273,16 @@ proptest! {
         let before = value(&State::default(), key);
         let protocol: Outcome = by_protocol(&cal, p);
         let toml = state_file(&p);
-        let files = [
+        let mut files = vec![
             ("state file", by_state_file(&cal, &toml)),
             ("config", by_config(&cal, &toml, None)),
         ];
-        prop_assert_eq!(files[0].1.is_ok(), files[1].1.is_ok(), "{:?} {:?}", files[0].1, files[1].1);
+        if let Some(args) = flags(key, &p) {
+            files.push(("flags", parsed(&args).and_then(|a| by_flags(&cal, a))));
+        }
+        for (name, got) in &files[1..] {
+            prop_assert_eq!(got.is_ok(), files[0].1.is_ok(), "{} {:?} {:?}", name, got, files[0].1);
+        }
         // What the protocol made of it, against the table.
         let slack = if rule.unit == "rad" { 1.5e-3 } else { 1e-6 };
         let same = |a: f64, b: f64| match rule.outside {

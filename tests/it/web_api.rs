@@ -55,11 +55,18 @@ async fn a_script_reads_and_sets_over_rest_and_the_event_socket() {
 
     // Bad input: a reason, and nothing changed.
     let (_, lens) = request(host, "GET", "/api/params/LENS", None);
+    let (_, general) = request(host, "GET", "/api/params/GENERAL_SETTINGS", None);
+    let (_, fov0) = request(host, "GET", "/api/params/CAM_FOV?cam_id=0", None);
     for (param, body, want) in [
         ("CAM_FOV", json!({"cam_id": 1, "fov": "wide"}), 400),
         ("CAM_FOV", json!({"cam_id": 9, "fov": "30deg"}), 422),
         ("CAM_FOV", json!([1, 2]), 400),
         ("LENS", json!({"lens_id": 9}), 422),
+        // Nothing to set, or no camera: not camera 0's fov set to zero (then clamped).
+        ("CAM_FOV", json!({}), 400),
+        ("CAM_FOV", json!({"fov": "30deg"}), 400),
+        // Beyond what a mount can be: refused, naming it; the state unchanged (below).
+        ("GENERAL_SETTINGS", json!({"mount_pitch": 1e300}), 422),
     ] {
         let path = format!("/api/params/{param}");
         let (code, why) = request(host, "PUT", &path, Some(&body));
@@ -70,6 +77,27 @@ async fn a_script_reads_and_sets_over_rest_and_the_event_socket() {
             "{body}: no reason"
         );
     }
+    let (_, why) = request(
+        host,
+        "PUT",
+        "/api/params/GENERAL_SETTINGS",
+        Some(&json!({"mount_pitch": 1e300})),
+    );
+    assert!(
+        why["error"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("mount pitch 1e300 is outside ±π/2 rad"),
+        "{why}"
+    );
+    assert_eq!(
+        request(host, "GET", "/api/params/GENERAL_SETTINGS", None).1,
+        general
+    );
+    assert_eq!(
+        request(host, "GET", "/api/params/CAM_FOV?cam_id=0", None).1,
+        fov0
+    );
     // A body that is not JSON, or says it is not: the API's JSON error all the same; so is
     // every other refusal (a name the server does not answer to).
     let raw = |headers: &[(&str, &str)], body: &str| {
