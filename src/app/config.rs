@@ -8,7 +8,7 @@ use crate::cameras::CamerasConfig;
 use crate::control::ControlConfig;
 use crate::detect::DetectionConfig;
 use crate::exposure::ExposureConfig;
-use crate::geometry::shutter::{MAX_READOUT_MS, Readout};
+use crate::geometry::shutter::Readout;
 use crate::head::HeadConfig;
 use crate::head::capture::CaptureConfig;
 use crate::http::HttpConfig;
@@ -177,30 +177,10 @@ impl Config {
     /// Ranges and forms the types alone do not hold.
     pub fn check(&self) -> Result<(), ConfigError> {
         self.source.parse::<SourceSpec>()?;
-        if !(1..=240).contains(&self.source_fps) {
-            return out_of_range(format!("source_fps {} is outside 1..=240", self.source_fps));
-        }
-        if self.klv_camera >= crate::state::MAX_CAMERAS {
-            return out_of_range(format!(
-                "klv_camera {} is not a camera (0..={})",
-                self.klv_camera,
-                crate::state::MAX_CAMERAS - 1
-            ));
-        }
         self.readout.check().map_err(ConfigError::Range)?;
+        // Every number against its rule (config_rules); what joins numbers follows.
+        self.check_ranges().map_err(ConfigError::Range)?;
         let d = &self.demo;
-        if !d.readout_ms.is_finite() || !(0.0..=MAX_READOUT_MS).contains(&d.readout_ms) {
-            return out_of_range(format!(
-                "demo readout_ms {:?} is outside 0..={MAX_READOUT_MS}",
-                d.readout_ms
-            ));
-        }
-        if d.width < 64 || d.height < 64 || d.width > 7680 || d.height > 4320 {
-            return out_of_range(format!(
-                "demo size {}x{} is outside 64x64..7680x4320",
-                d.width, d.height
-            ));
-        }
         if d.format.is_yuv() && (d.width % 2 == 1 || d.height % 2 == 1) {
             return out_of_range(format!(
                 "demo size {}x{} must be even for {}",
@@ -209,27 +189,6 @@ impl Config {
         }
         if d.stamp && !d.format.is_yuv() {
             return out_of_range("demo stamp needs a 4:2:0 format (nv12 or i420)".into());
-        }
-        if !(1..=120).contains(&d.fps) {
-            return out_of_range(format!("demo fps {} is outside 1..=120", d.fps));
-        }
-        if !(0.5..=30.0).contains(&self.detection.scan_hz) {
-            return out_of_range(format!(
-                "detection scan_hz {} is outside 0.5..=30",
-                self.detection.scan_hz
-            ));
-        }
-        if !(0.0..=30.0).contains(&self.detection.crop_hz) {
-            return out_of_range(format!(
-                "detection crop_hz {} is outside 0..=30",
-                self.detection.crop_hz
-            ));
-        }
-        if !(1..=16).contains(&self.detection.threads) {
-            return out_of_range(format!(
-                "detection threads {} is outside 1..=16",
-                self.detection.threads
-            ));
         }
         if let Err(e) = crate::detect::onnx::wanted(&self.detection.classes) {
             return out_of_range(format!("detection classes: {e}"));
@@ -246,13 +205,6 @@ impl Config {
             return out_of_range(e.to_string());
         }
         let c = &self.cameras;
-        let ((lo_w, lo_h), (hi_w, hi_h)) = (crate::state::MIN_OUTPUT, crate::state::MAX_OUTPUT);
-        if c.width < lo_w || c.height < lo_h || c.width > hi_w || c.height > hi_h {
-            return out_of_range(format!(
-                "cameras size {}x{} is outside {lo_w}x{lo_h}..{hi_w}x{hi_h}",
-                c.width, c.height
-            ));
-        }
         if c.width % 2 == 1 || c.height % 2 == 1 {
             return out_of_range(format!(
                 "cameras size {}x{} must be even",
@@ -283,21 +235,6 @@ impl Config {
         self.mavlink
             .endpoint
             .parse::<crate::autopilot::Endpoint>()?;
-        for (key, hz) in [
-            ("attitude_hz", self.mavlink.attitude_hz),
-            ("position_hz", self.mavlink.position_hz),
-        ] {
-            if !(0.1..=500.0).contains(&hz) {
-                return out_of_range(format!("mavlink {key} {hz} is outside 0.1..=500"));
-            }
-        }
-        let (lo, hi) = crate::stream::encoder::BITRATE_KBPS;
-        if !(lo..=hi).contains(&self.encoder.bitrate_kbps) {
-            return out_of_range(format!(
-                "encoder bitrate_kbps {} is outside {lo}..={hi}",
-                self.encoder.bitrate_kbps
-            ));
-        }
         let named = match self.encoder.kind.as_str() {
             "x264" | "x265" => Some(&self.encoder.kind[..]),
             k if k.contains("h264") => Some("x264"),
@@ -315,18 +252,6 @@ impl Config {
                 self.encoder.codec.name(),
                 format!("{:?}", self.encoder.codec).to_lowercase(),
                 self.encoder.codec.name()
-            ));
-        }
-        if !(0.1..=60.0).contains(&self.encoder.key_interval_s) {
-            return out_of_range(format!(
-                "encoder key_interval_s {} is outside 0.1..=60",
-                self.encoder.key_interval_s
-            ));
-        }
-        if !(0.0..=3600.0).contains(&self.health_interval_s) {
-            return out_of_range(format!(
-                "health_interval_s {} is outside 0..=3600",
-                self.health_interval_s
             ));
         }
         Ok(())
@@ -368,7 +293,15 @@ mod tests {
             ("[readout]\ntime_ms = nan", "readout time_ms NaN"),
             ("[readout]\ndirection = \"sideways\"", "top_to_bottom"),
             ("[readout]\ntimestamp = \"now\"", "start"),
-            ("[demo]\nreadout_ms = -1", "demo readout_ms -1.0"),
+            (
+                "[demo]\nreadout_ms = -1",
+                "demo readout_ms -1 is outside 0..=100 ms",
+            ),
+            ("[demo]\nfps = 200", "demo fps 200 is outside 1..=120 fps"),
+            (
+                "[mavlink]\nsystem_id = 0",
+                "mavlink system_id 0 is outside 1..=255",
+            ),
         ] {
             let e = Config::parse(text).unwrap_err().to_string();
             assert!(e.contains(says), "{text:?}: {e}");

@@ -6,6 +6,7 @@
 //! serves, and runs them until one of them stops the rest. Nothing below imports this module.
 
 pub mod config;
+pub mod config_rules;
 mod wiring;
 
 pub use config::{Config, ConfigError};

@@ -1,9 +1,11 @@
 //! The one table of rules (`state::rules::RULES`) covers every field, and every entry path
 //! keeps to it: a field of a parameter type or of the state that the table leaves out fails
 //! the first test; the second sets random values of every field the table gives a state key
-//! through the control protocol, a state file and a serve configuration naming one, and
-//! checks that the files take a value exactly when the protocol takes it unchanged (wrapped
-//! angles one turn either way), and that the protocol does with the rest what the table says.
+//! through the control protocol, a state file, a serve configuration naming one and the
+//! flags, and checks that the files and flags take a value exactly when the protocol takes it
+//! unchanged (wrapped angles one turn either way), and that the protocol does with the rest
+//! what the table says. The third does the same for the serve configuration's own numbers
+//! (`app::config_rules`).
 
 use crate::common;
 use crate::entry_paths::{Outcome, by_config, by_flags, by_protocol, by_state_file};
@@ -305,6 +307,80 @@ proptest! {
                 want.is_some_and(|w| same(got, even(w))),
                 "{} {} = {}: the protocol set {}, the table says {:?}", param, field, sent, got, want
             );
+        }
+    }
+}
+
+/// The serve configuration's numbers (`app::config_rules`): each has a rule, and the file
+/// takes each at either end of its range and refuses it a step past either end, naming it.
+#[test]
+fn every_number_of_the_serve_configuration_has_a_rule_and_is_refused_outside_it() {
+    use digiview::app::Config;
+    use digiview::app::config_rules::CONFIG_RULES;
+    let mut full = Config::default();
+    full.mavlink.system_id = Some(1);
+    let mut keys = BTreeSet::new();
+    leaves(&serde_json::to_value(&full).unwrap(), "", &mut keys);
+    let numbers: Vec<String> = keys
+        .into_iter()
+        .filter(|k| {
+            let mut v = serde_json::to_value(&full).unwrap();
+            for part in k.split('.') {
+                v = v[part].take();
+            }
+            v.is_number()
+        })
+        .collect();
+    let checked: BTreeSet<&str> = full.values().into_iter().map(|v| v.0).collect();
+    let mut missing = vec![];
+    for k in &numbers {
+        if !CONFIG_RULES.iter().any(|r| r.key == k) {
+            missing.push(format!("{k} has no rule"));
+        }
+        if !checked.contains(k.as_str()) {
+            missing.push(format!("{k} is not among Config::values (never checked)"));
+        }
+    }
+    println!(
+        "{} numbers of the serve configuration, {} rules",
+        numbers.len(),
+        CONFIG_RULES.len()
+    );
+    assert!(missing.is_empty(), "left out:\n{}", missing.join("\n"));
+    // Each end taken, a step past each refused with the key said.
+    for r in CONFIG_RULES {
+        let toml = |v: f64| match r.key.split_once('.') {
+            Some((section, name)) => format!("[{section}]\n{name} = {v:?}\n"),
+            None => format!("{} = {v:?}\n", r.key),
+        };
+        let whole = |v: f64| v.fract() == 0.0;
+        let step = if whole(r.lo) && whole(r.hi) {
+            1.0
+        } else {
+            0.01
+        };
+        for (v, ok) in [
+            (r.lo, true),
+            (r.hi, true),
+            (r.lo - step, false),
+            (r.hi + step, false),
+        ] {
+            let text = if step == 1.0 {
+                toml(v).replace(".0\n", "\n")
+            } else {
+                toml(v)
+            };
+            let got = Config::parse(&text);
+            let said = r.key.replace('.', " ");
+            match (&got, ok) {
+                (Ok(_), true) => {}
+                (Err(e), false) => assert!(
+                    e.to_string().contains(&said)
+                        || e.to_string().contains(r.key.rsplit('.').next().unwrap()),
+                    "{text}: {e}"
+                ),
+                _ => panic!("{text}: {:?}", got.as_ref().err().map(|e| e.to_string())),
+            }
         }
     }
 }

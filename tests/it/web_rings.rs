@@ -11,9 +11,9 @@ use common::serve::Serve;
 use serde_json::Value;
 use std::time::Duration;
 
-/// A script: the overlay's rings (`dataset.rings`) at each frame of the picture the page
-/// draws, until `arguments[0]` pairs of frames in a row start with a moving ring (or 90
-/// frames).
+/// A script: the overlay's rings (`dataset.rings`) and the frame's time at each frame of the
+/// picture the page draws, until `arguments[0]` pairs of different frames in a row start with
+/// a moving ring (or 90 frames).
 const FRAMES_WITH_RINGS: &str = "
     const want = arguments[0];
     const c = document.getElementById('overlay');
@@ -23,22 +23,28 @@ const FRAMES_WITH_RINGS: &str = "
       const seen = [];
       let pairs = 0;
       preview.addEventListener('frame', function step() {
-        if (seen.length > 0 && moving(seen[seen.length - 1].drawn)) pairs++;
-        seen.push({ drawn: c.dataset.rings });
+        const last = seen[seen.length - 1];
+        if (last && last.pts !== c.dataset.pts && moving(last.drawn)) pairs++;
+        seen.push({ drawn: c.dataset.rings, pts: c.dataset.pts });
         if (pairs < want && seen.length < 90) return;
         preview.removeEventListener('frame', step);
         done(seen);
       });
     })";
 
-/// Of the frames drawn (each `{drawn}`: the overlay's rings as JSON), the pairs in a row whose
-/// first has a moving ring, and of those, the pairs whose rings differ.
+/// Of the frames drawn (each `{drawn, pts}`: the overlay's rings as JSON, the frame's time),
+/// the pairs of different frames in a row whose first has a moving ring, and of those, the
+/// pairs whose rings differ.
 fn moving_pairs(frames: &Value) -> (usize, usize) {
+    let frames = frames.as_array().unwrap();
     let drawn: Vec<&str> = frames
-        .as_array()
-        .unwrap()
         .iter()
         .map(|f| f["drawn"].as_str().unwrap_or("[]"))
+        .collect();
+    // The same frame drawn again (its presentation time unchanged) rightly keeps its rings.
+    let new: Vec<bool> = frames
+        .windows(2)
+        .map(|w| w[0]["pts"] != w[1]["pts"])
         .collect();
     let moving = |f: &str| {
         let rings: Value = serde_json::from_str(f).unwrap();
@@ -48,7 +54,12 @@ fn moving_pairs(frames: &Value) -> (usize, usize) {
             .iter()
             .any(|r| r["moving"] == true)
     };
-    let pairs: Vec<_> = drawn.windows(2).filter(|w| moving(w[0])).collect();
+    let pairs: Vec<_> = drawn
+        .windows(2)
+        .zip(&new)
+        .filter(|(w, new)| **new && moving(w[0]))
+        .map(|(w, _)| w)
+        .collect();
     let moved = pairs.iter().filter(|w| w[0] != w[1]).count();
     (pairs.len(), moved)
 }
@@ -173,7 +184,7 @@ async fn flying_in_the_fisheye_layout_the_rings_sit_on_their_movers_in_each_fram
                    }
                    return [r.x, r.y, hits >= 2];
                  });
-                 seen.push({ rings, drawn: overlay.dataset.rings });
+                 seen.push({ rings, drawn: overlay.dataset.rings, pts: overlay.dataset.pts });
                  if (seen.length < n) return;
                  preview.removeEventListener('frame', step);
                  done(seen);

@@ -128,7 +128,8 @@ export class Views {
       const ahead = this.ahead(object);
       for (const seen of object.views || []) {
         const m = { ...seen, x: seen.x + (seen.vx || 0) * ahead, y: seen.y + (seen.vy || 0) * ahead };
-        rings.push({ index: object.index, x: m.x, y: m.y, moving: Boolean(m.vx || m.vy) });
+        // Moving: it has a velocity and is within reach of its frame (past 1 s it stands).
+        rings.push({ index: object.index, x: m.x, y: m.y, moving: Boolean(m.vx || m.vy) && Math.abs(ahead) < MAX_AHEAD_S });
         g.beginPath();
         g.arc(m.x, m.y, m.radius, 0, 2 * Math.PI);
         g.stroke();
