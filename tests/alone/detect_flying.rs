@@ -16,7 +16,7 @@ use std::time::Duration;
 /// 120).
 fn flight() -> Duration {
     let s = std::env::var("DIGIVIEW_FLIGHT_S").ok();
-    Duration::from_secs(s.and_then(|s| s.parse().ok()).unwrap_or(24))
+    Duration::from_secs(s.and_then(|s| s.parse().ok()).unwrap_or(18))
 }
 
 fn status(serve: &Serve) -> Value {
