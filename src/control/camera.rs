@@ -12,8 +12,7 @@ use crate::protocol::params::{
     CamControlMode, CamCropMode, CamEuler, CamFov, CamLockFlags, CamOffset, CamTarget, CamZoom,
 };
 use crate::render::FramePlan;
-use crate::state::rules;
-use crate::state::{Camera, Live, State};
+use crate::state::{Camera, Live, State, rules};
 use glam::{DVec2, DVec3};
 
 pub fn euler(c: &Camera, cam_id: u8) -> CamEuler {
@@ -34,14 +33,9 @@ pub fn set_euler(c: &mut Camera, p: &CamEuler) -> Result<(), Refusal> {
     } else {
         (p.yaw, p.pitch, p.roll)
     };
-    let take = |field: &str, v: f64, was: f64| {
-        rules::of(ParamType::CamEuler, field)
-            .apply(v, was)
-            .unwrap_or(was)
-    };
-    c.yaw = take("yaw", yaw, c.yaw);
-    c.pitch = take("pitch", pitch, c.pitch);
-    c.roll = take("roll", roll, c.roll);
+    c.yaw = rules::take(ParamType::CamEuler, "yaw", yaw, c.yaw);
+    c.pitch = rules::take(ParamType::CamEuler, "pitch", pitch, c.pitch);
+    c.roll = rules::take(ParamType::CamEuler, "roll", roll, c.roll);
     c.steer_by_hand();
     Ok(())
 }
@@ -69,8 +63,12 @@ pub fn lock_flags(c: &Camera, cam_id: u8) -> CamLockFlags {
 
 /// Only the low three bits mean anything (the seed); the rest are dropped.
 pub fn set_lock_flags(c: &mut Camera, p: &CamLockFlags) -> Result<(), Refusal> {
-    let rule = rules::of(ParamType::CamLockFlags, "flags");
-    c.lock = rule.apply(p.flags as f64, c.lock as f64).unwrap_or(0.0) as u8;
+    c.lock = rules::take(
+        ParamType::CamLockFlags,
+        "flags",
+        p.flags as f64,
+        c.lock as f64,
+    ) as u8;
     Ok(())
 }
 

@@ -94,9 +94,9 @@ const MIN_RADIUS: f64 = 4.0;
 
 /// For each tracked object (in DETECTED_ROI 255's order), every view of the layout showing its
 /// centre, placed on `frame` (the frame last rendered; None before any: the state as it is).
-/// None for an object not sighted within [`IN_SIGHT`](crate::state::IN_SIGHT) of the frame's capture (a scan running
-/// late): a ring on a guess marks empty ground. Empty lists when the lens or the layout cannot
-/// be planned.
+/// No views for an object not sighted within [`IN_SIGHT`](crate::state::IN_SIGHT) of the
+/// frame's capture (a scan running late): a ring on a guess marks empty ground. Empty lists
+/// when the lens or the layout cannot be planned.
 pub fn seen(live: &Live, state: &State, frame: Option<&RenderedFrame>) -> Vec<Vec<Seen>> {
     // Where each object will be AHEAD_US after the frame, as the tracker predicts it.
     let ahead: Vec<_> = match frame {

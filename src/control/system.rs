@@ -8,8 +8,7 @@ use crate::protocol::params::{
     CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
 };
 use crate::protocol::{BoundingBox, ViewBoxes};
-use crate::state::rules;
-use crate::state::{Live, State};
+use crate::state::{Live, State, rules};
 use tracing::warn;
 
 pub fn system_status(live: &Live) -> SystemStatus {
@@ -52,11 +51,7 @@ pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
 pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), Refusal> {
     // Each field as its rule has the protocol take it; width and height together (one below
     // its minimum keeps both: the frame never gets an unasked-for shape).
-    let take = |field: &str, v: f64, was: f64| {
-        rules::of(ParamType::VideoOutput, field)
-            .apply(v, was)
-            .unwrap_or(was)
-    };
+    let take = |field: &str, v: f64, was: f64| rules::take(ParamType::VideoOutput, field, v, was);
     let o = &mut s.output;
     let (w, h) = (
         take("width", p.width as f64, 0.0),
@@ -135,11 +130,7 @@ pub fn set_sensor(live: &Live, s: &mut State, p: &CamSensor) -> Result<(), Refus
         return Err(Refusal::Data(why));
     }
     let longest = s.sensor.longest_exposure_us();
-    let take = |field: &str, v: f64, was: f64| {
-        rules::of(ParamType::CamSensor, field)
-            .apply(v, was)
-            .unwrap_or(was)
-    };
+    let take = |field: &str, v: f64, was: f64| rules::take(ParamType::CamSensor, field, v, was);
     let sensor = &mut s.sensor;
     sensor.ae = take("ae", p.ae as f64, sensor.ae as u8 as f64) != 0.0;
     sensor.target_brightness = take(
@@ -192,13 +183,15 @@ pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<()
     // A faster camera has a shorter frame: the exposure follows it down.
     s.sensor.exposure_us = s.sensor.exposure_us.min(s.sensor.longest_exposure_us());
     s.sensor.roi = roi;
-    s.mount.yaw = rules::of(ParamType::GeneralSettings, "mount_yaw")
-        .apply(p.mount_yaw, s.mount.yaw)
-        .unwrap_or(s.mount.yaw);
+    s.mount.yaw = rules::take(
+        ParamType::GeneralSettings,
+        "mount_yaw",
+        p.mount_yaw,
+        s.mount.yaw,
+    );
     s.mount.pitch = p.mount_pitch;
     s.mount.roll = p.mount_roll;
-    s.detection.run_ai = rules::of(ParamType::GeneralSettings, "run_ai")
-        .apply(p.run_ai as f64, 0.0)
-        .is_some_and(|on| on != 0.0);
+    s.detection.run_ai =
+        rules::take(ParamType::GeneralSettings, "run_ai", p.run_ai as f64, 0.0) != 0.0;
     Ok(())
 }

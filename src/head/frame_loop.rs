@@ -16,8 +16,7 @@ use crate::head::capture::Still;
 use crate::lens::Lens;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::render::{Filter, FramePlan};
-use crate::state::RenderedFrame;
-use crate::state::{Failure, RunStatus, State};
+use crate::state::{Failure, RenderedFrame, RunStatus, State};
 use crate::stream::Encoder;
 use crate::stream::encoder::{AccessUnit, Side};
 use crate::stream::klv::ViewMetadata;
@@ -284,9 +283,9 @@ impl Head {
         ShutterTable::new(&self.cfg.readout, (lens.width, lens.height), at)
     }
 
-    /// Renders `frame`, shown at `pts` in the composed stream, with `state`, the vehicle as the telemetry had it at capture time;
-    /// also gives that state, the lens at the frame's size and the KLV packet of the view
-    /// `klv_camera` in it.
+    /// Renders `frame`, shown at `pts` in the composed stream, with `state`, the vehicle as the
+    /// telemetry had it at capture time; also gives that state, the lens at the frame's size
+    /// and the KLV packet of the view `klv_camera` in it.
     fn render(
         &self,
         renderer: &mut Renderer,

@@ -77,9 +77,7 @@ impl DetectionSettings {
     pub fn set(&mut self, p: &Detection) {
         // Each field as its rule has the protocol take it (super::rules).
         let take = |field: &str, v: f64, was: f64| {
-            super::rules::of(crate::protocol::ParamType::Detection, field)
-                .apply(v, was)
-                .unwrap_or(was)
+            super::rules::take(crate::protocol::ParamType::Detection, field, v, was)
         };
         let d = self;
         d.sorting_mode = take("sorting_mode", p.sorting_mode as f64, d.sorting_mode as f64) as u8;

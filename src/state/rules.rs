@@ -150,7 +150,8 @@ const fn also(r: Rule, also: &'static str) -> Rule {
 }
 
 const U8: (f64, f64) = (0.0, 255.0);
-const SCORE: (f64, f64) = (0.0, 254.0);
+/// DETECTION's scores: 255 ([`KEEP`](super::KEEP)) keeps the current value.
+const SCORE: (f64, f64) = (0.0, (super::KEEP - 1) as f64);
 /// Ratios: [0, 0.99), the top open (checked as at most 0.98999...).
 const RATIO: (f64, f64) = (0.0, 0.989_999_999_999);
 /// Altitudes and heights: from below the Dead Sea to above any drone's ceiling.
@@ -254,6 +255,12 @@ pub fn of(param: ParamType, field: &str) -> &'static Rule {
         .iter()
         .find(|r| r.param == Some((param, field)))
         .unwrap_or_else(|| panic!("no rule for {param} {field} in state::rules::RULES"))
+}
+
+/// `v` for `field` of `param` as the protocol sets it, given the field's value `was` (which
+/// it keeps where the rule refuses `v`: a handler refuses such a SET before it gets here).
+pub fn take(param: ParamType, field: &str, v: f64, was: f64) -> f64 {
+    of(param, field).apply(v, was).unwrap_or(was)
 }
 
 /// The rule of the state-file key `key` (`camera.fov`).

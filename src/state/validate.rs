@@ -182,29 +182,44 @@ impl State {
         );
         put("sensor gain".into(), "sensor.gain", s.gain as f64);
         let d = &self.detection;
-        for (name, v) in [
-            ("run_ai", d.run_ai as u8 as f64),
-            ("mode", d.mode as f64),
-            ("sorting_mode", d.sorting_mode as f64),
-            ("crop_confidence_threshold", d.crop_confidence_threshold),
-            ("var_confidence_threshold", d.var_confidence_threshold),
-            ("crop_box_limit", d.crop_box_limit as f64),
-            ("var_box_limit", d.var_box_limit as f64),
-            ("crop_box_overlap", d.crop_box_overlap),
-            ("var_box_overlap", d.var_box_overlap),
-            ("creation_score_scale", d.creation_score_scale as f64),
-            ("bonus_detection_scale", d.bonus_detection_scale as f64),
-            ("bonus_redetection_scale", d.bonus_redetection_scale as f64),
+        for (key, v) in [
+            ("detection.run_ai", d.run_ai as u8 as f64),
+            ("detection.mode", d.mode as f64),
+            ("detection.sorting_mode", d.sorting_mode as f64),
             (
-                "missed_detection_penalty",
+                "detection.crop_confidence_threshold",
+                d.crop_confidence_threshold,
+            ),
+            (
+                "detection.var_confidence_threshold",
+                d.var_confidence_threshold,
+            ),
+            ("detection.crop_box_limit", d.crop_box_limit as f64),
+            ("detection.var_box_limit", d.var_box_limit as f64),
+            ("detection.crop_box_overlap", d.crop_box_overlap),
+            ("detection.var_box_overlap", d.var_box_overlap),
+            (
+                "detection.creation_score_scale",
+                d.creation_score_scale as f64,
+            ),
+            (
+                "detection.bonus_detection_scale",
+                d.bonus_detection_scale as f64,
+            ),
+            (
+                "detection.bonus_redetection_scale",
+                d.bonus_redetection_scale as f64,
+            ),
+            (
+                "detection.missed_detection_penalty",
                 d.missed_detection_penalty as f64,
             ),
             (
-                "missed_redetection_penalty",
+                "detection.missed_redetection_penalty",
                 d.missed_redetection_penalty as f64,
             ),
         ] {
-            put(format!("detection {name}"), detection_key(name), v);
+            put(key.replacen('.', " ", 1), key, v);
         }
         for t in &self.tracked {
             let obj = |f: &str| format!("tracked object {} {f}", t.id);
@@ -221,15 +236,6 @@ impl State {
         put("scene time".into(), "time", self.time);
         out
     }
-}
-
-/// The rule key of DETECTION's field `name` (`detection.NAME`).
-fn detection_key(name: &str) -> &'static str {
-    rules::RULES
-        .iter()
-        .filter_map(|r| r.key)
-        .find(|k| k.strip_prefix("detection.") == Some(name))
-        .unwrap_or("detection.?")
 }
 
 /// `v` as a reader takes it in: as it is, or in scientific notation when huge.
