@@ -16,6 +16,7 @@
 
 use digiview::clock::clock_us;
 use digiview::lens::LensCal;
+use digiview::modes::{LayoutMode, OverlayMode};
 use digiview::render::FramePlan;
 use digiview::source::demo::stamp;
 use digiview::state::State;
@@ -53,11 +54,18 @@ fn main() {
 
     // One rectilinear view, 60° across, straight down the lens axis at the barcode.
     let mut state = State::default();
-    (state.output.width, state.output.height) = (w, h);
-    (state.output.layout, state.output.overlay) = (0, 0);
-    let cam = &mut state.cameras[0];
-    (cam.yaw, cam.pitch, cam.roll) = (0.0, -90f64.to_radians(), 0.0);
-    (cam.fov, cam.crop, cam.lock) = (60f64.to_radians(), 1, 7);
+    (state.settings.output.width, state.settings.output.height) = (w, h);
+    let output = &mut state.settings.output;
+    (output.layout, output.overlay) = (LayoutMode::One, OverlayMode::None);
+    state.settings.cameras[0] = {
+        use digiview::state::view::Field::*;
+        let down = [(Yaw, 0.0), (Pitch, -90f64.to_radians()), (Roll, 0.0)];
+        let lens = [(Fov, 60f64.to_radians()), (Crop, 1.0), (Lock, 7.0)];
+        let view = digiview::state::Camera::default()
+            .with(&down)
+            .and_then(|c| c.with(&lens));
+        view.expect("a view")
+    };
     let dir = tempfile::tempdir().unwrap();
     let state_file = dir.path().join("state.toml");
     std::fs::write(&state_file, toml::to_string(&state).unwrap()).unwrap();

@@ -4,12 +4,11 @@
 //! Pure integer geometry: the renderers draw exactly these rectangles and VIDEO_OUTPUT reports
 //! exactly these rectangles.
 
+use crate::modes::{LayoutMode, OverlayMode};
 use serde::Serialize;
 
 /// single_detection_size: the side of a detection tile.
 pub const TILE_SIZE: u32 = 120;
-pub const LAYOUT_MODES: u8 = 7;
-pub const OVERLAY_MODES: u8 = 6;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct Rect {
@@ -61,55 +60,50 @@ pub struct Layout {
 }
 
 #[derive(Debug, PartialEq, Eq, thiserror::Error)]
-pub enum LayoutError {
-    #[error("layout mode {0} does not exist (0..=6)")]
-    Mode(u8),
-    #[error("detection overlay mode {0} does not exist (0..=5)")]
-    Overlay(u8),
-    #[error("output {0}x{1} is too small for layout {2} with overlay {3}")]
-    TooSmall(u32, u32, u8, u8),
-}
+#[error("output {0}x{1} is too small for layout {2} with overlay {3}")]
+pub struct LayoutError(pub u32, pub u32, pub u8, pub u8);
 
 /// The rectangles of a layout mode and overlay mode in a `width` × `height` frame.
-pub fn layout(width: u32, height: u32, mode: u8, overlay: u8) -> Result<Layout, LayoutError> {
-    if mode >= LAYOUT_MODES {
-        return Err(LayoutError::Mode(mode));
-    }
-    if overlay >= OVERLAY_MODES {
-        return Err(LayoutError::Overlay(overlay));
-    }
-    let too_small = LayoutError::TooSmall(width, height, mode, overlay);
+pub fn layout(
+    width: u32,
+    height: u32,
+    mode: LayoutMode,
+    overlay: OverlayMode,
+) -> Result<Layout, LayoutError> {
+    let too_small = LayoutError(width, height, mode.code(), overlay.code());
     let s = TILE_SIZE;
     // The overlay reserves its strip first; the views fill what is left (`area`).
     let (overlay_box, area, tiles) = match overlay {
-        0 => (Rect::default(), Rect::new(0, 0, width, height), vec![]),
-        1 => {
+        OverlayMode::None => (Rect::default(), Rect::new(0, 0, width, height), vec![]),
+        OverlayMode::OneTile => {
             if width < s || height < s {
                 return Err(too_small);
             }
             let tile = Rect::new(width - s, 0, s, s);
             (tile, Rect::new(0, 0, width, height), vec![tile])
         }
-        2 | 3 => {
+        OverlayMode::Right | OverlayMode::Left => {
             if width <= s || height < s {
                 return Err(too_small);
             }
-            let x = if overlay == 2 { width - s } else { 0 };
+            let right = overlay == OverlayMode::Right;
+            let x = if right { width - s } else { 0 };
             let strip = Rect::new(x, 0, s, height);
-            let area = Rect::new(if overlay == 2 { 0 } else { s }, 0, width - s, height);
+            let area = Rect::new(if right { 0 } else { s }, 0, width - s, height);
             (
                 strip,
                 area,
                 (0..height / s).map(|i| Rect::new(x, i * s, s, s)).collect(),
             )
         }
-        _ => {
+        OverlayMode::Top | OverlayMode::Bottom => {
             if height <= s || width < s {
                 return Err(too_small);
             }
-            let y = if overlay == 4 { 0 } else { height - s };
+            let top = overlay == OverlayMode::Top;
+            let y = if top { 0 } else { height - s };
             let strip = Rect::new(0, y, width, s);
-            let area = Rect::new(0, if overlay == 4 { s } else { 0 }, width, height - s);
+            let area = Rect::new(0, if top { s } else { 0 }, width, height - s);
             (
                 strip,
                 area,
@@ -136,15 +130,16 @@ fn square_row(area: Rect, n: u32, side: u32, y: u32) -> impl Iterator<Item = (Re
     (0..n).map(move |i| (Rect::new(x0 + i * side, y, side, side), Slot::Square))
 }
 
-fn place_views(a: Rect, mode: u8) -> Vec<(Rect, Slot)> {
+fn place_views(a: Rect, mode: LayoutMode) -> Vec<(Rect, Slot)> {
+    use LayoutMode::*;
     match mode {
         // One square, centred.
-        0 => {
+        One => {
             let side = a.w.min(a.h);
             square_row(a, 1, side, a.y + (a.h - side) / 2).collect()
         }
         // Two squares stacked, centred.
-        1 => {
+        TwoStacked => {
             let side = a.w.min(a.h / 2);
             let y0 = a.y + (a.h - 2 * side) / 2;
             square_row(a, 1, side, y0)
@@ -152,7 +147,7 @@ fn place_views(a: Rect, mode: u8) -> Vec<(Rect, Slot)> {
                 .collect()
         }
         // Two full-width panoramas stacked.
-        2 => {
+        TwoPanoramas => {
             let h = a.h / 2;
             (0..2)
                 .map(|i| (Rect::new(a.x, a.y + i * h, a.w, h), Slot::Panorama))
@@ -160,22 +155,22 @@ fn place_views(a: Rect, mode: u8) -> Vec<(Rect, Slot)> {
         }
         // n squares on top of one full-width panorama that takes the rest of the height; the
         // squares take at most two thirds of it so the panorama stays useful.
-        3 | 5 => {
-            let n = if mode == 3 { 2 } else { 3 };
+        TwoAndPanorama | ThreeAndPanorama => {
+            let n = if mode == TwoAndPanorama { 2 } else { 3 };
             let side = (a.w / n).min(2 * a.h / 3);
             let mut v: Vec<_> = square_row(a, n, side, a.y).collect();
             v.push((Rect::new(a.x, a.y + side, a.w, a.h - side), Slot::Panorama));
             v
         }
         // Four squares, 2 × 2, centred.
-        4 => {
+        Four => {
             let side = (a.w / 2).min(a.h / 2);
             let y0 = a.y + (a.h - 2 * side) / 2;
             square_row(a, 2, side, y0)
                 .chain(square_row(a, 2, side, y0 + side))
                 .collect()
         }
-        _ => vec![(a, Slot::Debug)],
+        Whole => vec![(a, Slot::Debug)],
     }
 }
 
@@ -183,6 +178,11 @@ fn place_views(a: Rect, mode: u8) -> Vec<(Rect, Slot)> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    fn layout(w: u32, h: u32, mode: u8, overlay: u8) -> Result<Layout, LayoutError> {
+        let (mode, overlay) = (LayoutMode::try_from(mode), OverlayMode::try_from(overlay));
+        super::layout(w, h, mode.unwrap(), overlay.unwrap())
+    }
 
     #[test]
     fn the_reference_layout_four_views_with_a_right_column() {
@@ -208,12 +208,6 @@ mod tests {
         assert_eq!(layout(1000, 700, 0, 5).unwrap().tiles.len(), 8);
         assert_eq!(layout(1000, 700, 0, 1).unwrap().tiles.len(), 1);
         assert_eq!(layout(1000, 700, 0, 0).unwrap().tiles.len(), 0);
-    }
-
-    #[test]
-    fn out_of_range_modes_are_errors() {
-        assert_eq!(layout(640, 480, 7, 0), Err(LayoutError::Mode(7)));
-        assert_eq!(layout(640, 480, 0, 6), Err(LayoutError::Overlay(6)));
     }
 
     proptest! {

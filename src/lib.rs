@@ -8,12 +8,14 @@
 //!   lens.cal, importers, calibration), `layout` (where views sit in the output frame),
 //!   `frame` (frames as bytes: pixel formats, plane layouts, YUV), `image_ops` (sampling and
 //!   image metrics), `gst` (the GStreamer plumbing sources and streams share), `clock` (the one
-//!   time base), `protocol` (the control protocol's codec), `policy` (the one trust boundary:
-//!   who may change the state, stop the system or delete files, and the refusal log every
-//!   control path shares), `supervise` (a service's thread run again after a panic, its
-//!   failures reported through a trait the live state implements). On them: `state`,
-//!   everything an operator can set, the live handle every service changes and the frame loop
-//!   snapshots once per frame (with the services that failed), and the capture hooks
+//!   time base), `modes` (the modes an operator picks, as enums), `protocol` (the control
+//!   protocol's codec), `policy` (the one trust boundary: who may change the state, stop the
+//!   system or delete files, and the refusal log every control path shares), `supervise` (a
+//!   service's thread run again after a panic, its failures reported through a trait the
+//!   head's report implements). On them: `state`, the live state in three parts (what an
+//!   operator sets, validated by the one table of rules, with the one set of view operations
+//!   that steer a view; what the head reports; what the vehicle sends and the detector sees),
+//!   the one gate every control path changes the settings through, and the capture hooks
 //!   (`state::capture`); `telemetry`, the vehicle's attitude history and position, which the
 //!   autopilot link writes and the frame loop reads.
 //! - **The data's path.** `source` brings camera frames in (`exposure` sets the camera's
@@ -25,9 +27,11 @@
 //!   protocol's request handling, server and client; `autopilot`, the MAVLink link the
 //!   vehicle's attitude and position come in on; `cameras`, each view a MAVLink camera and
 //!   gimbal, speaking on the link through the trait and outbox `autopilot` owns; `http`, the
-//!   tuning page and its JSON API, through `control`'s request handling. Each owns its section
-//!   of the serve configuration, and reaches no other service but as named here: what it
-//!   needs of another is a small trait or hook of its own that the assembly fills.
+//!   tuning page and its JSON API, through `control`'s request handling. Every one that
+//!   changes the settings asks `state::Gate` once per request and steers a view by its view
+//!   operations. Each owns its section of the serve configuration, and reaches no other
+//!   service but as named here: what it needs of another is a small trait or hook of its own
+//!   that the assembly fills.
 //! - **On top.** `app`, the serve assembly: the configuration file, every service built and
 //!   wired; `cli`, the command line.
 
@@ -47,6 +51,7 @@ pub mod http;
 pub mod image_ops;
 pub mod layout;
 pub mod lens;
+pub mod modes;
 pub mod policy;
 pub mod protocol;
 pub mod render;

@@ -1,10 +1,10 @@
 //! No thread of `serve` fails silently. A service's thread runs under [`spawn`]: a panic is
-//! caught, logged with its message, reported (to the live state, which makes it SYSTEM_STATUS
+//! caught, logged with its message, reported (to the head's report, which makes it SYSTEM_STATUS
 //! error 5 and lists it in `/api/status`'s `services`), and the service is started again
 //! after [`PAUSE`]; one that fails [`MAX_FAILURES`] times within [`WINDOW`] is given up, and
 //! the assembly then stops `serve`, which exits non-zero saying why. At the bottom: every
-//! service's threads use it, it knows none of them, and it reports through [`Report`], which
-//! the live state implements.
+//! service's threads use it, it knows none of them, and it reports through [`FailureLog`], which
+//! the head's report (`crate::state::Report`) implements.
 //!
 //! For tests of this very path, `DIGIVIEW_FAULT=NAME` makes the service of that thread name
 //! panic once, half a second after it first starts ([`Fault`]).
@@ -27,7 +27,7 @@ pub const MAX_FAILURES: usize = 3;
 pub const PAUSE: Duration = Duration::from_millis(500);
 
 /// Where a supervised service's failures are told.
-pub trait Report: Send + Sync {
+pub trait FailureLog: Send + Sync {
     /// `service` failed with `why`; `given_up` when it will not be started again.
     fn failed(&self, service: &'static str, why: &str, given_up: bool);
     /// `service` is being started again after a failure.
@@ -37,7 +37,7 @@ pub trait Report: Send + Sync {
 /// Runs `work` on a thread named `service` until it returns or `stop` is set, starting it
 /// again after each panic (see the module's doc).
 pub fn spawn(
-    report: Arc<dyn Report>,
+    report: Arc<dyn FailureLog>,
     service: &'static str,
     stop: Arc<AtomicBool>,
     mut work: impl FnMut() + Send + 'static,
@@ -73,7 +73,7 @@ pub struct Failures(VecDeque<Instant>);
 
 impl Failures {
     /// Notes a failure of `service` (`why`), logs and reports it; whether it is given up now.
-    pub fn given_up(&mut self, report: &dyn Report, service: &'static str, why: &str) -> bool {
+    pub fn given_up(&mut self, report: &dyn FailureLog, service: &'static str, why: &str) -> bool {
         self.0.push_back(Instant::now());
         self.0.retain(|t| t.elapsed() < WINDOW);
         let give_up = self.0.len() >= MAX_FAILURES;
@@ -99,8 +99,8 @@ impl Failures {
 /// panic) the address bound again with `bind` after [`PAUSE`]. It ends when `serve` ends
 /// well, when `stopped()` says so after a failure, or when the service is given up. `prefix`
 /// goes before every failure's reason (which part of the service failed).
-pub async fn keep_serving<S, B, BF, F, SF>(
-    report: &dyn Report,
+pub async fn keep_serving<S, B, BF, F, SF, E>(
+    report: &dyn FailureLog,
     service: &'static str,
     prefix: &str,
     (first, address): (S, SocketAddr),
@@ -111,7 +111,8 @@ pub async fn keep_serving<S, B, BF, F, SF>(
     B: Fn(SocketAddr) -> BF,
     BF: Future<Output = std::io::Result<S>>,
     F: Fn(S) -> SF,
-    SF: Future<Output = Result<(), String>> + Send + 'static,
+    SF: Future<Output = Result<(), E>> + Send + 'static,
+    E: std::fmt::Display + Send + 'static,
 {
     let mut socket = Some(first);
     let mut failures = Failures::default();
@@ -123,7 +124,7 @@ pub async fn keep_serving<S, B, BF, F, SF>(
         let why = match bound {
             Ok(s) => match tokio::spawn(serve(s)).await {
                 Ok(Ok(())) => return,
-                Ok(Err(why)) => why,
+                Ok(Err(why)) => why.to_string(),
                 Err(e) => match e.try_into_panic() {
                     Ok(panic) => panic_message(panic.as_ref()),
                     Err(e) => e.to_string(),
@@ -198,7 +199,7 @@ mod tests {
     #[derive(Default)]
     struct Told(Mutex<Vec<String>>);
 
-    impl Report for Told {
+    impl FailureLog for Told {
         fn failed(&self, service: &'static str, why: &str, given_up: bool) {
             let line = format!("{service} failed: {why}, given up: {given_up}");
             self.0.lock().unwrap().push(line);

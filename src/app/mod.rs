@@ -1,6 +1,7 @@
 //! The serve assembly, on top of everything: it takes `digiview serve`'s configuration
 //! (`config`, one section per service) and the initial state, builds each service on the
-//! shared live state and telemetry (the MAVLink link, the MAVLink cameras, the control
+//! shared parts of the live state (the settings behind the one gate, what is sensed, what
+//! the head reports) and the telemetry (the MAVLink link, the MAVLink cameras, the control
 //! server, the HTTP server, the video head with its RTSP server and relays), fills the small
 //! trait or hook each owns for what it needs of another (`wiring`), says where each one
 //! serves, and runs them until one of them stops the rest. Nothing below imports this module.
@@ -20,7 +21,7 @@ use crate::head::{DetectorError, Head, HeadError, HeadParts};
 use crate::lens::LensCal;
 use crate::policy::{Permissions, Policy};
 use crate::state::capture::{Capturer, NoVideo, ViewShooter};
-use crate::state::{Invalid, Live, State};
+use crate::state::{Gate, Invalid, LiveSettings, Report, Sensed, State};
 use crate::stream::publish::PublishError;
 use crate::stream::rtsp::VIEW_MOUNTS;
 use crate::stream::{Publisher, Rtsp, StreamError};
@@ -79,6 +80,76 @@ pub enum ServeError {
     Silent,
 }
 
+/// What every service of `serve` shares: the live state's three parts (the settings behind
+/// the one gate, what is sensed, what the head reports), the policy, the telemetry and the
+/// video head's capture.
+struct Core {
+    gate: Arc<Gate>,
+    report: Arc<Report>,
+    policy: Arc<Policy>,
+    telemetry: Arc<Telemetry>,
+    capture: Arc<Capture>,
+}
+
+impl Core {
+    fn new(cal: &LensCal, cfg: &Config, state: State, options: Options) -> Result<Core, Invalid> {
+        let settings = Arc::new(LiveSettings::new(state.settings, cal)?);
+        let sensed = Arc::new(Sensed::new(state.vehicle, state.tracked));
+        let policy = Arc::new(Policy::new(options.permissions));
+        Ok(Core {
+            gate: Arc::new(Gate::new(settings, sensed, policy.clone())),
+            report: Arc::default(),
+            policy,
+            telemetry: Arc::new(Telemetry::new(cfg.mavlink.attitude_sample)),
+            capture: Arc::new(Capture::new(crate::head::capture::CaptureConfig {
+                codec: cfg.encoder.codec,
+                ..cfg.capture.clone()
+            })),
+        })
+    }
+}
+
+/// The services on the autopilot link and the control protocol's request handling.
+struct Services {
+    cameras: Option<Arc<Cameras>>,
+    controller: Arc<Controller>,
+}
+
+fn services(core: &Core, cfg: &Config, no_video: bool) -> Result<Services, ServeError> {
+    let cameras = cfg.cameras.enabled.then(|| {
+        let shooter: Option<Arc<dyn ViewShooter>> = match no_video {
+            true => None,
+            false => Some(core.capture.clone()),
+        };
+        Arc::new(Cameras::new(
+            core.gate.clone(),
+            cfg.cameras.clone(),
+            shooter,
+        ))
+    });
+    let components = cameras.clone().map(|c| c as Arc<dyn Components>);
+    let sensing = (core.gate.sensed().clone(), core.report.clone());
+    let link = Link::start(
+        &cfg.mavlink,
+        sensing,
+        core.telemetry.clone(),
+        core.policy.clone(),
+        components,
+    )?;
+    let capture: Arc<dyn Capturer> = match no_video {
+        true => Arc::new(NoVideo),
+        false => core.capture.clone(),
+    };
+    let controller = Arc::new(Controller {
+        autopilot: link.map(|l| wiring::autopilot_status(l.status.clone())),
+        ..Controller::new(core.gate.clone(), core.report.clone(), capture)
+    });
+    Ok(Services {
+        cameras,
+        controller,
+    })
+}
+
 /// Runs `digiview serve` with `cfg` (checked) from `state` until it is stopped (QUIT, a
 /// signal) or one of its services fails.
 pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Result<(), ServeError> {
@@ -89,44 +160,11 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
         .listen
         .parse()
         .map_err(|e| ServeError::ControlListen(cfg.control.listen.clone(), e))?;
-
-    let capture = Arc::new(Capture::new(crate::head::capture::CaptureConfig {
-        codec: cfg.encoder.codec,
-        ..cfg.capture.clone()
-    }));
-    let hook: Box<dyn Capturer> = match no_video {
-        true => Box::new(NoVideo),
-        false => Box::new(capture.clone()),
-    };
-    let live = Arc::new(Live::new(state, cal, hook)?);
-    let policy = Arc::new(Policy::new(options.permissions));
-    let telemetry = Arc::new(Telemetry::new(cfg.mavlink.attitude_sample));
-    let cameras = cfg.cameras.enabled.then(|| {
-        let shooter: Option<Arc<dyn ViewShooter>> = match no_video {
-            true => None,
-            false => Some(capture.clone()),
-        };
-        Arc::new(Cameras::new(
-            live.clone(),
-            policy.clone(),
-            cfg.cameras.clone(),
-            shooter,
-        ))
-    });
-    let components = cameras.clone().map(|c| c as Arc<dyn Components>);
-    let link = Link::start(
-        &cfg.mavlink,
-        live.clone(),
-        telemetry.clone(),
-        policy.clone(),
-        components,
-    )?;
-    let controller = Arc::new(Controller {
-        autopilot: link
-            .as_ref()
-            .map(|l| wiring::autopilot_status(l.status.clone())),
-        ..Controller::new(live.clone(), policy.clone())
-    });
+    let core = Core::new(cal, &cfg, state, options)?;
+    let Services {
+        cameras,
+        controller,
+    } = services(&core, &cfg, no_video)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("control")
@@ -142,50 +180,113 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     let mut announce = vec![format!("control listening on {}", tcp.local_addr()?)];
     let head = match no_video {
         true => None,
-        false => {
-            let (head, line) = start_head(&cfg, &live, capture, &telemetry, &cameras)?;
-            announce.push(line);
-            let (running, stop_all) = (head.clone(), shutdown.clone());
-            let thread = std::thread::Builder::new()
-                .name("frames".into())
-                .spawn(move || {
-                    // The head ending on its own (an error, or even a panic outside its
-                    // supervised stages) ends the process too.
-                    let _stop_all = OnExit(move || stop_all.trigger());
-                    running.run()
-                })?;
-            let thread = wait_until_streaming(&head, thread)?;
-            Some((head, thread))
-        }
+        false => Some(run_head(&cfg, &core, &cameras, &shutdown, &mut announce)?),
     };
     let http = match http_address {
-        Some(addr) => {
-            let listener = runtime
-                .block_on(TcpListener::bind(addr))
-                .map_err(|e| ServeError::Listen(addr, "http", e))?;
-            let port = listener.local_addr()?.port();
-            let public = cameras::public_host(&cfg.cameras, &addr.ip().to_string());
-            let base = format!("http://{public}:{port}");
-            if let Some(c) = &cameras {
-                c.set_captures_url(format!("{base}{}", crate::http::CAPTURES_PATH));
-            }
-            announce.push(format!("http serving {base}/"));
-            Some(listener)
-        }
+        Some(addr) => Some(bind_http(&runtime, addr, &cfg, &cameras, &mut announce)?),
         None => None,
     };
-    // A reader that went away after the lines it wanted (`serve | head -1`) must not end
-    // the service: what cannot be written is dropped.
+    say(announce);
+    let web = web(
+        &cfg,
+        &controller,
+        &cameras,
+        head.as_ref().map(|h| &h.0),
+        no_video,
+    );
+    runtime.block_on(async {
+        tokio::spawn(server::stop_on_signals(shutdown.clone()));
+        if let Some(listener) = http {
+            tokio::spawn(serve_http(
+                listener,
+                web,
+                core.report.clone(),
+                shutdown.clone(),
+            ));
+        }
+        tokio::spawn(watch(
+            core.report.clone(),
+            core.policy.clone(),
+            shutdown.clone(),
+        ));
+        server::run(tcp, udp, controller, shutdown).await
+    })?;
+    if let Some((head, thread)) = head {
+        head.stop.store(true, Ordering::Relaxed);
+        thread.join().map_err(|_| ServeError::Panicked)??;
+    }
+    match core.report.services.given_up() {
+        Some((service, why)) => Err(ServeError::GivenUp(service, why)),
+        None => Ok(()),
+    }
+}
+
+/// The video head started on a thread of its own, once it streams; its line said.
+fn run_head(
+    cfg: &Config,
+    core: &Core,
+    cameras: &Option<Arc<Cameras>>,
+    shutdown: &Shutdown,
+    announce: &mut Vec<String>,
+) -> Result<(Arc<Head>, HeadThread), ServeError> {
+    let (head, line) = start_head(cfg, core, cameras)?;
+    announce.push(line);
+    let (running, stop_all) = (head.clone(), shutdown.clone());
+    let thread = std::thread::Builder::new()
+        .name("frames".into())
+        .spawn(move || {
+            // The head ending on its own (an error, or even a panic outside its supervised
+            // stages) ends the process too.
+            let _stop_all = OnExit(move || stop_all.trigger());
+            running.run()
+        })?;
+    let thread = wait_until_streaming(&head, thread)?;
+    Ok((head, thread))
+}
+
+/// The HTTP server's listener; its line said, and the cameras told where captures are.
+fn bind_http(
+    runtime: &tokio::runtime::Runtime,
+    addr: SocketAddr,
+    cfg: &Config,
+    cameras: &Option<Arc<Cameras>>,
+    announce: &mut Vec<String>,
+) -> Result<TcpListener, ServeError> {
+    let listener = runtime
+        .block_on(TcpListener::bind(addr))
+        .map_err(|e| ServeError::Listen(addr, "http", e))?;
+    let port = listener.local_addr()?.port();
+    let public = cameras::public_host(&cfg.cameras, &addr.ip().to_string());
+    let base = format!("http://{public}:{port}");
+    if let Some(c) = cameras {
+        c.set_captures_url(format!("{base}{}", crate::http::CAPTURES_PATH));
+    }
+    announce.push(format!("http serving {base}/"));
+    Ok(listener)
+}
+
+/// Says where each service serves, on stdout. A reader that went away after the lines it
+/// wanted (`serve | head -1`) must not end the service: what cannot be written is dropped.
+fn say(announce: Vec<String>) {
     let mut stdout = std::io::stdout().lock();
     for line in announce {
         let _ = writeln!(stdout, "{line}");
     }
     let _ = stdout.flush();
-    drop(stdout);
-    let web = crate::http::Web {
+}
+
+/// What the HTTP server serves from.
+fn web(
+    cfg: &Config,
+    controller: &Arc<Controller>,
+    cameras: &Option<Arc<Cameras>>,
+    head: Option<&Arc<Head>>,
+    no_video: bool,
+) -> crate::http::Web {
+    crate::http::Web {
         controller: controller.clone(),
         camera_definition: cameras.clone().map(wiring::camera_definition),
-        video: head.as_ref().map(|(h, _)| wiring::video(h.clone())),
+        video: head.map(|h| wiring::video(h.clone())),
         captures: (!no_video).then(|| cfg.capture.dir.clone()),
         login: cfg.rtsp.user.clone().zip(cfg.rtsp.password.clone()),
         // The cameras' public host is in the URLs ground stations fetch the definition by.
@@ -196,22 +297,6 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
             .chain(&cfg.cameras.public_host)
             .cloned()
             .collect(),
-    };
-    runtime.block_on(async {
-        tokio::spawn(server::stop_on_signals(shutdown.clone()));
-        if let Some(listener) = http {
-            tokio::spawn(serve_http(listener, web, live.clone(), shutdown.clone()));
-        }
-        tokio::spawn(watch(live.clone(), policy.clone(), shutdown.clone()));
-        server::run(tcp, udp, controller, shutdown).await
-    })?;
-    if let Some((head, thread)) = head {
-        head.stop.store(true, Ordering::Relaxed);
-        thread.join().map_err(|_| ServeError::Panicked)??;
-    }
-    match live.services.given_up() {
-        Some((service, why)) => Err(ServeError::GivenUp(service, why)),
-        None => Ok(()),
     }
 }
 
@@ -219,7 +304,12 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
 /// fails (an error, the server ending by itself, or a panic in the server) is reported and
 /// served again on the same address after the pause; given up, it stops `serve` through
 /// [`watch`].
-async fn serve_http(listener: TcpListener, web: crate::http::Web, live: Arc<Live>, stop: Shutdown) {
+async fn serve_http(
+    listener: TcpListener,
+    web: crate::http::Web,
+    report: Arc<Report>,
+    stop: Shutdown,
+) {
     let Ok(address) = listener.local_addr() else {
         return;
     };
@@ -237,7 +327,7 @@ async fn serve_http(listener: TcpListener, web: crate::http::Web, live: Arc<Live
     let stopped = || stop.is_triggered();
     let bind = TcpListener::bind::<SocketAddr>;
     supervise::keep_serving(
-        &*live,
+        &*report,
         "http",
         "",
         (listener, address),
@@ -250,12 +340,12 @@ async fn serve_http(listener: TcpListener, web: crate::http::Web, live: Arc<Live
 
 /// Stops everything once a supervised service is given up (`crate::supervise`), and logs
 /// the summary of refusals left out of the log once their second is over.
-async fn watch(live: Arc<Live>, policy: Arc<Policy>, shutdown: Shutdown) {
+async fn watch(report: Arc<Report>, policy: Arc<Policy>, shutdown: Shutdown) {
     let mut look = tokio::time::interval(Duration::from_millis(250));
     loop {
         look.tick().await;
         policy.refusals.flush();
-        if live.services.given_up().is_some() {
+        if report.services.given_up().is_some() {
             shutdown.trigger();
             return;
         }
@@ -266,9 +356,7 @@ async fn watch(live: Arc<Live>, policy: Arc<Policy>, shutdown: Shutdown) {
 /// detector is loaded. With the line that says where the stream is.
 fn start_head(
     cfg: &Config,
-    live: &Arc<Live>,
-    capture: Arc<Capture>,
-    telemetry: &Arc<Telemetry>,
+    core: &Core,
     cameras: &Option<Arc<Cameras>>,
 ) -> Result<(Arc<Head>, String), ServeError> {
     let key_wanted = Arc::new(AtomicBool::new(false));
@@ -292,7 +380,7 @@ fn start_head(
     let publish = |mut target: crate::stream::PublishTarget, wanted: Arc<AtomicBool>| {
         target.codec = codec;
         info!("publishing to {}", target.url);
-        let report: Arc<dyn crate::supervise::Report> = live.clone();
+        let report: Arc<dyn crate::supervise::FailureLog> = core.report.clone();
         Publisher::start(target, report, move || {
             wanted.store(true, Ordering::Relaxed)
         })
@@ -308,13 +396,14 @@ fn start_head(
         view_publishers[cam].push(publish(target, view_key_wanted[cam].clone())?);
     }
     let parts = HeadParts {
-        live: live.clone(),
-        capture,
+        gate: core.gate.clone(),
+        report: core.report.clone(),
+        capture: core.capture.clone(),
         rtsp: Arc::new(rtsp),
         publishers,
         view_publishers,
         view_key_wanted,
-        telemetry: telemetry.clone(),
+        telemetry: core.telemetry.clone(),
         key_wanted,
         demo_autopilot: wiring::demo_autopilot(&cfg.mavlink),
     };

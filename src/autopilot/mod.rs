@@ -1,9 +1,9 @@
 //! The autopilot link, a service beside the frame path: MAVLink 2 (MAVLink 1 read too,
 //! common dialect) from ArduPilot or PX4 over UDP, TCP or a serial port. It feeds the
 //! vehicle's attitude, on the frame's own clock (`clock`), into the shared telemetry the frame
-//! loop renders each frame with, and the attitude and position into the live state the
-//! control protocol reads
-//! (`vehicle` makes sense of the messages). Its threads never touch the frame loop: a
+//! loop renders each frame with, and each attitude and position into what is sensed
+//! (`crate::state::Sensed`), which the control paths read (`vehicle` makes sense of the
+//! messages). Its threads never touch the frame loop: a
 //! receiving thread reopens the link with back-off whenever it fails, a sending thread
 //! (`outgoing`) says DigiView is there (HEARTBEAT), asks the autopilot for the rates it needs
 //! and for its time (TIMESYNC), and watches for the attitude going stale. Other components
@@ -24,7 +24,7 @@ pub use config::{Endpoint, EndpointError, MavlinkConfig, signing_key};
 use crate::clock::clock_us;
 use crate::policy::{Peer, Policy};
 use crate::protocol::params::Autopilot;
-use crate::state::{Invalid, Live};
+use crate::state::{Report, Sensed};
 use crate::supervise;
 use crate::telemetry::Telemetry;
 use mavlink::dialects::common::MavMessage;
@@ -44,9 +44,6 @@ const REPORT_EVERY: Duration = Duration::from_secs(30);
 const FIRST_REPORT: Duration = Duration::from_secs(3);
 /// DigiView's own component on the link (MAV_COMP_ID_ONBOARD_COMPUTER).
 const OWN_COMPONENT: u8 = 191;
-/// The live state's vehicle is brought up to date at most this often (the frames take the
-/// attitude from the telemetry at every sample).
-const LIVE_EVERY: Duration = Duration::from_millis(20);
 
 type Connection = Arc<port::Port>;
 
@@ -160,7 +157,10 @@ impl Outbox {
 struct Shared {
     address: String,
     cfg: MavlinkConfig,
-    live: Arc<Live>,
+    /// Where each attitude and position goes, checked against the vehicle's rules.
+    sensed: Arc<Sensed>,
+    /// Where a stale attitude and the threads' failures are reported.
+    report: Arc<Report>,
     telemetry: Arc<Telemetry>,
     status: Arc<LinkStatus>,
     connection: Mutex<Option<Connection>>,
@@ -188,7 +188,7 @@ impl Link {
     /// Starts the link of `cfg` (None when it is off), with `components` speaking on it.
     pub fn start(
         cfg: &MavlinkConfig,
-        live: Arc<Live>,
+        (sensed, report): (Arc<Sensed>, Arc<Report>),
         telemetry: Arc<Telemetry>,
         policy: Arc<Policy>,
         components: Option<Arc<dyn Components>>,
@@ -201,7 +201,8 @@ impl Link {
         let shared = Arc::new(Shared {
             address,
             cfg: cfg.clone(),
-            live,
+            sensed,
+            report,
             telemetry,
             status: status.clone(),
             connection: Mutex::new(None),
@@ -220,8 +221,8 @@ impl Link {
             ("mavlink-tx", |s: &Arc<Shared>| outgoing::send(s)),
         ] {
             let shared = shared.clone();
-            let live: Arc<dyn supervise::Report> = shared.live.clone();
-            threads.push(supervise::spawn(live, name, stop.clone(), move || {
+            let report: Arc<dyn supervise::FailureLog> = shared.report.clone();
+            threads.push(supervise::spawn(report, name, stop.clone(), move || {
                 run(&shared)
             }));
         }
@@ -229,9 +230,9 @@ impl Link {
             let out = Outbox(shared.clone());
             let stop = stop.clone();
             let fault = supervise::Fault::for_service("mavlink-components");
-            let live: Arc<dyn supervise::Report> = shared.live.clone();
+            let report: Arc<dyn supervise::FailureLog> = shared.report.clone();
             threads.push(supervise::spawn(
-                live,
+                report,
                 "mavlink-components",
                 stop.clone(),
                 move || {
@@ -312,7 +313,6 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
     *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
     shared.status.connected.store(true, Ordering::Relaxed);
     let _held = Held(shared);
-    let mut last_live = Instant::now() - LIVE_EVERY;
     loop {
         if shared.stop.load(Ordering::Relaxed) {
             break None;
@@ -328,7 +328,7 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
                         // With signing on, only signed messages are accepted.
                         signed: shared.signing.is_some(),
                     };
-                    apply(shared, vehicle, &header, peer, &msg, &mut last_live);
+                    apply(shared, vehicle, &header, peer, &msg);
                     outgoing::refuse_own_command(&out, &header, &msg);
                     if let Some(c) = &shared.components {
                         c.handle(&out, &header, peer, &msg);
@@ -370,15 +370,9 @@ fn accept(shared: &Shared, raw: &MAVLinkMessageRaw) -> Option<(MavHeader, MavMes
     Some((header, msg))
 }
 
-/// One message: into the telemetry and, at most every [`LIVE_EVERY`], the live state.
-fn apply(
-    shared: &Shared,
-    vehicle: &mut Vehicle,
-    header: &MavHeader,
-    peer: Peer,
-    msg: &MavMessage,
-    last_live: &mut Instant,
-) {
+/// One message: into the telemetry and what is sensed (a sample outside the vehicle's rules
+/// is refused there, noted, and the last one kept).
+fn apply(shared: &Shared, vehicle: &mut Vehicle, header: &MavHeader, peer: Peer, msg: &MavMessage) {
     let status = &shared.status;
     status.messages.fetch_add(1, Ordering::Relaxed);
     let Some(update) = vehicle.handle(header, msg, clock_us()) else {
@@ -394,19 +388,8 @@ fn apply(
             status.attitude_us.fetch_max(t_us, Ordering::Relaxed);
             status.attitudes.fetch_add(1, Ordering::Relaxed);
             *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
-            if last_live.elapsed() >= LIVE_EVERY {
-                *last_live = Instant::now();
-                let written = shared.live.update(|s| {
-                    (
-                        s.vehicle.attitude.yaw,
-                        s.vehicle.attitude.pitch,
-                        s.vehicle.attitude.roll,
-                    ) = (attitude.yaw, attitude.pitch, attitude.roll);
-                    Ok::<_, Invalid>(())
-                });
-                if let Err(e) = written {
-                    shared.policy.refusals.note(peer, "an attitude", &e.0);
-                }
+            if let Err(e) = shared.sensed.set_attitude(attitude) {
+                shared.policy.refusals.note(peer, "an attitude", &e.0);
             }
         }
         Update::TimeSync { remote_us, ours_us } => {
@@ -422,11 +405,7 @@ fn apply(
         Update::TimeSyncRequest { ts1 } => outgoing::answer_timesync(shared, header, ts1),
         Update::Position(p) => {
             shared.telemetry.position(p);
-            let written = shared.live.update(|s| {
-                s.vehicle.position = p;
-                Ok::<_, Invalid>(())
-            });
-            if let Err(e) = written {
+            if let Err(e) = shared.sensed.set_position(p) {
                 shared.policy.refusals.note(peer, "a position", &e.0);
             }
         }

@@ -112,7 +112,7 @@ pub(super) fn send(shared: &Shared) {
         let stale = newest != 0 && clock_us().saturating_sub(newest) > STALE.as_micros() as u64;
         if stale != lost {
             lost = stale;
-            shared.live.set_attitude_lost(stale);
+            shared.report.set_attitude_lost(stale);
             if stale {
                 warn!(
                     "mavlink: no attitude for {} ms: the views hold the last one",

@@ -7,11 +7,11 @@
 //! component.
 
 use super::info::COMPOSED_STREAM;
-use super::{Cameras, Shooting, zoom};
+use super::{Cameras, Permitted, Shooting};
 use crate::autopilot::Outbox;
-use crate::geometry::view::{clamp_fov, zoomed_fov};
 use crate::policy::{Act, Peer};
-use crate::state::{Invalid, State};
+use crate::state::State;
+use crate::state::view::{Op, Zoom};
 use crate::units::seconds;
 use mavlink::dialects::common::*;
 use mavlink::{MavHeader, MessageData};
@@ -121,7 +121,7 @@ impl Answer {
 /// What a camera command would do, as the policy judges it: None for those that only read
 /// (the information requests; streaming, which is served whenever watched).
 #[allow(deprecated)]
-fn act_of(command: MavCmd) -> Option<Act> {
+pub(super) fn act_of(command: MavCmd) -> Option<Act> {
     use MavCmd::*;
     match command {
         MAV_CMD_SET_CAMERA_MODE
@@ -144,19 +144,17 @@ fn act_of(command: MavCmd) -> Option<Act> {
 
 impl Cameras {
     /// Runs `cmd` for camera `i` and answers `from`: the ACK, then what follows. A command
-    /// the policy does not permit `peer` is DENIED and changes nothing. Unknown commands
+    /// the policy did not permit `peer` is DENIED and changes nothing. Unknown commands
     /// sent to every component are left to the others.
     pub(super) fn command(
         &self,
         out: &Outbox,
-        (from, peer): (&MavHeader, Peer),
+        (from, peer, permitted): (&MavHeader, Peer, Permitted),
         i: usize,
         cmd: &Command,
         broadcast: bool,
     ) {
         let name = format!("{:?} to camera {i}", cmd.command);
-        let permitted =
-            act_of(cmd.command).map_or(Ok(()), |act| self.policy.permissions.check(peer, act));
         let answer = match permitted {
             Err(e) => Answer::denied(e),
             Ok(()) => match self.run(from, i, cmd) {
@@ -169,8 +167,9 @@ impl Cameras {
                 },
             },
         };
-        if let Some(why) = &answer.why {
-            self.policy.refusals.note(peer, &name, why);
+        // The policy's refusal is noted where it was asked; this path notes its own.
+        if let (Some(why), Ok(())) = (&answer.why, permitted) {
+            self.gate.policy().refusals.note(peer, &name, why);
         }
         let component = super::FIRST_COMPONENT + i as u8;
         let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
@@ -191,8 +190,8 @@ impl Cameras {
     #[allow(deprecated)]
     fn run(&self, from: &MavHeader, i: usize, cmd: &Command) -> Option<Answer> {
         use MavCmd::*;
-        let state = self.live.snapshot();
-        let s = &*state;
+        let state = self.state();
+        let s = &state;
         let p = &cmd.params;
         Some(match cmd.command {
             MAV_CMD_REQUEST_MESSAGE => {
@@ -313,35 +312,22 @@ impl Cameras {
             return Answer::denied(format!("zoom type {kind}, value {value}"));
         }
         let v = value as f64;
-        let fov = |c: &crate::state::Camera| -> Option<f64> {
-            match kind as i32 {
-                0 if (-32.0..=32.0).contains(&v) => {
-                    Some(zoomed_fov(c.fov, (8.0 * v) as i8, c.crop))
-                }
-                2 if (0.0..=100.0).contains(&v) => Some(zoom::fov_at_level(v, c.crop)),
-                3 if v > 0.0 => Some(clamp_fov(zoom::fov_of_focal_length(v), c.crop)),
-                4 if v > 0.0 && v <= 360.0 => Some(clamp_fov(v.to_radians(), c.crop)),
-                _ => None,
+        let zoom = match kind as i32 {
+            0 if (-32.0..=32.0).contains(&v) => Zoom::Step((8.0 * v) as i8),
+            1 if (-1.0..=1.0).contains(&v) => {
+                self.periodic().cameras[i].zooming = v;
+                return Answer::accepted(vec![self.settings(&self.state(), i)]);
             }
+            2 if (0.0..=100.0).contains(&v) => Zoom::Level(v),
+            3 if v > 0.0 => Zoom::FocalLength(v),
+            4 if v > 0.0 && v <= 360.0 => Zoom::Fov(v.to_radians()),
+            1 => return Answer::denied(format!("continuous zoom {v}")),
+            _ => return Answer::denied(format!("zoom {kind} {value}")),
         };
-        if kind == 1.0 {
-            if !(-1.0..=1.0).contains(&v) {
-                return Answer::denied(format!("continuous zoom {v}"));
-            }
-            self.periodic().cameras[i].zooming = v;
-            let s = self.live.snapshot();
-            return Answer::accepted(vec![self.settings(&s, i)]);
-        }
-        let set = self.live.update(|s| {
-            let c = &mut s.cameras[i];
-            c.fov = fov(c).ok_or_else(|| Invalid(format!("zoom {kind} {value}")))?;
-            Ok::<_, Invalid>(())
-        });
-        match set {
+        match self.gate.steer(i, Op::Zoom(zoom)) {
             Ok(()) => {
                 self.periodic().cameras[i].zooming = 0.0;
-                let s = self.live.snapshot();
-                Answer::accepted(vec![self.settings(&s, i)])
+                Answer::accepted(vec![self.settings(&self.state(), i)])
             }
             Err(e) => Answer::denied(e),
         }

@@ -12,9 +12,10 @@ use super::info::{GIMBAL_DEVICE_ID, firmware_version, view_quaternion};
 use super::{ATTITUDE_EVERY, ATTITUDE_SOONEST, Cameras, FIRST_COMPONENT, boot_ms};
 use crate::autopilot::Outbox;
 use crate::geometry::GeoPoint;
-use crate::geometry::rotation::{Euler, wrap_pi, yaw_pitch};
-use crate::geometry::view::{LockFlags, aim, control};
-use crate::state::{Camera, Invalid, State};
+use crate::geometry::rotation::{wrap_pi, yaw_pitch};
+use crate::geometry::view::LockFlags;
+use crate::state::State;
+use crate::state::view::{Op, Pointing};
 use glam::{DQuat, DVec3, EulerRot};
 use mavlink::MavHeader;
 use mavlink::dialects::common::*;
@@ -63,10 +64,8 @@ pub enum Refused {
     NotInControl { who: (u8, u8), gimbal: usize },
     #[error("gimbal controller {0}/{1}")]
     Controller(f32, f32),
-    #[error("{}, {}, {} m is not a place", .0.lat, .0.lon, .0.alt)]
-    NotAPlace(GeoPoint),
     #[error(transparent)]
-    State(#[from] Invalid),
+    State(#[from] crate::state::Refused),
 }
 
 /// Whether a gimbal device id names this camera's gimbal (0: all of them).
@@ -143,15 +142,19 @@ fn locks_of(flags: GimbalManagerFlags) -> u8 {
     l
 }
 
-/// Turns a view by yaw and pitch deltas (a rate's tick), pitch held within ±90°.
-pub fn turn(c: &mut Camera, dyaw: f64, dpitch: f64) {
-    c.yaw = wrap_pi(c.yaw + dyaw);
-    c.pitch = (c.pitch + dpitch).clamp(-FRAC_PI_2, FRAC_PI_2);
-    c.steer_by_hand();
+/// A rate's tick: the view turned by yaw and pitch deltas, as CAM_EULER's is_delta turns it.
+pub fn turn(dyaw: f64, dpitch: f64) -> Op {
+    Op::Angles {
+        yaw: dyaw,
+        pitch: dpitch,
+        roll: 0.0,
+        delta: true,
+    }
 }
 
 impl Cameras {
-    /// Points camera `i` as a gimbal command from `from` says.
+    /// Points camera `i` as a gimbal command from `from` says; its rates turn it on every
+    /// tick until the next command.
     pub(super) fn aim(
         &self,
         from: &MavHeader,
@@ -167,33 +170,14 @@ impl Cameras {
             GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME
                 | GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK,
         );
-        let locks = LockFlags(locks_of(flags));
-        self.live.update(|s| {
-            let vehicle = s.vehicle.attitude.euler();
-            let position = s.vehicle.position;
-            let c = &mut s.cameras[i];
-            let now = Euler::from_matrix(&c.steering().world_from_view(vehicle, &position));
-            let yaw = aim
-                .yaw
-                .map_or(now.yaw, |y| y + if earth { 0.0 } else { vehicle.yaw });
-            let pitch = aim
-                .pitch
-                .map_or(now.pitch, |p| p.clamp(-FRAC_PI_2, FRAC_PI_2));
-            let roll = aim
-                .roll
-                .map_or(now.roll, |r| r.clamp(-FRAC_PI_2, FRAC_PI_2));
-            let (yaw, pitch) = locks.decompose(yaw, pitch, vehicle);
-            c.lock = locks.0;
-            c.yaw = yaw;
-            // Within ±90° as CAM_EULER keeps it, also once the vehicle's own pitch is
-            // taken off an unlocked camera's (90° down from a vehicle pitched 4° down).
-            c.pitch = pitch.clamp(-FRAC_PI_2, FRAC_PI_2);
-            // Roll within ±90°, as CAM_EULER keeps it.
-            let roll = roll - if locks.roll() { 0.0 } else { vehicle.roll };
-            c.roll = roll.clamp(-FRAC_PI_2, FRAC_PI_2);
-            c.steer_by_hand();
-            Ok::<_, Invalid>(())
-        })?;
+        let pointing = Pointing {
+            yaw: aim.yaw,
+            pitch: aim.pitch,
+            roll: aim.roll,
+            earth,
+            locks: LockFlags(locks_of(flags)),
+        };
+        self.gate.steer(i, Op::Point(pointing))?;
         let rates = match (aim.yaw_rate, aim.pitch_rate) {
             (None, None) => None,
             (y, p) => Some((
@@ -253,7 +237,7 @@ impl Cameras {
             MAV_CMD_DO_SET_ROI_LOCATION => {
                 let (lat, lon, alt) = cmd.location;
                 let home = match cmd.above_home {
-                    true => self.live.snapshot().vehicle.position.home_alt(),
+                    true => self.gate.sensed().vehicle().position.home_alt(),
                     false => 0.0,
                 };
                 let place = GeoPoint {
@@ -294,33 +278,8 @@ impl Cameras {
     /// pointing where it points now, steered by its angles again.
     fn roi(&self, from: &MavHeader, i: usize, place: Option<GeoPoint>) -> Result<(), Refused> {
         self.in_control(from, i)?;
-        if let Some(g) = place {
-            let ok = (-90.0..=90.0).contains(&g.lat) && (-180.0..=180.0).contains(&g.lon);
-            if !ok || !g.alt.is_finite() {
-                return Err(Refused::NotAPlace(g));
-            }
-        }
-        self.live.update(|s| {
-            let vehicle = s.vehicle.attitude.euler();
-            let position = s.vehicle.position;
-            let c = &mut s.cameras[i];
-            // A region of interest, or none, ends following an object.
-            c.follow = None;
-            match place {
-                Some(g) => {
-                    c.target = Some(g);
-                    c.control = control::COORDINATE;
-                }
-                None if c.control == control::COORDINATE => {
-                    let m = c.steering().world_from_view(vehicle, &position);
-                    let e = aim(m * DVec3::X, c.euler(), c.locks(), vehicle);
-                    (c.yaw, c.pitch) = (e.yaw, e.pitch);
-                    c.control = control::DIRECTIONAL;
-                }
-                None => {}
-            }
-            Ok::<_, Invalid>(())
-        })?;
+        let op = place.map_or(Op::ReleaseTarget, Op::Target);
+        self.gate.steer(i, op)?;
         self.periodic().cameras[i].rates = None;
         Ok(())
     }
@@ -417,10 +376,11 @@ impl Cameras {
     /// change. The vehicle's own motion waits for the next regular report, so a link is not
     /// flooded while an unlocked view follows a turning vehicle.
     pub(super) fn report_attitude(&self, out: &Outbox, state: &State, i: usize, now: Instant) {
-        let c = &state.cameras[i];
-        let steering = [c.yaw, c.pitch, c.roll, c.lock as f64, c.control as f64]
+        let c = &state.settings.cameras[i];
+        let steering = [c.yaw(), c.pitch(), c.roll()]
             .into_iter()
-            .chain(c.target.map_or([f64::NAN; 3], |t| [t.lat, t.lon, t.alt]))
+            .chain([c.locks().0 as f64, c.control().code() as f64])
+            .chain(c.target().map_or([f64::NAN; 3], |t| [t.lat, t.lon, t.alt]))
             .map(f64::to_bits)
             .collect::<Vec<u64>>();
         let due = {
@@ -446,7 +406,7 @@ impl Cameras {
 /// The lock flags as the gimbal protocol's, yaw reported in the earth frame.
 fn device_flags(state: &State, i: usize) -> GimbalDeviceFlags {
     use GimbalDeviceFlags as F;
-    let l = state.cameras[i].locks();
+    let l = state.settings.cameras[i].locks();
     let mut f = F::GIMBAL_DEVICE_FLAGS_YAW_IN_EARTH_FRAME;
     for (on, flag) in [
         (l.roll(), F::GIMBAL_DEVICE_FLAGS_ROLL_LOCK),

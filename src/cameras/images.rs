@@ -16,7 +16,7 @@ impl Cameras {
         let Some(shooter) = &self.shooter else {
             return;
         };
-        let state = self.live.snapshot();
+        let state = self.state();
         for i in 0..n {
             let due = {
                 let mut p = self.periodic();

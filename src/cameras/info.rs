@@ -2,9 +2,10 @@
 //! CAMERA_INFORMATION, CAMERA_SETTINGS, STORAGE_INFORMATION, CAMERA_CAPTURE_STATUS,
 //! VIDEO_STREAM_INFORMATION and VIDEO_STREAM_STATUS, and the view's orientation.
 
-use super::{Cameras, Streams, boot_ms, zoom};
+use super::{Cameras, Streams, boot_ms};
 use crate::geometry::ground::ground_point;
 use crate::state::State;
+use crate::state::view::zoom;
 use glam::DQuat;
 use mavlink::dialects::common::{
     CAMERA_CAPTURE_STATUS_DATA, CAMERA_FOV_STATUS_DATA, CAMERA_INFORMATION_DATA,
@@ -52,7 +53,7 @@ pub(super) fn firmware_version() -> u32 {
 /// The view's orientation in the world (NED), MAVLink's (w, x, y, z).
 pub fn view_quaternion(state: &State, i: usize) -> [f32; 4] {
     let v = &state.vehicle;
-    let m = state.cameras[i]
+    let m = state.settings.cameras[i]
         .steering()
         .world_from_view(v.attitude.euler(), &v.position);
     let q = DQuat::from_mat3(&m).normalize();
@@ -61,7 +62,7 @@ pub fn view_quaternion(state: &State, i: usize) -> [f32; 4] {
 
 impl Cameras {
     pub(super) fn information(&self, state: &State, i: usize) -> MavMessage {
-        let cam = &state.cameras[i];
+        let cam = &state.settings.cameras[i];
         let (w, h) = (self.cfg.width, self.cfg.height);
         // Over MAVLink FTP, which every ground station reaches (the HTTP server serves the
         // same file at /camera.xml for browsers and tools).
@@ -69,7 +70,7 @@ impl Cameras {
         MavMessage::CAMERA_INFORMATION(CAMERA_INFORMATION_DATA {
             time_boot_ms: boot_ms(),
             firmware_version: firmware_version(),
-            focal_length: zoom::focal_length_mm(cam.fov),
+            focal_length: zoom::focal_length_mm(cam.fov()),
             sensor_size_h: zoom::SENSOR_WIDTH_MM as f32,
             sensor_size_v: (zoom::SENSOR_WIDTH_MM * h as f64 / w as f64) as f32,
             flags: CameraCapFlags::CAMERA_CAP_FLAGS_CAPTURE_VIDEO
@@ -84,7 +85,7 @@ impl Cameras {
             cam_definition_version: version,
             vendor_name: text("DigiView"),
             model_name: text(&format!("virtual camera {i}")),
-            lens_id: state.lens,
+            lens_id: state.settings.lens,
             cam_definition_uri: uri.as_str().into(),
             gimbal_device_id: GIMBAL_DEVICE_ID,
             camera_device_id: 0,
@@ -104,7 +105,7 @@ impl Cameras {
     /// meets the ground (INT32_MAX when it does not, within 10 km), the view's orientation
     /// and its horizontal and vertical fov, all from one state.
     pub(super) fn fov_status(&self, state: &State, i: usize) -> MavMessage {
-        let cam = &state.cameras[i];
+        let cam = &state.settings.cameras[i];
         let v = &state.vehicle;
         let world_from_view = cam
             .steering()
@@ -113,7 +114,7 @@ impl Cameras {
         let mm = |m: f64| (m * 1e3).round() as i32;
         let centre = ground_point(&v.position, world_from_view * glam::DVec3::X);
         let (w, h) = (self.cfg.width as f64, self.cfg.height as f64);
-        let vfov = 2.0 * ((cam.fov / 2.0).tan() * h / w).atan();
+        let vfov = 2.0 * ((cam.fov() / 2.0).tan() * h / w).atan();
         MavMessage::CAMERA_FOV_STATUS(CAMERA_FOV_STATUS_DATA {
             time_boot_ms: boot_ms(),
             lat_camera: e7(v.position.lat),
@@ -123,14 +124,14 @@ impl Cameras {
             lon_image: centre.map_or(i32::MAX, |(g, _)| e7(g.lon)),
             alt_image: centre.map_or(i32::MAX, |(g, _)| mm(g.alt)),
             q: view_quaternion(state, i),
-            hfov: cam.fov.to_degrees() as f32,
+            hfov: cam.fov().to_degrees() as f32,
             vfov: vfov.to_degrees() as f32,
             camera_device_id: 0,
         })
     }
 
     pub(super) fn settings(&self, state: &State, i: usize) -> MavMessage {
-        let cam = &state.cameras[i];
+        let cam = &state.settings.cameras[i];
         MavMessage::CAMERA_SETTINGS(CAMERA_SETTINGS_DATA {
             time_boot_ms: boot_ms(),
             mode_id: if self.video_mode(i) {
@@ -138,7 +139,7 @@ impl Cameras {
             } else {
                 CameraMode::CAMERA_MODE_IMAGE
             },
-            zoomLevel: zoom::level(cam.fov, cam.crop),
+            zoomLevel: zoom::level(cam.fov(), cam.crop()),
             focusLevel: f32::NAN,
             camera_device_id: 0,
         })
@@ -251,12 +252,12 @@ impl Cameras {
         id: u8,
         streams: &Streams,
     ) -> VIDEO_STREAM_STATUS_DATA {
-        let cam = &state.cameras[i];
-        let out = &state.output;
+        let cam = &state.settings.cameras[i];
+        let out = &state.settings.output;
         let (w, h, hfov) = match id {
-            VIEW_STREAM => (self.cfg.width, self.cfg.height, cam.fov.to_degrees()),
+            VIEW_STREAM => (self.cfg.width, self.cfg.height, cam.fov().to_degrees()),
             // The composed frame shows many views: its hfov is that of the camera asked.
-            _ => (out.width, out.height, cam.fov.to_degrees()),
+            _ => (out.width, out.height, cam.fov().to_degrees()),
         };
         VIDEO_STREAM_STATUS_DATA {
             framerate: out.fps as f32,

@@ -2,11 +2,13 @@
 //! current layout is a camera component (MAV_COMP_ID_CAMERA + i, under the autopilot's system
 //! id) that a ground station discovers by its HEARTBEAT, asks what it is (`info`), zooms,
 //! takes pictures and video with (`commands`) and points as the gimbal manager of its own
-//! view (`gimbal`). What they change goes through the live state, the one the DigiView
-//! protocol changes, and what they report is read from it, so each side sees the other at
-//! once. This module routes the link's messages to the cameras they address and runs what
-//! is periodic: heartbeats, the gimbals' attitude, angular rates and continuous zoom, click
-//! to track's statuses (`tracking`), and interval shooting.
+//! view (`gimbal`). Each message is permitted once, here, at the one gate every control
+//! path shares (`crate::state::Gate`), and what it asks of a view is a view operation the
+//! gate applies, as for the DigiView protocol; what the cameras report is read from the same
+//! settings, so each side sees the other at once. This module routes the link's messages to
+//! the cameras they address and runs what is periodic: heartbeats, the gimbals' attitude,
+//! angular rates and continuous zoom, click to track's statuses (`tracking`), and interval
+//! shooting.
 
 mod commands;
 mod ftp;
@@ -16,15 +18,13 @@ mod info;
 mod settings;
 mod tracking;
 
-pub mod zoom;
-
 use crate::autopilot::{Components, Outbox};
 use crate::clock::clock_us;
-use crate::geometry::view::clamp_fov;
-use crate::layout::{Slot, layout};
-use crate::policy::{Act, Peer, Policy};
+use crate::layout::Slot;
+use crate::policy::{Act, Forbidden, Peer};
 use crate::state::capture::{CaptureError, ViewShooter};
-use crate::state::{Invalid, Live, MAX_CAMERAS, State};
+use crate::state::view::{Op, Zoom};
+use crate::state::{Gate, MAX_CAMERAS, State};
 use mavlink::dialects::common::{
     CAMERA_IMAGE_CAPTURED_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavAutopilot,
     MavMessage, MavModeFlag, MavState, MavType,
@@ -88,9 +88,8 @@ pub struct Streams {
 
 /// The views as cameras: the link's [`Components`].
 pub struct Cameras {
-    live: Arc<Live>,
-    /// Who may change what (every control path's), and the refusal log.
-    policy: Arc<Policy>,
+    /// The one gate: the settings, what is sensed, and who may change what.
+    gate: Arc<Gate>,
     cfg: CamerasConfig,
     shooter: Option<Arc<dyn ViewShooter>>,
     streams: Mutex<Streams>,
@@ -160,14 +159,12 @@ struct Shooting {
 
 impl Cameras {
     pub fn new(
-        live: Arc<Live>,
-        policy: Arc<Policy>,
+        gate: Arc<Gate>,
         cfg: CamerasConfig,
         shooter: Option<Arc<dyn ViewShooter>>,
     ) -> Cameras {
         Cameras {
-            live,
-            policy,
+            gate,
             cfg,
             shooter,
             streams: Mutex::default(),
@@ -213,7 +210,13 @@ impl Cameras {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Continuous zoom and gimbal rates, advanced by `dt` seconds.
+    /// The state now: the settings with the vehicle and objects as last sensed.
+    fn state(&self) -> State {
+        State::now(self.gate.settings(), self.gate.sensed())
+    }
+
+    /// Continuous zoom and gimbal rates, advanced by `dt` seconds: the view operations the
+    /// commands that started them, permitted then, go on making.
     fn apply_motion(&self, n: usize, dt: f64) {
         type Motion = (usize, f64, Option<(f64, f64)>);
         let moving: Vec<Motion> = {
@@ -224,23 +227,25 @@ impl Cameras {
                 .collect()
         };
         for (i, zooming, rates) in moving {
-            let _ = self.live.update(|s| {
-                let c = &mut s.cameras[i];
-                if zooming != 0.0 {
-                    c.fov = clamp_fov(c.fov * 2f64.powf(-zooming * dt), c.crop);
-                }
-                if let Some((yaw_rate, pitch_rate)) = rates {
-                    gimbal::turn(c, yaw_rate * dt, pitch_rate * dt);
-                }
-                Ok::<_, Invalid>(())
-            });
+            if zooming != 0.0 {
+                let _ = self
+                    .gate
+                    .steer(i, Op::Zoom(Zoom::Scale(2f64.powf(-zooming * dt))));
+            }
+            if let Some((yaw_rate, pitch_rate)) = rates {
+                let _ = self
+                    .gate
+                    .steer(i, gimbal::turn(yaw_rate * dt, pitch_rate * dt));
+            }
         }
     }
 
     /// The cameras a ground station sees now: the user cameras of the current layout.
     pub fn count(state: &State) -> usize {
-        let out = &state.output;
-        layout(out.width, out.height, out.layout, out.overlay)
+        state
+            .settings
+            .output
+            .layout()
             .map(|l| l.views.iter().filter(|v| v.1 != Slot::Debug).count())
             .unwrap_or(0)
     }
@@ -262,44 +267,112 @@ impl Cameras {
             c => Cameras::camera_of(c, state).into_iter().collect(),
         }
     }
+
+    /// Camera `i`'s answer to a MAVLink FTP request for its definition file (reading it asks
+    /// nothing of the policy: it changes nothing).
+    fn definition_part(
+        &self,
+        out: &Outbox,
+        from: &MavHeader,
+        i: usize,
+        m: &FILE_TRANSFER_PROTOCOL_DATA,
+    ) {
+        let file = self.definition().0;
+        for payload in ftp::answer(&m.payload, i, file.as_bytes()) {
+            let reply = MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {
+                target_network: 0,
+                target_system: u8::try_from(from.system_id).unwrap_or(0),
+                target_component: from.component_id,
+                payload,
+            });
+            out.send(FIRST_COMPONENT + i as u8, &reply);
+        }
+    }
 }
+
+/// What a message would do, as the policy judges it, and how the refusal log names it: None
+/// for what only reads (the information requests, streaming, the definition).
+fn act_of(msg: &MavMessage) -> Option<(Act, String)> {
+    let to = |component: u8| match component {
+        0 => "every camera".to_string(),
+        c => format!("component {c}"),
+    };
+    match msg {
+        MavMessage::COMMAND_LONG(c) => commands::act_of(c.command).map(|act| {
+            (
+                act,
+                format!("{:?} to {}", c.command, to(c.target_component)),
+            )
+        }),
+        MavMessage::COMMAND_INT(c) => commands::act_of(c.command).map(|act| {
+            (
+                act,
+                format!("{:?} to {}", c.command, to(c.target_component)),
+            )
+        }),
+        MavMessage::PARAM_EXT_SET(p) => Some((
+            Act::Change,
+            format!(
+                "PARAM_EXT_SET {} of {}",
+                p.param_id.to_str().unwrap_or("?"),
+                to(p.target_component)
+            ),
+        )),
+        MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(_) => {
+            Some((Act::Change, "GIMBAL_MANAGER_SET_PITCHYAW".into()))
+        }
+        MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(_) => {
+            Some((Act::Change, "GIMBAL_MANAGER_SET_ATTITUDE".into()))
+        }
+        _ => None,
+    }
+}
+
+/// Whether a message was permitted (the policy's refusal where not).
+type Permitted = Result<(), Forbidden>;
 
 impl Components for Cameras {
     fn handle(&self, out: &Outbox, from: &MavHeader, peer: Peer, msg: &MavMessage) {
-        let state = self.live.snapshot();
-        // A gimbal message that the policy does not permit `peer` is dropped (it has no
-        // answer to deny with); the refusal is noted.
-        let may_aim = |what: &str| self.policy.allow(peer, Act::Change, what).is_ok();
+        // The one place this path asks the policy, once a message, whichever cameras it
+        // addresses. A gimbal message that is not permitted is dropped (it has no answer to
+        // deny with); a command is DENIED, a parameter FAILED.
+        let permitted = match act_of(msg) {
+            Some((act, what)) => self.gate.permit(peer, act, &what),
+            None => Ok(()),
+        };
+        let state = self.state();
+        let from = (from, permitted);
         match msg {
             MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
                 self.periodic().ground_station = Some(Instant::now());
             }
-            // Reading the definition asks nothing of the policy: it changes nothing.
             MavMessage::FILE_TRANSFER_PROTOCOL(m) if m.target_component != 0 => {
                 for i in self.addressed(out, m.target_system, m.target_component, &state) {
-                    let file = self.definition().0;
-                    for payload in ftp::answer(&m.payload, i, file.as_bytes()) {
-                        let reply =
-                            MavMessage::FILE_TRANSFER_PROTOCOL(FILE_TRANSFER_PROTOCOL_DATA {
-                                target_network: 0,
-                                target_system: u8::try_from(from.system_id).unwrap_or(0),
-                                target_component: from.component_id,
-                                payload,
-                            });
-                        out.send(FIRST_COMPONENT + i as u8, &reply);
-                    }
+                    self.definition_part(out, from.0, i, m);
                 }
             }
             MavMessage::COMMAND_LONG(c) => {
                 let command = commands::Command::long(c);
                 for i in self.addressed(out, c.target_system, c.target_component, &state) {
-                    self.command(out, (from, peer), i, &command, c.target_component == 0);
+                    self.command(
+                        out,
+                        (from.0, peer, from.1),
+                        i,
+                        &command,
+                        c.target_component == 0,
+                    );
                 }
             }
             MavMessage::COMMAND_INT(c) => {
                 let command = commands::Command::int(c);
                 for i in self.addressed(out, c.target_system, c.target_component, &state) {
-                    self.command(out, (from, peer), i, &command, c.target_component == 0);
+                    self.command(
+                        out,
+                        (from.0, peer, from.1),
+                        i,
+                        &command,
+                        c.target_component == 0,
+                    );
                 }
             }
             MavMessage::PARAM_EXT_REQUEST_LIST(_)
@@ -308,26 +381,21 @@ impl Components for Cameras {
                 let system = msg.target_system_id().unwrap_or(0);
                 let component = msg.target_component_id().unwrap_or(0);
                 for i in self.addressed(out, system, component, &state) {
-                    self.parameter(out, peer, i, msg);
+                    self.parameter(out, (peer, from.1), i, msg);
                 }
             }
-            MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(m) => {
+            MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(m) if from.1.is_ok() => {
                 for i in self.addressed(out, m.target_system, m.target_component, &state) {
-                    if gimbal::for_this_gimbal(m.gimbal_device_id)
-                        && may_aim("GIMBAL_MANAGER_SET_PITCHYAW")
-                    {
+                    if gimbal::for_this_gimbal(m.gimbal_device_id) {
                         let aim = gimbal::Aim::pitch_yaw(m.pitch, m.yaw, m.pitch_rate, m.yaw_rate);
-                        let _ = self.aim(from, i, m.flags, aim);
+                        let _ = self.aim(from.0, i, m.flags, aim);
                     }
                 }
             }
-            MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(m) => {
+            MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(m) if from.1.is_ok() => {
                 for i in self.addressed(out, m.target_system, m.target_component, &state) {
-                    if gimbal::for_this_gimbal(m.gimbal_device_id)
-                        && may_aim("GIMBAL_MANAGER_SET_ATTITUDE")
-                    {
-                        let aim = gimbal::Aim::attitude(m);
-                        let _ = self.aim(from, i, m.flags, aim);
+                    if gimbal::for_this_gimbal(m.gimbal_device_id) {
+                        let _ = self.aim(from.0, i, m.flags, gimbal::Aim::attitude(m));
                     }
                 }
             }
@@ -336,7 +404,7 @@ impl Components for Cameras {
     }
 
     fn tick(&self, out: &Outbox) {
-        let state = self.live.snapshot();
+        let state = self.state();
         let n = Cameras::count(&state);
         let now = Instant::now();
         let dt = {

@@ -8,11 +8,12 @@
 //! whenever the content does (another lens.cal, another DigiView), and ground stations fetch
 //! it again.
 
-use super::{Cameras, FIRST_COMPONENT};
+use super::{Cameras, FIRST_COMPONENT, Permitted};
 use crate::autopilot::Outbox;
-use crate::geometry::view::control;
-use crate::policy::{Act, Peer};
-use crate::state::{Invalid, State};
+use crate::modes::{LayoutMode, OverlayMode};
+use crate::policy::Peer;
+use crate::state::view::Op;
+use crate::state::{Invalid, Refused, Settings, State};
 use mavlink::dialects::common::{
     MavMessage, MavParamExtType, PARAM_EXT_ACK_DATA, PARAM_EXT_VALUE_DATA, ParamAck,
 };
@@ -108,39 +109,55 @@ fn settings(lenses: &[(u8, String)]) -> Vec<Setting> {
 }
 
 /// A parameter's value in camera `i`'s state (CAM_MODE is the camera's own, not the state's).
-fn value(s: &State, i: usize, name: &str) -> u8 {
+fn value(s: &Settings, i: usize, name: &str) -> u8 {
     let c = &s.cameras[i];
     match name {
-        "LAYOUT" => s.output.layout,
-        "OVERLAY" => s.output.overlay,
+        "LAYOUT" => s.output.layout.code(),
+        "OVERLAY" => s.output.overlay.code(),
         "LENS" => s.lens,
-        "CROP" => c.crop,
-        "LOCK" => c.lock,
-        "CONTROL" => c.control,
+        "CROP" => c.crop().code(),
+        "LOCK" => c.locks().0,
+        "CONTROL" => c.control().code(),
         "SORTING" => s.detection.sorting_mode,
         _ => s.detection.run_ai as u8,
     }
 }
 
-/// Sets a parameter of camera `i` (an option's value, checked before; not CAM_MODE).
-fn set(s: &mut State, i: usize, name: &str, v: u8) -> Result<(), Invalid> {
-    let c = &mut s.cameras[i];
+/// What setting a parameter of camera `i` to `v` (one of its options, checked before; not
+/// CAM_MODE) does: a view operation, or a change of the other settings.
+enum Change {
+    View(Op),
+    /// Sets the value given.
+    Other(fn(&mut Settings, u8) -> Result<(), Invalid>),
+}
+
+fn change_of(name: &str, v: u8) -> Change {
+    let other = Change::Other;
     match name {
-        "LAYOUT" => s.output.layout = v,
-        "OVERLAY" => s.output.overlay = v,
-        "LENS" => s.lens = v,
-        "CROP" => c.crop = v,
-        "LOCK" => c.lock = v,
-        "CONTROL" if v == control::COORDINATE && c.target.is_none() => {
-            return Err(Invalid(
-                "coordinate control needs a target: DO_SET_ROI_LOCATION first".into(),
-            ));
-        }
-        "CONTROL" => c.control = v,
-        "SORTING" => s.detection.sorting_mode = v,
-        _ => s.detection.run_ai = v == 1,
+        "CROP" => Change::View(Op::Crop(v)),
+        "LOCK" => Change::View(Op::Locks(v as f64)),
+        "CONTROL" => Change::View(Op::Control(v)),
+        "LAYOUT" => other(|s, v| {
+            s.output.layout = LayoutMode::try_from(v).map_err(|e| Invalid(e.to_string()))?;
+            Ok(())
+        }),
+        "OVERLAY" => other(|s, v| {
+            s.output.overlay = OverlayMode::try_from(v).map_err(|e| Invalid(e.to_string()))?;
+            Ok(())
+        }),
+        "LENS" => other(|s, v| {
+            s.lens = v;
+            Ok(())
+        }),
+        "SORTING" => other(|s, v| {
+            s.detection.sorting_mode = v;
+            Ok(())
+        }),
+        _ => other(|s, v| {
+            s.detection.run_ai = v == 1;
+            Ok(())
+        }),
     }
-    Ok(())
 }
 
 impl Cameras {
@@ -148,12 +165,12 @@ impl Cameras {
     fn value(&self, s: &State, i: usize, name: &str) -> u8 {
         match name {
             "CAM_MODE" => self.video_mode(i) as u8,
-            _ => value(s, i, name),
+            _ => value(&s.settings, i, name),
         }
     }
 
     fn lens_options(&self) -> Vec<(u8, String)> {
-        self.live.lenses().names()
+        self.gate.settings().lenses().names()
     }
 
     /// The camera definition file, and its version (never 0, which means "none").
@@ -169,8 +186,15 @@ impl Cameras {
         (xml, version)
     }
 
-    /// PARAM_EXT_REQUEST_LIST, _REQUEST_READ and _SET for camera `i`.
-    pub(super) fn parameter(&self, out: &Outbox, peer: Peer, i: usize, msg: &MavMessage) {
+    /// PARAM_EXT_REQUEST_LIST, _REQUEST_READ and _SET for camera `i` (a SET `permitted` or
+    /// not, once for the message, by the policy).
+    pub(super) fn parameter(
+        &self,
+        out: &Outbox,
+        (peer, permitted): (Peer, Permitted),
+        i: usize,
+        msg: &MavMessage,
+    ) {
         let all = settings(&self.lens_options());
         let component = FIRST_COMPONENT + i as u8;
         let value_of = |index: usize, s: &State| {
@@ -183,7 +207,7 @@ impl Cameras {
                 param_type: PARAM_TYPE,
             })
         };
-        let state = self.live.snapshot();
+        let state = self.state();
         match msg {
             MavMessage::PARAM_EXT_REQUEST_LIST(_) => {
                 for index in 0..all.len() {
@@ -203,22 +227,19 @@ impl Cameras {
             MavMessage::PARAM_EXT_SET(p) => {
                 let name = p.param_id.to_str().unwrap_or("").to_string();
                 let what = format!("PARAM_EXT_SET {name} of camera {i}");
-                let set = self
-                    .policy
-                    .permissions
-                    .check(peer, Act::Change)
-                    .map_err(|e| (ParamAck::PARAM_ACK_FAILED, e.to_string()))
-                    .and_then(|()| {
-                        self.set_parameter(&all, i, &name, p.param_type, &p.param_value)
-                    });
-                let result = match set {
-                    Ok(()) => ParamAck::PARAM_ACK_ACCEPTED,
-                    Err((ack, why)) => {
-                        self.policy.refusals.note(peer, &what, &why);
-                        ack
+                let result = match permitted {
+                    Err(_) => ParamAck::PARAM_ACK_FAILED,
+                    Ok(()) => {
+                        match self.set_parameter(&all, i, &name, p.param_type, &p.param_value) {
+                            Ok(()) => ParamAck::PARAM_ACK_ACCEPTED,
+                            Err((ack, why)) => {
+                                self.gate.policy().refusals.note(peer, &what, &why);
+                                ack
+                            }
+                        }
                     }
                 };
-                let now = self.live.snapshot();
+                let now = self.state();
                 let shown = all
                     .iter()
                     .find(|s| s.name == name)
@@ -263,9 +284,11 @@ impl Cameras {
             self.periodic().cameras[i].video_mode = v == 1;
             return Ok(());
         }
-        self.live
-            .update(|s| set(s, i, name, v))
-            .map_err(|e| (unsupported, format!("{name} = {v}: {e}")))
+        let set = match change_of(name, v) {
+            Change::View(op) => self.gate.steer(i, op),
+            Change::Other(set) => self.gate.change(|s| set(s, v)).map_err(Refused::from),
+        };
+        set.map_err(|e| (unsupported, format!("{name} = {v}: {e}")))
     }
 }
 
@@ -314,7 +337,7 @@ fn escape(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::state::rules;
+    use crate::state::rules::RULES;
 
     /// Each parameter a ground station sets offers the values the state's rule takes (the
     /// one table): all of them, but for the crop modes, where only the known ones are
@@ -333,7 +356,7 @@ mod tests {
                 "DETECTION" => "detection.run_ai",
                 _ => continue,
             };
-            let rule = rules::of_key(key).unwrap();
+            let rule = RULES.iter().find(|r| r.key == Some(key)).unwrap();
             let values: Vec<f64> = s.options.iter().map(|o| o.0 as f64).collect();
             assert!(
                 values.iter().all(|&v| rule.holds(v)),

@@ -10,9 +10,10 @@ use super::Cameras;
 use super::commands::{Answer, Command};
 use crate::autopilot::Outbox;
 use crate::geometry::ground::{ground_point, to_ned};
+use crate::lens::LensError;
 use crate::render::FramePlan;
-use crate::state::follow::{Follow, Shape};
-use crate::state::{Invalid, State, moved_on};
+use crate::state::view::{Follow, Op, Shape};
+use crate::state::{State, moved_on};
 use glam::{DVec2, DVec3};
 use mavlink::dialects::common::*;
 use std::time::{Duration, Instant};
@@ -21,6 +22,15 @@ use std::time::{Duration, Instant};
 const STATUS_EVERY: Duration = Duration::from_millis(200);
 /// The smallest size a click is given (radians): a point with no radius.
 const MIN_SIZE: f64 = 1.0 * std::f64::consts::PI / 180.0;
+
+/// Why a spot of a camera's picture has no ray.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum Unseen {
+    #[error(transparent)]
+    Lens(#[from] LensError),
+    #[error("({:.3}, {:.3}) of camera {camera}'s picture sees nothing (outside the lens)", .at.x, .at.y)]
+    Outside { camera: usize, at: DVec2 },
+}
 
 /// Whether each of `v` is a number in 0..=1.
 fn normalized(v: &[f32]) -> bool {
@@ -43,14 +53,8 @@ impl Cameras {
         }
         let (shape, centre, corners) = match cmd.command {
             MAV_CMD_CAMERA_STOP_TRACKING => {
-                let stop = self.live.update(|s| {
-                    s.cameras[i].follow = None;
-                    Ok::<_, Invalid>(())
-                });
-                return match stop {
-                    Ok(()) => {
-                        Answer::accepted(vec![self.tracking_image_status(&self.live.snapshot(), i)])
-                    }
+                return match self.gate.steer(i, Op::StopFollowing) {
+                    Ok(()) => Answer::accepted(vec![self.tracking_image_status(&self.state(), i)]),
                     Err(e) => Answer::denied(e),
                 };
             }
@@ -86,7 +90,7 @@ impl Cameras {
             }
             _ => unreachable!("only the tracking commands come here"),
         };
-        let snapshot = self.live.snapshot();
+        let snapshot = self.state();
         let rays = match self.picture_rays(&snapshot, i, centre, corners) {
             Ok(r) => r,
             Err(e) => return Answer::denied(e),
@@ -109,13 +113,7 @@ impl Cameras {
             since_us: crate::clock::clock_us(),
             object: None,
         };
-        let set = self.live.update(|s| {
-            s.cameras[i].steer_by_hand();
-            s.cameras[i].follow = Some(follow);
-            s.aim_followers();
-            Ok::<_, Invalid>(())
-        });
-        if let Err(e) = set {
+        if let Err(e) = self.gate.steer(i, Op::Follow(follow)) {
             return Answer::denied(e);
         }
         self.periodic().cameras[i].rates = None;
@@ -125,16 +123,17 @@ impl Cameras {
             centre.y,
             size.to_degrees()
         );
-        Answer::accepted(vec![self.tracking_image_status(&self.live.snapshot(), i)])
+        Answer::accepted(vec![self.tracking_image_status(&self.state(), i)])
     }
 
     /// Camera `i`'s own picture as its stream draws it from `s`.
-    fn own_picture(&self, s: &State, i: usize) -> Result<FramePlan, String> {
-        let lens = self
-            .live
-            .lenses()
-            .for_frame(s.lens, (s.sensor.width, s.sensor.height), s.sensor.roi())
-            .map_err(|e| e.to_string())?;
+    fn own_picture(&self, s: &State, i: usize) -> Result<FramePlan, Unseen> {
+        let settings = &s.settings;
+        let lens = self.gate.settings().lenses().for_frame(
+            settings.lens,
+            settings.sensor_size(),
+            settings.sensor.roi(),
+        )?;
         Ok(FramePlan::single_view(
             s,
             &lens,
@@ -152,17 +151,13 @@ impl Cameras {
         i: usize,
         centre: DVec2,
         corners: [DVec2; 2],
-    ) -> Result<(DVec3, DVec3, DVec3), String> {
+    ) -> Result<(DVec3, DVec3, DVec3), Unseen> {
         let plan = self.own_picture(s, i)?;
         let view = &plan.views[0];
         let size = DVec2::new(self.cfg.width as f64, self.cfg.height as f64);
         let ray = |q: DVec2| {
-            plan.world_ray(view, q * size).ok_or_else(|| {
-                format!(
-                    "({:.3}, {:.3}) of camera {i}'s picture sees nothing (outside the lens)",
-                    q.x, q.y
-                )
-            })
+            plan.world_ray(view, q * size)
+                .ok_or(Unseen::Outside { camera: i, at: q })
         };
         let c = ray(centre)?;
         Ok((
@@ -177,8 +172,8 @@ impl Cameras {
     fn followed_now(s: &State, i: usize) -> (State, Option<(DVec3, f64, DVec3)>) {
         let mut now = s.clone();
         now.moved_on_to(crate::clock::clock_us());
-        let followed = now.cameras[i]
-            .follow
+        let followed = now.settings.cameras[i]
+            .follow()
             .zip(now.followed_ray(i))
             .map(|(f, ray)| match now.followed(i) {
                 Some(o) => (ray, o.size, DVec3::from_array(o.velocity)),
@@ -204,7 +199,7 @@ impl Cameras {
         };
         // Aimed as the next frame will be.
         let (now, followed) = Self::followed_now(s, i);
-        let (Some(f), Some((ray, size, _))) = (now.cameras[i].follow, followed) else {
+        let (Some(f), Some((ray, size, _))) = (now.settings.cameras[i].follow(), followed) else {
             return MavMessage::CAMERA_TRACKING_IMAGE_STATUS(m);
         };
         m.tracking_status = CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_ACTIVE;
@@ -219,8 +214,8 @@ impl Cameras {
         };
         let (x, y) = (p.x / w, p.y / h);
         // Half the size, as parts of the picture's width and height.
-        let cam = &now.cameras[i];
-        let half_w = (size / 2.0) / cam.fov;
+        let cam = &now.settings.cameras[i];
+        let half_w = (size / 2.0) / cam.fov();
         let half_h = half_w * w / h;
         match f.shape {
             Shape::Point => {
@@ -282,7 +277,7 @@ impl Cameras {
     /// Streams camera `i`'s tracking statuses while it follows something, and once more
     /// when it stops.
     pub(super) fn report_tracking(&self, out: &Outbox, s: &State, i: usize, now: Instant) {
-        let following = s.cameras[i].follow.is_some();
+        let following = s.settings.cameras[i].follow().is_some();
         let due = {
             let mut p = self.periodic();
             let c = &mut p.cameras[i];

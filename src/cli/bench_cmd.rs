@@ -162,7 +162,11 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
             })
             .collect();
     }
-    let lens = Lenses::new(cal).for_frame(base.lens, args.input_size, base.sensor.roi())?;
+    let lens = Lenses::new(cal).for_frame(
+        base.settings.lens,
+        args.input_size,
+        base.settings.sensor.roi(),
+    )?;
     let input_layout = PlaneLayout::tight(args.input_format, args.input_size.0, args.input_size.1)?;
     let bar = spinner(&format!(
         "synthesising the {}x{} fisheye input",
@@ -201,10 +205,10 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
         ),
         output: format!(
             "{}x{} {}",
-            base.output.width, base.output.height, args.output_format
+            base.settings.output.width, base.settings.output.height, args.output_format
         ),
-        layout: base.output.layout,
-        overlay: base.output.overlay,
+        layout: base.settings.output.layout.code(),
+        overlay: base.settings.output.overlay.code(),
         filter: args.filter,
         frames: args.frames,
         plan_ms: median(plan_times),

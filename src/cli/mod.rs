@@ -18,10 +18,12 @@ mod render_video;
 pub(crate) mod serve_cmd;
 mod sim_cmd;
 
+use crate::modes::{Crop, LayoutMode, OverlayMode};
 use crate::state::State;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
+use tracing::warn;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -127,19 +129,19 @@ impl StateArgs {
             None => State::default(),
         };
         if let Some(l) = &self.lens {
-            s.lens = cal.find(l)?.lens_id;
+            s.settings.lens = cal.find(l)?.lens_id;
         }
         if let Some(v) = self.layout {
-            s.output.layout = v;
+            s.settings.output.layout = LayoutMode::try_from(v).context("--layout")?;
         }
         if let Some(v) = self.overlay {
-            s.output.overlay = v;
+            s.settings.output.overlay = OverlayMode::try_from(v).context("--overlay")?;
         }
         if let Some((w, h)) = self.size {
-            (s.output.width, s.output.height) = (w, h);
+            (s.settings.output.width, s.settings.output.height) = (w, h);
         }
         if let Some(v) = self.fps {
-            s.output.fps = v;
+            s.settings.output.fps = v;
         }
         for c in &self.cams {
             s.apply_camera_flag(c)
@@ -149,7 +151,7 @@ impl StateArgs {
             State::apply_angles(&mut s.vehicle.attitude, a).context("--attitude")?;
         }
         if let Some(a) = &self.mount {
-            State::apply_angles(&mut s.mount, a).context("--mount")?;
+            State::apply_angles(&mut s.settings.mount, a).context("--mount")?;
         }
         if let Some(p) = &self.position {
             s.apply_position(p).context("--position")?;
@@ -163,10 +165,12 @@ impl StateArgs {
         if let Some(t) = self.time {
             s.time = t;
         }
-        s.even_output();
+        s.settings.output.even();
         s.validate(&crate::lens::Lenses::new(cal))?;
-        for (i, c) in s.cameras.iter().enumerate() {
-            crate::geometry::view::warn_unknown_crop(i, c.crop);
+        for (i, c) in s.settings.cameras.iter().enumerate() {
+            if let Crop::Unknown(m) = c.crop() {
+                warn!("camera {i}: crop mode {m} is not one of 0..=4; its view is black");
+            }
         }
         Ok(s)
     }

@@ -97,7 +97,7 @@ impl ReadoutArgs {
 
     /// The shutter table of a frame of `state` through `lens` (None for a global shutter).
     pub fn table(&self, state: &State, lens: &Lens) -> Option<ShutterTable> {
-        let (attitude, mount) = (self.attitude(state), state.mount.euler());
+        let (attitude, mount) = (self.attitude(state), state.settings.mount.euler());
         ShutterTable::new(&self.readout(), (lens.width, lens.height), |dt| {
             lens_from_world(attitude(dt), mount)
         })

@@ -175,7 +175,11 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
     let input = image::open(&args.input)
         .with_context(|| format!("reading {}", args.input.display()))?
         .to_rgb8();
-    let lens = Lenses::new(cal).for_frame(state.lens, input.dimensions(), state.sensor.roi())?;
+    let lens = Lenses::new(cal).for_frame(
+        state.settings.lens,
+        input.dimensions(),
+        state.settings.sensor.roi(),
+    )?;
     let plan = FramePlan::new(&state, &lens)?.with_shutter(args.readout.table(&state, &lens));
     let out = match args.backend {
         Backend::Cpu => {
@@ -226,7 +230,7 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
     }
     let mut state = state_args.state(cal)?;
     if let Some((w, h)) = sensor {
-        (state.sensor.width, state.sensor.height) = (w, h);
+        (state.settings.sensor.width, state.settings.sensor.height) = (w, h);
         state
             .validate(&Lenses::new(cal))
             .context("--size (the fisheye frame)")?;
@@ -244,8 +248,9 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
             .to_rgb8();
         Box::new(PanoramaWorld::new(img))
     };
-    let sensor = (state.sensor.width, state.sensor.height);
-    let lens = Lenses::new(cal).for_frame(state.lens, sensor, state.sensor.roi())?;
+    let sensor = (state.settings.sensor.width, state.settings.sensor.height);
+    let lens =
+        Lenses::new(cal).for_frame(state.settings.lens, sensor, state.settings.sensor.roi())?;
     if let Some(board) = &args.board {
         return super::calibrate_cmd::synth_boards(
             board,

@@ -310,7 +310,7 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         last = Some((pts, fps.unwrap_or(job.input_fps as f64)));
         let size = (frame.layout.width, frame.layout.height);
         if plan.as_ref().is_none_or(|(s, _)| *s != size) {
-            let lens = lenses.for_frame(state.lens, size, state.sensor.roi())?;
+            let lens = lenses.for_frame(state.settings.lens, size, state.settings.sensor.roi())?;
             plan = Some((size, FramePlan::new(state, &lens)?));
         }
         if let Some(t) = target.take() {
@@ -347,8 +347,8 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
     eprintln!(
         "wrote {}: {count} frames ({}x{}) in {secs:.1} s, {:.1} fps",
         job.out.display(),
-        state.output.width,
-        state.output.height,
+        state.settings.output.width,
+        state.settings.output.height,
         count as f64 / secs
     );
     // A container that says it is longer than what decoded was cut short: the frames are

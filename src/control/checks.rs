@@ -7,7 +7,7 @@ use crate::lens::LensCal;
 use crate::protocol::text::annotate;
 use crate::protocol::{Body, FRAME_LEN, Message, crc8};
 use crate::state::capture::NoVideo;
-use crate::state::{Live, State};
+use crate::state::{Gate, LiveSettings, Sensed, State};
 use std::net::{IpAddr, Ipv4Addr};
 use std::sync::Arc;
 
@@ -28,6 +28,17 @@ pub fn decode(data: &[u8]) {
     }
 }
 
+impl Controller {
+    /// A controller on `state` alone (no video, anyone may set), as the rule tests and the
+    /// fuzzers drive it in-process.
+    pub fn direct(state: State, cal: &LensCal) -> Controller {
+        let settings = LiveSettings::new(state.settings, cal).expect("valid settings");
+        let sensed = Arc::new(Sensed::new(state.vehicle, state.tracked));
+        let gate = Gate::new(Arc::new(settings), sensed, Arc::default());
+        Controller::new(Arc::new(gate), Arc::default(), Arc::new(NoVideo))
+    }
+}
+
 /// A controller on the default state with two tracked objects.
 pub fn controller(cal: &LensCal) -> Controller {
     let mut state = State::default();
@@ -37,8 +48,7 @@ pub fn controller(cal: &LensCal) -> Controller {
     state
         .add_tracked("yaw=100deg,pitch=-60deg,size=2deg")
         .expect("valid");
-    let live = Live::new(state, cal, Box::new(NoVideo)).expect("the default state is valid");
-    Controller::new(Arc::new(live), Arc::default())
+    Controller::direct(state, cal)
 }
 
 /// Feeds `data` as a stream of frames: every request gets its replies (exactly one, or at
@@ -71,10 +81,10 @@ pub fn handle_stream(controller: &Controller, data: &[u8]) {
             assert_eq!(back.body.param_type(), echoed, "replies echo param_type");
             assert!(matches!(back.body, Body::Current(_) | Body::Verdict(..)));
         }
-        controller
-            .live
+        let settings = controller.gate.settings();
+        settings
             .snapshot()
-            .validate(controller.live.lenses())
-            .expect("the live state stays valid");
+            .validate(settings.lenses())
+            .expect("the settings stay valid");
     }
 }

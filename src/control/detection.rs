@@ -5,10 +5,10 @@ use super::Refusal;
 use crate::geometry::ground::ground_point;
 use crate::geometry::rotation::direction;
 use crate::geometry::view::lens_from_world;
-use crate::layout::layout;
+use crate::lens::Lenses;
 use crate::protocol::params::DetectedRoi;
 use crate::render::FramePlan;
-use crate::state::{Live, RenderedFrame, State, Tracked};
+use crate::state::{RenderedFrame, State, Tracked};
 use glam::DVec2;
 use serde::Serialize;
 
@@ -21,10 +21,7 @@ pub const KNOWN: u8 = 255;
 /// one. Each reply's index is its position in the list it belongs to, and total_detections
 /// that list's length; with nothing to report, one reply with total_detections 0.
 pub fn detected_roi(state: &State, index: u8) -> Result<Vec<DetectedRoi>, Refusal> {
-    let shown = || {
-        let o = &state.output;
-        layout(o.width, o.height, o.layout, o.overlay).map_or(0, |l| l.tiles.len())
-    };
+    let shown = || state.settings.output.layout().map_or(0, |l| l.tiles.len());
     let list: &[Tracked] = match index {
         SHOWN => &state.tracked[..shown().min(state.tracked.len())],
         KNOWN => &state.tracked,
@@ -51,7 +48,8 @@ pub fn detected_roi(state: &State, index: u8) -> Result<Vec<DetectedRoi>, Refusa
 fn roi(state: &State, t: &Tracked, index: u8, total: usize) -> DetectedRoi {
     let ray = direction(t.yaw, t.pitch);
     // The centre ray in the fisheye lens frame (x right, y down, z along the axis).
-    let lens = lens_from_world(state.vehicle.attitude.euler(), state.mount.euler()) * ray;
+    let mount = state.settings.mount.euler();
+    let lens = lens_from_world(state.vehicle.attitude.euler(), mount) * ray;
     let (lat, lon, alt, distance) = ground_point(&state.vehicle.position, ray)
         .map_or((0.0, 0.0, 0.0, 0.0), |(p, range)| {
             (p.lat, p.lon, p.alt, range)
@@ -97,7 +95,7 @@ const MIN_RADIUS: f64 = 4.0;
 /// No views for an object not sighted within [`IN_SIGHT`](crate::state::IN_SIGHT) of the
 /// frame's capture (a scan running late): a ring on a guess marks empty ground. Empty lists
 /// when the lens or the layout cannot be planned.
-pub fn seen(live: &Live, state: &State, frame: Option<&RenderedFrame>) -> Vec<Vec<Seen>> {
+pub fn seen(lenses: &Lenses, state: &State, frame: Option<&RenderedFrame>) -> Vec<Vec<Seen>> {
     // Where each object will be AHEAD_US after the frame, as the tracker predicts it.
     let ahead: Vec<_> = match frame {
         Some(f) => state
@@ -111,10 +109,10 @@ pub fn seen(live: &Live, state: &State, frame: Option<&RenderedFrame>) -> Vec<Ve
     // with the vehicle, as the fisheye layout's, shows the world turned), each object where
     // it had got to by that frame's capture time.
     let state = &frame.map_or_else(|| state.clone(), |f| f.shown(state));
-    let sensor = (state.sensor.width, state.sensor.height);
-    let plan = live
-        .lenses()
-        .for_frame(state.lens, sensor, state.sensor.roi())
+    let settings = &state.settings;
+    let sensor = settings.sensor_size();
+    let plan = lenses
+        .for_frame(settings.lens, sensor, settings.sensor.roi())
         .ok()
         .and_then(|lens| FramePlan::new(state, &lens).ok())
         .map(|plan| plan.with_shutter(frame.and_then(|f| f.shutter_for(sensor))));
@@ -159,13 +157,13 @@ pub fn seen(live: &Live, state: &State, frame: Option<&RenderedFrame>) -> Vec<Ve
 mod tests {
     use super::*;
     use crate::lens::LensCal;
-    use crate::state::capture::NoVideo;
+    use crate::modes::{LayoutMode, OverlayMode};
+    use crate::state::Report;
 
     /// Where `state`'s plan puts object 0 in its first view, in output pixels.
-    fn placed(live: &Live, state: &State) -> DVec2 {
-        let lens = live
-            .lenses()
-            .for_frame(state.lens, (state.sensor.width, state.sensor.height), None)
+    fn placed(lenses: &Lenses, state: &State) -> DVec2 {
+        let lens = lenses
+            .for_frame(state.settings.lens, state.settings.sensor_size(), None)
             .unwrap();
         let plan = FramePlan::new(state, &lens).unwrap();
         let t = &state.tracked[0];
@@ -180,10 +178,12 @@ mod tests {
             &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal"),
         )
         .unwrap();
-        let live = Live::new(State::default(), &cal, Box::new(NoVideo)).unwrap();
+        let lenses = Lenses::new(&cal);
+        let live = Report::default();
         // The fisheye layout: its view turns with the vehicle.
         let mut state = State::default();
-        (state.output.layout, state.output.overlay) = (6, 0);
+        let output = &mut state.settings.output;
+        (output.layout, output.overlay) = (LayoutMode::Whole, OverlayMode::None);
         state.tracked = vec![Tracked {
             id: 1,
             yaw: 0.5,
@@ -193,12 +193,12 @@ mod tests {
             seen_us: 1_000_000,
             ..Tracked::default()
         }];
-        let ring = |live: &Live| {
-            let s = &seen(live, &state, live.rendered().as_ref())[0][0];
+        let ring = |live: &Report| {
+            let s = &seen(&lenses, &state, live.rendered().as_ref())[0][0];
             DVec2::new(s.x, s.y)
         };
         // Before any frame: the state as it is.
-        assert!(ring(&live).distance(placed(&live, &state)) < 1e-6);
+        assert!(ring(&live).distance(placed(&lenses, &state)) < 1e-6);
         // A frame rendered 0.9 s after the sighting with the vehicle turned 40° and tilted.
         let mut then = state.clone();
         then.vehicle.attitude.yaw = 40f64.to_radians();
@@ -206,31 +206,31 @@ mod tests {
         live.set_rendered(RenderedFrame {
             captured_us: 1_900_000,
             pts_us: 0,
-            vehicle: then.vehicle.clone(),
+            vehicle: then.vehicle,
             shutter: None,
         });
         then.tracked[0] = then.tracked[0].at(1_900_000);
-        let want = placed(&live, &then);
+        let want = placed(&lenses, &then);
         assert!(
             ring(&live).distance(want) < 1e-6,
             "{} against {want}",
             ring(&live)
         );
         // Which is not where the state's own attitude would put it.
-        assert!(want.distance(placed(&live, &state)) > 20.0);
+        assert!(want.distance(placed(&lenses, &state)) > 20.0);
         // Its velocity, for a frame 1 s after the sighting (within the prediction's reach):
         // where the tracker has it 0.1 s on, less where it is, per second.
         live.set_rendered(RenderedFrame {
             captured_us: 2_000_000,
             pts_us: 0,
-            vehicle: then.vehicle.clone(),
+            vehicle: then.vehicle,
             shutter: None,
         });
-        let s = seen(&live, &state, live.rendered().as_ref())[0][0];
+        let s = seen(&lenses, &state, live.rendered().as_ref())[0][0];
         let [mut now, mut later] = [then.clone(), then.clone()];
         now.tracked[0] = state.tracked[0].at(2_000_000);
         later.tracked[0] = state.tracked[0].at(2_100_000);
-        let v = (placed(&live, &later) - placed(&live, &now)) / 0.1;
+        let v = (placed(&lenses, &later) - placed(&lenses, &now)) / 0.1;
         assert!(v.length() > 1.0, "the object moves: {v}");
         assert!(
             DVec2::new(s.vx, s.vy).distance(v) < 1e-6,
@@ -242,10 +242,10 @@ mod tests {
             live.set_rendered(RenderedFrame {
                 captured_us,
                 pts_us: 0,
-                vehicle: then.vehicle.clone(),
+                vehicle: then.vehicle,
                 shutter: None,
             });
-            let rings = &seen(&live, &state, live.rendered().as_ref())[0];
+            let rings = &seen(&lenses, &state, live.rendered().as_ref())[0];
             assert!(rings.is_empty(), "{captured_us}: {rings:?}");
         }
     }

@@ -1,7 +1,8 @@
 //! Control: the request handling of the DigiView control protocol, the tokio server that
 //! carries it over TCP and UDP, and the blocking client behind `digiview ctl`. Sits beside
-//! the frame path: it changes the live state (`crate::state::Live`) that the frame loop
-//! snapshots once per frame, and never waits on a frame.
+//! the frame path: it changes the operator's settings (through the one gate,
+//! `crate::state::Gate`) that the frame loop snapshots once per frame, reads what the head
+//! reports, and never waits on a frame.
 //!
 //! [`Controller::handle`] turns one received frame into its replies with no I/O, so the
 //! server, the fuzzer and the tests all exercise the same code.
@@ -17,7 +18,8 @@ pub mod system;
 use crate::policy::{Act, Peer, Policy};
 use crate::protocol::params::Autopilot;
 use crate::protocol::{Body, Message, Param, TextValue, Verdict, split_text};
-use crate::state::{Invalid, Live, MAX_CAMERAS};
+use crate::state::capture::Capturer;
+use crate::state::{Gate, Invalid, MAX_CAMERAS, Refused, Report, State};
 use serde::{Deserialize, Serialize};
 use std::net::IpAddr;
 use std::sync::Arc;
@@ -71,6 +73,21 @@ impl From<Invalid> for Refusal {
     }
 }
 
+impl From<crate::modes::NotAMode> for Refusal {
+    fn from(e: crate::modes::NotAMode) -> Self {
+        Refusal::Data(e.to_string())
+    }
+}
+
+impl From<Refused> for Refusal {
+    fn from(e: Refused) -> Self {
+        match e {
+            Refused::Forbidden(f) => f.into(),
+            other => Refusal::Data(other.to_string()),
+        }
+    }
+}
+
 impl Refusal {
     pub fn data(e: impl std::fmt::Display) -> Refusal {
         Refusal::Data(e.to_string())
@@ -108,20 +125,43 @@ pub trait AutopilotStatus: Send + Sync {
 }
 
 pub struct Controller {
-    pub live: Arc<Live>,
-    /// Who may do what, and why requests were refused (logged, and the last per address
-    /// kept for REFUSAL): shared with every other control path.
-    pub policy: Arc<Policy>,
+    /// The one gate every control path changes the settings through (and asks the policy
+    /// at), with the settings and what is sensed.
+    pub gate: Arc<Gate>,
+    /// What the head reports (SYSTEM_STATUS, the last frame).
+    pub report: Arc<Report>,
+    /// Where CAPTURE's stills and recordings go: the video head's.
+    pub capture: Arc<dyn Capturer>,
     /// The autopilot link's state, for AUTOPILOT (None: the link is off).
     pub autopilot: Option<Arc<dyn AutopilotStatus>>,
 }
 
 impl Controller {
-    pub fn new(live: Arc<Live>, policy: Arc<Policy>) -> Controller {
+    pub fn new(gate: Arc<Gate>, report: Arc<Report>, capture: Arc<dyn Capturer>) -> Controller {
         Controller {
-            live,
-            policy,
+            gate,
+            report,
+            capture,
             autopilot: None,
+        }
+    }
+
+    /// Who may do what, and why requests were refused (logged, and the last per address kept
+    /// for REFUSAL): shared with every other control path.
+    pub fn policy(&self) -> &Policy {
+        self.gate.policy()
+    }
+
+    /// The state now: the settings with the vehicle and objects as last sensed.
+    pub fn state(&self) -> State {
+        State::now(self.gate.settings(), self.gate.sensed())
+    }
+
+    /// Notes why `peer`'s request was refused, unless the policy refused it (the gate noted
+    /// that already).
+    fn note(&self, peer: IpAddr, what: &str, r: &Refusal) {
+        if let Refusal::Data(why) = r {
+            self.policy().refusals.note(Peer::Net(peer), what, why);
         }
     }
 
@@ -130,7 +170,7 @@ impl Controller {
         let msg = match Message::decode(frame) {
             Ok(m) => m,
             Err(e) => {
-                self.policy
+                self.policy()
                     .refusals
                     .note(Peer::Net(peer), "a frame", &e.to_string());
                 let (verdict, param_type) = e.reply();
@@ -147,14 +187,12 @@ impl Controller {
                 Body::Set(p) => format!("SET {}", p.param_type()),
                 _ => format!("{}", msg.body.message_type()),
             };
-            self.policy
-                .refusals
-                .note(Peer::Net(peer), &what, &r.to_string());
+            self.note(peer, &what, &r);
             Outcome::one(Body::Verdict(r.verdict(), param_type))
         };
         match msg.body {
             Body::Empty(p) => Outcome::one(Body::Verdict(Verdict::Acknowledgement, p)),
-            Body::Quit(p) => match self.policy.permissions.check(Peer::Net(peer), Act::Stop) {
+            Body::Quit(p) => match self.gate.permit(Peer::Net(peer), Act::Stop, "QUIT") {
                 Ok(()) => Outcome {
                     quit: true,
                     ..Outcome::one(Body::Verdict(Verdict::Acknowledgement, p))
@@ -163,7 +201,7 @@ impl Controller {
             },
             Body::Get(Param::RefusalReason(q)) => {
                 let reason = self
-                    .policy
+                    .policy()
                     .refusals
                     .last(Peer::Net(peer))
                     .unwrap_or_default();
@@ -203,53 +241,44 @@ impl Controller {
     /// A GET from another entry than the binary protocol (the web API): the same answers,
     /// and a refusal logged alike.
     pub fn get_from(&self, query: &Param, peer: IpAddr) -> Result<Vec<Param>, Refusal> {
-        self.get(query).inspect_err(|r| {
-            let what = format!("GET {}", query.param_type());
-            self.policy
-                .refusals
-                .note(Peer::Net(peer), &what, &r.to_string())
-        })
+        self.get(query)
+            .inspect_err(|r| self.note(peer, &format!("GET {}", query.param_type()), r))
     }
 
     /// A SET from another entry than the binary protocol (the web API): the same checks
     /// and permissions, and a refusal logged alike.
     pub fn set_from(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
-        self.set(param, peer).inspect_err(|r| {
-            let what = format!("SET {}", param.param_type());
-            self.policy
-                .refusals
-                .note(Peer::Net(peer), &what, &r.to_string())
-        })
+        self.set(param, peer)
+            .inspect_err(|r| self.note(peer, &format!("SET {}", param.param_type()), r))
     }
 
     /// A GET's answer, nothing logged (what a page polls).
     pub fn get(&self, query: &Param) -> Result<Vec<Param>, Refusal> {
         let cam = checked_cam(query)?;
-        let live = &self.live;
-        let s = live.snapshot();
-        let c = &s.cameras[cam];
+        let s = self.state();
+        let c = &s.settings.cameras[cam];
         let id = cam as u8;
         let one = |p: Param| Ok(vec![p]);
         match query {
-            Param::SystemStatus(_) => one(Param::SystemStatus(system::system_status(live))),
-            Param::VideoOutput(_) => one(Param::VideoOutput(system::video_output(&s)?)),
-            Param::Capture(_) => one(Param::Capture(system::capture(live))),
-            Param::Detection(_) => one(Param::Detection(s.detection.param())),
+            Param::SystemStatus(_) => one(Param::SystemStatus(system::system_status(&self.report))),
+            Param::VideoOutput(_) => one(Param::VideoOutput(system::video_output(&s.settings)?)),
+            Param::Capture(_) => one(Param::Capture(system::capture(self.capture.as_ref()))),
+            Param::Detection(_) => one(Param::Detection(s.settings.detection.param())),
             Param::DetectedRoi(q) => Ok(detection::detected_roi(&s, q.index)?
                 .into_iter()
                 .map(Param::DetectedRoi)
                 .collect()),
-            Param::Lens(_) => one(Param::Lens(system::lens(&s))),
+            Param::Lens(_) => one(Param::Lens(system::lens(&s.settings))),
             Param::CamEuler(_) => one(Param::CamEuler(camera::euler(c, id))),
             Param::CamZoom(_) => one(Param::CamZoom(camera::zoom(c, id))),
             Param::CamLockFlags(_) => one(Param::CamLockFlags(camera::lock_flags(c, id))),
             Param::CamControlMode(_) => one(Param::CamControlMode(camera::control_mode(c, id))),
             Param::CamCropMode(_) => one(Param::CamCropMode(camera::crop_mode(c, id))),
-            Param::CamOffset(q) => one(Param::CamOffset(camera::offset(live, &s, q)?)),
+            Param::CamOffset(q) => one(Param::CamOffset(camera::offset(self, &s, q)?)),
             Param::CamFov(_) => one(Param::CamFov(camera::fov(c, id))),
-            Param::CamTarget(q) => one(Param::CamTarget(camera::target(live, &s, q)?)),
-            Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s))),
-            Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s))),
+            Param::CamTarget(q) => one(Param::CamTarget(camera::target(self, &s, q)?)),
+            Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s.settings))),
+            Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s.settings))),
             // Answered per peer in `handle`; elsewhere each refusal carries its reason.
             Param::RefusalReason(_) => Err(Refusal::Data(
                 "REFUSAL is read over the control protocol; here each refusal says why".into(),
@@ -262,43 +291,37 @@ impl Controller {
         }
     }
 
+    /// A SET from `peer`: permitted once, at the gate, then a view operation, a change of the
+    /// settings or a capture.
     fn set(&self, param: &Param, peer: IpAddr) -> Result<(), Refusal> {
         let kind = param.param_type();
-        self.policy
-            .permissions
-            .check(Peer::Net(peer), Act::Change)?;
+        self.gate
+            .permit(Peer::Net(peer), Act::Change, &format!("SET {kind}"))?;
         if !kind.settable() {
             return Err(Refusal::Data(format!("{kind} can only be read")));
         }
         let cam = checked_cam(param)?;
-        let live = &self.live;
         if let Param::Capture(p) = param {
-            return system::set_capture(live, p);
+            return system::set_capture(self.capture.as_ref(), p);
         }
-        live.update(|s| match param {
+        let s = self.state();
+        if let Some(op) = camera::operation(self, &s, param)? {
+            return Ok(self.gate.steer(cam, op)?);
+        }
+        let (lenses, report) = (self.gate.settings().lenses(), &self.report);
+        self.gate.change(|s| match param {
             Param::VideoOutput(p) => system::set_video_output(s, p),
             Param::Detection(p) => {
                 s.detection.set(p);
                 Ok(())
             }
-            Param::Lens(p) => system::set_lens(live, s, p),
-            Param::CamEuler(p) => camera::set_euler(&mut s.cameras[cam], p),
-            Param::CamZoom(p) => camera::set_zoom(&mut s.cameras[cam], p),
-            Param::CamLockFlags(p) => camera::set_lock_flags(&mut s.cameras[cam], p),
-            Param::CamControlMode(p) => camera::set_control_mode(&mut s.cameras[cam], p),
-            Param::CamCropMode(p) => camera::set_crop_mode(&mut s.cameras[cam], p),
-            Param::CamOffset(p) => camera::set_offset(live, s, p),
-            Param::CamFov(p) => camera::set_fov(&mut s.cameras[cam], p),
-            Param::CamTarget(p) => camera::set_target(live, s, p),
-            Param::CamSensor(p) => system::set_sensor(live, s, p),
-            Param::GeneralSettings(p) => system::set_general(live, s, p),
-            Param::SystemStatus(_)
-            | Param::DetectedRoi(_)
-            | Param::Capture(_)
-            | Param::Autopilot(_)
-            | Param::RefusalReason(_) => {
-                unreachable!("handled above")
-            }
+            Param::Lens(p) => system::set_lens(lenses, s, p),
+            Param::CamSensor(p) => system::set_sensor(report, s, p),
+            Param::GeneralSettings(p) => system::set_general(lenses, s, p),
+            other => Err(Refusal::Data(format!(
+                "{} is not set here",
+                other.param_type()
+            ))),
         })
     }
 }

@@ -13,7 +13,7 @@
 
 use super::Controller;
 use crate::protocol::FRAME_LEN;
-use crate::supervise::{self, Failures, Fault, Report};
+use crate::supervise::{self, FailureLog, Failures, Fault};
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
@@ -108,11 +108,11 @@ pub async fn run(
                     && e.is_panic()
                 {
                     let why = supervise::panic_message(e.into_panic().as_ref());
-                    let live = &*controller.live;
-                    if failures.given_up(live, SERVICE, &format!("a client's task: {why}")) {
+                    let report = &*controller.report;
+                    if failures.given_up(report, SERVICE, &format!("a client's task: {why}")) {
                         break;
                     }
-                    live.restarted(SERVICE);
+                    report.restarted(SERVICE);
                 }
             }
         }
@@ -225,13 +225,13 @@ async fn supervise_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Sh
         let (controller, shutdown) = (controller.clone(), shutdown.clone());
         async move {
             serve_udp(socket, controller, shutdown).await;
-            Ok(())
+            Ok::<(), std::convert::Infallible>(())
         }
     };
     let stopped = || shutdown.is_triggered();
-    let live = &*controller.live;
+    let report = &*controller.report;
     let (first, bind) = ((udp, address), UdpSocket::bind::<SocketAddr>);
-    supervise::keep_serving(live, SERVICE, "udp: ", first, bind, serve, stopped).await;
+    supervise::keep_serving(report, SERVICE, "udp: ", first, bind, serve, stopped).await;
 }
 
 async fn serve_udp(udp: UdpSocket, controller: Arc<Controller>, shutdown: Shutdown) {

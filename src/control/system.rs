@@ -2,19 +2,22 @@
 //! LENS, CAM_SENSOR and GENERAL_SETTINGS, with the seed's rules field by field.
 
 use super::Refusal;
-use crate::layout::{Rect, TILE_SIZE, layout};
-use crate::protocol::ParamType;
+use crate::layout::{Rect, TILE_SIZE};
+use crate::lens::Lenses;
+use crate::modes::{LayoutMode, OverlayMode};
 use crate::protocol::params::{
     CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
 };
 use crate::protocol::{BoundingBox, ViewBoxes};
-use crate::state::{Live, State, rules};
+use crate::state::capture::Capturer;
+use crate::state::rules::*;
+use crate::state::{Report, Settings};
 use tracing::warn;
 
-pub fn system_status(live: &Live) -> SystemStatus {
+pub fn system_status(report: &Report) -> SystemStatus {
     SystemStatus {
-        status: live.status() as u8,
-        error: live.failure(),
+        status: report.status() as u8,
+        error: report.failure(),
     }
 }
 
@@ -29,16 +32,16 @@ fn bbox(r: Rect) -> BoundingBox {
 }
 
 /// The output and the rectangles the renderer draws.
-pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
-    let o = &state.output;
-    let l = layout(o.width, o.height, o.layout, o.overlay).map_err(Refusal::data)?;
+pub fn video_output(settings: &Settings) -> Result<VideoOutput, Refusal> {
+    let o = &settings.output;
+    let l = o.layout().map_err(Refusal::data)?;
     let views = ViewBoxes::new(l.views.iter().map(|(rect, _)| bbox(*rect)));
     Ok(VideoOutput {
         width: o.width as u16,
         height: o.height as u16,
         fps: o.fps as u8,
-        layout_mode: o.layout,
-        detection_overlay_mode: o.overlay,
+        layout_mode: o.layout.code(),
+        detection_overlay_mode: o.overlay.code(),
         views,
         detection_overlay_box: bbox(l.overlay_box),
         single_detection_size: TILE_SIZE as u16,
@@ -48,34 +51,28 @@ pub fn video_output(state: &State) -> Result<VideoOutput, Refusal> {
 /// Width and height above the maximum are clamped; below the minimum the size change is
 /// ignored (both kept, so the frame never gets an unasked-for shape). Sizes are rounded down
 /// to even numbers for 4:2:0 video. fps is clamped; an unknown layout or overlay is ignored.
-pub fn set_video_output(s: &mut State, p: &VideoOutput) -> Result<(), Refusal> {
+pub fn set_video_output(s: &mut Settings, p: &VideoOutput) -> Result<(), Refusal> {
     // Each field as its rule has the protocol take it; width and height together (one below
     // its minimum keeps both: the frame never gets an unasked-for shape).
-    let take = |field: &str, v: f64, was: f64| rules::take(ParamType::VideoOutput, field, v, was);
     let o = &mut s.output;
     let (w, h) = (
-        take("width", p.width as f64, 0.0),
-        take("height", p.height as f64, 0.0),
+        OUTPUT_WIDTH.take(p.width as f64, 0.0),
+        OUTPUT_HEIGHT.take(p.height as f64, 0.0),
     );
     if w > 0.0 && h > 0.0 {
         (o.width, o.height) = (w as u32, h as u32);
     }
-    o.fps = take("fps", p.fps as f64, o.fps as f64) as u32;
-    o.layout = take("layout_mode", p.layout_mode as f64, o.layout as f64) as u8;
-    o.overlay = take(
-        "detection_overlay_mode",
-        p.detection_overlay_mode as f64,
-        o.overlay as f64,
-    ) as u8;
-    s.even_output();
-    let o = &s.output;
-    layout(o.width, o.height, o.layout, o.overlay)
-        .map(|_| ())
-        .map_err(Refusal::data)
+    o.fps = OUTPUT_FPS.take(p.fps as f64, o.fps as f64) as u32;
+    let layout = OUTPUT_LAYOUT.take(p.layout_mode as f64, o.layout.code() as f64) as u8;
+    let overlay = OUTPUT_OVERLAY.take(p.detection_overlay_mode as f64, o.overlay.code() as f64);
+    o.layout = LayoutMode::try_from(layout)?;
+    o.overlay = OverlayMode::try_from(overlay as u8)?;
+    o.even();
+    o.layout().map(|_| ()).map_err(Refusal::data)
 }
 
-pub fn capture(live: &Live) -> Capture {
-    let c = live.capture().status();
+pub fn capture(capture: &dyn Capturer) -> Capture {
+    let c = capture.status();
     Capture {
         flags: (c.recording as u8) << 1,
         images_captured: c.images,
@@ -84,24 +81,22 @@ pub fn capture(live: &Live) -> Capture {
 }
 
 /// Bit 0 takes one still; bit 1 starts (1) or stops (0) recording.
-pub fn set_capture(live: &Live, p: &Capture) -> Result<(), Refusal> {
+pub fn set_capture(capture: &dyn Capturer, p: &Capture) -> Result<(), Refusal> {
     if p.flags & 1 != 0 {
-        live.capture().still().map_err(Refusal::data)?;
+        capture.still().map_err(Refusal::data)?;
     }
-    live.capture()
-        .record(p.flags & 2 != 0)
-        .map_err(Refusal::data)
+    capture.record(p.flags & 2 != 0).map_err(Refusal::data)
 }
 
-pub fn lens(state: &State) -> Lens {
+pub fn lens(settings: &Settings) -> Lens {
     Lens {
-        lens_id: state.lens,
+        lens_id: settings.lens,
     }
 }
 
 /// A lens_id that lens.cal does not have is refused.
-pub fn set_lens(live: &Live, s: &mut State, p: &Lens) -> Result<(), Refusal> {
-    if live.lenses().get(p.lens_id).is_none() {
+pub fn set_lens(lenses: &Lenses, s: &mut Settings, p: &Lens) -> Result<(), Refusal> {
+    if lenses.get(p.lens_id).is_none() {
         return Err(Refusal::Data(format!(
             "lens_id {} is not in lens.cal",
             p.lens_id
@@ -111,8 +106,8 @@ pub fn set_lens(live: &Live, s: &mut State, p: &Lens) -> Result<(), Refusal> {
     Ok(())
 }
 
-pub fn sensor(state: &State) -> CamSensor {
-    let s = &state.sensor;
+pub fn sensor(settings: &Settings) -> CamSensor {
+    let s = &settings.sensor;
     CamSensor {
         ae: s.ae as u8,
         target_brightness: s.target_brightness,
@@ -124,28 +119,24 @@ pub fn sensor(state: &State) -> CamSensor {
 /// Any non-zero ae is on. Brightness, exposure and gain are clamped into the seed's open
 /// ranges; exposure also to the camera's frame time. Refused for a source with no exposure to
 /// set (a file, an image), saying why.
-pub fn set_sensor(live: &Live, s: &mut State, p: &CamSensor) -> Result<(), Refusal> {
-    if let Some(why) = live.sensor_refusal() {
+pub fn set_sensor(report: &Report, s: &mut Settings, p: &CamSensor) -> Result<(), Refusal> {
+    if let Some(why) = report.sensor_refusal() {
         warn!("CAM_SENSOR SET refused: {why}");
         return Err(Refusal::Data(why));
     }
     let longest = s.sensor.longest_exposure_us();
-    let take = |field: &str, v: f64, was: f64| rules::take(ParamType::CamSensor, field, v, was);
     let sensor = &mut s.sensor;
-    sensor.ae = take("ae", p.ae as f64, sensor.ae as u8 as f64) != 0.0;
-    sensor.target_brightness = take(
-        "target_brightness",
-        p.target_brightness as f64,
-        sensor.target_brightness as f64,
-    ) as u8;
-    let exposure = take("exposure_value", p.exposure_value as f64, 0.0) as u32;
+    sensor.ae = SENSOR_AE.take(p.ae as f64, sensor.ae as u8 as f64) != 0.0;
+    sensor.target_brightness =
+        SENSOR_BRIGHTNESS.take(p.target_brightness as f64, sensor.target_brightness as f64) as u8;
+    let exposure = SENSOR_EXPOSURE.take(p.exposure_value as f64, 0.0) as u32;
     sensor.exposure_us = exposure.min(longest);
-    sensor.gain = take("gain_value", p.gain_value as f64, sensor.gain as f64) as u32;
+    sensor.gain = SENSOR_GAIN.take(p.gain_value as f64, sensor.gain as f64) as u32;
     Ok(())
 }
 
-pub fn general(state: &State) -> GeneralSettings {
-    let s = &state.sensor;
+pub fn general(settings: &Settings) -> GeneralSettings {
+    let s = &settings.sensor;
     let (roi_width, roi_height) = s.roi.map_or((0, 0), |[_, _, w, h]| (w as u16, h as u16));
     GeneralSettings {
         camera_width: s.width as u16,
@@ -153,24 +144,23 @@ pub fn general(state: &State) -> GeneralSettings {
         roi_width,
         roi_height,
         camera_fps: s.fps as u8,
-        mount_yaw: state.mount.yaw,
-        mount_pitch: state.mount.pitch,
-        mount_roll: state.mount.roll,
-        run_ai: state.detection.run_ai as u8,
+        mount_yaw: settings.mount.yaw,
+        mount_pitch: settings.mount.pitch,
+        mount_roll: settings.mount.roll,
+        run_ai: settings.detection.run_ai as u8,
     }
 }
 
 /// Camera size 1..=8192 and fps 1..=240, or the message is refused. A ROI of 0x0 means no
 /// sensor crop; otherwise it is centred in the lens's calibration frame and must fit in it.
 /// Mount yaw wraps, pitch and roll are taken as given; any non-zero run_ai is on.
-pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<(), Refusal> {
+pub fn set_general(lenses: &Lenses, s: &mut Settings, p: &GeneralSettings) -> Result<(), Refusal> {
     // The camera's size and rate, and whether the crop fits the lens's calibration frame,
-    // are `State::validate`'s to refuse, as from every other entry.
+    // are `Settings::validate`'s to refuse, as from every other entry.
     let roi = match (p.roi_width as u32, p.roi_height as u32) {
         (0, 0) => None,
         (w, h) => {
-            let lens = live
-                .lenses()
+            let lens = lenses
                 .get(s.lens)
                 .ok_or_else(|| Refusal::data("the state's lens is not in lens.cal"))?;
             let (cw, ch) = (lens.width, lens.height);
@@ -183,15 +173,9 @@ pub fn set_general(live: &Live, s: &mut State, p: &GeneralSettings) -> Result<()
     // A faster camera has a shorter frame: the exposure follows it down.
     s.sensor.exposure_us = s.sensor.exposure_us.min(s.sensor.longest_exposure_us());
     s.sensor.roi = roi;
-    s.mount.yaw = rules::take(
-        ParamType::GeneralSettings,
-        "mount_yaw",
-        p.mount_yaw,
-        s.mount.yaw,
-    );
+    s.mount.yaw = MOUNT_YAW.take(p.mount_yaw, s.mount.yaw);
     s.mount.pitch = p.mount_pitch;
     s.mount.roll = p.mount_roll;
-    s.detection.run_ai =
-        rules::take(ParamType::GeneralSettings, "run_ai", p.run_ai as f64, 0.0) != 0.0;
+    s.detection.run_ai = DETECTION_RUN.take(p.run_ai as f64, 0.0) != 0.0;
     Ok(())
 }

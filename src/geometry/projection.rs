@@ -4,6 +4,7 @@
 //! normalized offset (x, y) of CAM_OFFSET is the point (w/2 + x·w, h/2 + y·h).
 
 use super::rotation::{Euler, direction, wrap_pi, yaw_pitch};
+use crate::modes::Crop;
 use glam::{DMat3, DVec2, DVec3};
 use std::f64::consts::PI;
 
@@ -103,18 +104,17 @@ impl Projection {
 
     /// The projection for a view of crop mode 1/3 or 2 with the composed angles `view`.
     pub fn for_view(
-        crop_mode: u8,
+        crop_mode: Crop,
         width: f64,
         height: f64,
         fov: f64,
         view: Euler,
     ) -> Option<Projection> {
-        use super::view::crop;
         match crop_mode {
-            crop::RECTILINEAR | crop::RECTIFIED_CROP => {
+            Crop::Rectilinear | Crop::RectifiedCrop => {
                 Some(Projection::Rectilinear { width, height, fov })
             }
-            crop::PANORAMA => Some(Projection::Panorama {
+            Crop::Panorama => Some(Projection::Panorama {
                 width,
                 height,
                 fov,

@@ -2,6 +2,7 @@ use super::ground::*;
 use super::rotation::*;
 use super::view::*;
 use super::*;
+use crate::modes::{Control, Crop};
 use glam::{DMat3, DVec2, DVec3, EulerRot};
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -109,7 +110,7 @@ fn pilot_views_look_along_the_nose_and_coordinate_views_at_their_target() {
         relative_alt: 50.0,
     };
     let mut steering = Steering {
-        control: control::PILOT,
+        control: Control::Pilot,
         angles: Euler::new(0.0, -0.5, 0.0),
         locks: LockFlags::ALL,
         target: None,
@@ -117,7 +118,7 @@ fn pilot_views_look_along_the_nose_and_coordinate_views_at_their_target() {
     let nose = steering.world_from_view(vehicle, &position) * DVec3::X;
     assert!((nose - vehicle.matrix() * DVec3::X).length() < 1e-12);
     // A target 100 m east on the ground, 50 m below: the view points at it.
-    steering.control = control::COORDINATE;
+    steering.control = Control::Coordinate;
     steering.target = Some(from_ned(position.point(), DVec3::new(0.0, 100.0, 50.0)));
     let fwd = steering.world_from_view(vehicle, &position) * DVec3::X;
     assert!(
@@ -135,15 +136,15 @@ fn relative_angles_follow_the_frame_rel_formulas() {
 #[test]
 fn zoom_steps_are_relative_and_clamped_per_crop_mode() {
     let f = 1.2;
-    let z = zoomed_fov(f, 32, crop::RECTILINEAR);
+    let z = zoomed_fov(f, 32, Crop::Rectilinear);
     assert!((z - 0.6).abs() < 1e-12);
-    assert!((zoomed_fov(z, -32, crop::RECTILINEAR) - f).abs() < 1e-12);
+    assert!((zoomed_fov(z, -32, Crop::Rectilinear) - f).abs() < 1e-12);
     assert_eq!(
-        zoomed_fov(3.0, -127, crop::RECTILINEAR),
+        zoomed_fov(3.0, -127, Crop::Rectilinear),
         MAX_RECTILINEAR_FOV
     );
-    assert_eq!(zoomed_fov(3.0, -127, crop::PANORAMA), 2.0 * PI);
-    assert_eq!(zoomed_fov(0.2, 127, crop::PANORAMA), MIN_FOV);
+    assert_eq!(zoomed_fov(3.0, -127, Crop::Panorama), 2.0 * PI);
+    assert_eq!(zoomed_fov(0.2, 127, Crop::Panorama), MIN_FOV);
 }
 
 #[test]

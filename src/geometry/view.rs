@@ -4,6 +4,7 @@
 
 use super::ground::{GeoPoint, GeoPosition, ray_to_target};
 use super::rotation::{Euler, MOUNT_FROM_LENS, wrap_pi, yaw_pitch};
+use crate::modes::{Control, Crop};
 use glam::{DMat3, DVec3};
 use std::f64::consts::TAU;
 
@@ -55,22 +56,11 @@ pub fn view_orientation(cam: Euler, locks: LockFlags, vehicle: Euler) -> DMat3 {
     locks.compose(cam, vehicle).matrix()
 }
 
-/// CAM_CONTROL_MODE values.
-pub mod control {
-    /// The view looks along the vehicle's nose (pilot view).
-    pub const PILOT: u8 = 0;
-    pub const DIRECTIONAL: u8 = 1;
-    /// The view aims at its geographic target.
-    pub const COORDINATE: u8 = 2;
-    /// Pass: as directional.
-    pub const PASS: u8 = 3;
-}
-
 /// How a user view is aimed: what CAM_CONTROL_MODE, CAM_EULER, CAM_LOCK_FLAGS and CAM_TARGET
 /// set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Steering {
-    pub control: u8,
+    pub control: Control,
     pub angles: Euler,
     pub locks: LockFlags,
     pub target: Option<GeoPoint>,
@@ -83,8 +73,8 @@ impl Steering {
     pub fn world_from_view(&self, vehicle: Euler, position: &GeoPosition) -> DMat3 {
         let (angles, locks) = (self.angles, self.locks);
         match (self.control, self.target) {
-            (control::PILOT, _) => vehicle.matrix(),
-            (control::COORDINATE, Some(target)) => match ray_to_target(position, target) {
+            (Control::Pilot, _) => vehicle.matrix(),
+            (Control::Coordinate, Some(target)) => match ray_to_target(position, target) {
                 Some(ray) => view_orientation(aim(ray, angles, locks, vehicle), locks, vehicle),
                 None => view_orientation(angles, locks, vehicle),
             },
@@ -109,26 +99,6 @@ pub fn aim(ray_world: DVec3, cam: Euler, locks: LockFlags, vehicle: Euler) -> Eu
     }
 }
 
-/// Crop modes of a user camera (conventions.md).
-pub mod crop {
-    pub const FISHEYE_CROP: u8 = 0;
-    pub const RECTILINEAR: u8 = 1;
-    pub const PANORAMA: u8 = 2;
-    pub const RECTIFIED_CROP: u8 = 3;
-    pub const DEBUG: u8 = 4;
-}
-
-/// Crop modes beyond 4 are taken and draw their view black (conventions.md); that is
-/// rarely what was meant, so it is said.
-pub fn warn_unknown_crop(camera: usize, mode: u8) {
-    if mode > crop::DEBUG {
-        tracing::warn!(
-            "camera {camera}: crop mode {mode} is not one of 0..={}; its view is black",
-            crop::DEBUG
-        );
-    }
-}
-
 /// The narrowest fov any view may have (the seed's 0.1 rad).
 pub const MIN_FOV: f64 = 0.1;
 /// The widest rectilinear fov: a pinhole view cannot reach π, and near it nothing is usable.
@@ -136,20 +106,20 @@ pub const MAX_RECTILINEAR_FOV: f64 = 3.1;
 
 /// The fov range a view accepts in a crop mode: rectilinear views stop short of π, the others
 /// (panoramas, fisheye crops, debug) may take up to a full turn.
-pub const fn fov_range(crop_mode: u8) -> (f64, f64) {
-    match crop_mode {
-        crop::RECTILINEAR | crop::RECTIFIED_CROP => (MIN_FOV, MAX_RECTILINEAR_FOV),
-        _ => (MIN_FOV, TAU),
+pub const fn fov_range(crop: Crop) -> (f64, f64) {
+    match crop.pinhole() {
+        true => (MIN_FOV, MAX_RECTILINEAR_FOV),
+        false => (MIN_FOV, TAU),
     }
 }
 
-pub fn clamp_fov(fov: f64, crop_mode: u8) -> f64 {
+pub fn clamp_fov(fov: f64, crop_mode: Crop) -> f64 {
     let (lo, hi) = fov_range(crop_mode);
     if fov.is_nan() { lo } else { fov.clamp(lo, hi) }
 }
 
 /// CAM_ZOOM: a relative step; +32 halves the fov, -32 doubles it, then the crop mode's range.
-pub fn zoomed_fov(fov: f64, zoom: i8, crop_mode: u8) -> f64 {
+pub fn zoomed_fov(fov: f64, zoom: i8, crop_mode: Crop) -> f64 {
     clamp_fov(fov * 2f64.powf(-(zoom as f64) / 32.0), crop_mode)
 }
 

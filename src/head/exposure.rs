@@ -82,7 +82,7 @@ impl ExposureStage {
 
     /// What the exposure and gain can be set to now.
     fn limits(&self, state: &State) -> Limits {
-        let longest = state.sensor.longest_exposure_us();
+        let longest = state.settings.sensor.longest_exposure_us();
         match self.mapping() {
             Some(m) => m.limits(longest),
             None => Limits {
@@ -94,7 +94,9 @@ impl ExposureStage {
 
     fn settle_us(&self, state: &State) -> u64 {
         match self.control {
-            Control::V4l2 { .. } => V4L2_LAG_FRAMES * 1_000_000 / state.sensor.fps.max(1) as u64,
+            Control::V4l2 { .. } => {
+                V4L2_LAG_FRAMES * 1_000_000 / state.settings.sensor.fps.max(1) as u64
+            }
             _ => 0,
         }
     }
@@ -108,7 +110,7 @@ impl Head {
     ) -> Option<std::thread::JoinHandle<()>> {
         match &self.exposure.control {
             Control::Nobody(why) => {
-                self.live.set_sensor_refusal(Some(why.clone()));
+                self.report.set_sensor_refusal(Some(why.clone()));
                 None
             }
             Control::Demo => None,
@@ -127,12 +129,17 @@ impl Head {
     /// exposure on, the next exposure and gain written to the live state.
     pub(super) fn observe_exposure(&self, frame: &Frame, state: &State) {
         let stage = &self.exposure;
-        let s = &state.sensor;
+        let s = &state.settings.sensor;
         if matches!(stage.control, Control::Nobody(_)) {
             return;
         }
         let size = (frame.layout.width, frame.layout.height);
-        let Ok(lens) = self.live.lenses().for_frame(state.lens, size, s.roi()) else {
+        let Ok(lens) = self
+            .gate
+            .settings()
+            .lenses()
+            .for_frame(state.settings.lens, size, s.roi())
+        else {
             return;
         };
         // A little inside the circle: its rim is soft.
@@ -162,7 +169,7 @@ impl Head {
         );
         if let Some(next) = next {
             // Only while auto exposure is still on: a SET may have turned it off meanwhile.
-            let _ = self.live.update(|s| {
+            let _ = self.gate.change(|s| {
                 if s.sensor.ae {
                     (s.sensor.exposure_us, s.sensor.gain) = (next.exposure_us, next.gain);
                 }
@@ -237,7 +244,7 @@ impl Head {
         let mut applied: Option<Option<Setting>> = None;
         let mut read_back = Instant::now();
         while !self.stop.load(Ordering::Relaxed) {
-            let s = self.live.snapshot().sensor.clone();
+            let s = self.settings().sensor.clone();
             let camera_ae = s.ae && !software && mapping.has_auto();
             let want = (!camera_ae).then_some(Setting {
                 exposure_us: s.exposure_us,
@@ -264,7 +271,7 @@ impl Head {
                     c.as_ref().and_then(|c| device.get(c.id).ok())
                 };
                 if let Some(now) = mapping.setting(value(&mapping.exposure), value(&mapping.gain)) {
-                    let _ = self.live.update(|s| {
+                    let _ = self.gate.change(|s| {
                         if s.sensor.ae {
                             s.sensor.exposure_us =
                                 now.exposure_us.min(s.sensor.longest_exposure_us());
@@ -284,7 +291,7 @@ impl Head {
         if luma.is_nan() {
             return String::new();
         }
-        let s = &self.live.snapshot().sensor;
+        let s = &self.settings().sensor;
         format!(
             ", exposure {:.1} ms gain {:.2}{}, luma {luma:.0}",
             s.exposure_us as f64 / 1000.0,

@@ -25,14 +25,14 @@ impl Head {
         // The frames' own size (what the sender's pixels are in), once one has come.
         let size = self.frame_size.load(Ordering::Relaxed);
         let sensor = match ((size >> 32) as u32, size as u32) {
-            (0, _) | (_, 0) => (state.sensor.width, state.sensor.height),
+            (0, _) | (_, 0) => (state.settings.sensor.width, state.settings.sensor.height),
             wh => wh,
         };
-        let lens = match self
-            .live
-            .lenses()
-            .for_frame(state.lens, sensor, state.sensor.roi())
-        {
+        let lens = match self.gate.settings().lenses().for_frame(
+            state.settings.lens,
+            sensor,
+            state.settings.sensor.roi(),
+        ) {
             Ok(lens) => lens,
             Err(e) => {
                 warn!("detection: {e}");
@@ -41,7 +41,7 @@ impl Head {
         };
         let to_lens = crate::geometry::view::lens_from_world(
             state.vehicle.attitude.euler(),
-            state.mount.euler(),
+            state.settings.mount.euler(),
         );
         let to_world = |p: DVec2| lens.unproject(p).map(|r| to_lens.transpose() * r);
         let mut found = vec![];

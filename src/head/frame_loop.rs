@@ -16,7 +16,7 @@ use crate::head::capture::Still;
 use crate::lens::Lens;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::render::{Filter, FramePlan};
-use crate::state::{Failure, RenderedFrame, RunStatus, State};
+use crate::state::{Failure, RenderedFrame, RunStatus, Settings, State, Tracked};
 use crate::stream::Encoder;
 use crate::stream::encoder::{AccessUnit, Side};
 use crate::stream::klv::ViewMetadata;
@@ -92,7 +92,7 @@ impl Head {
     /// LENS SET to any lens of lens.cal.
     pub(super) fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
         let mut renderer = Renderer::new(gpu, PixelFormat::I420, Filter::Mip)?;
-        renderer.expect_lens_models(self.live.lenses().models());
+        renderer.expect_lens_models(self.gate.settings().lenses().models());
         Ok(renderer)
     }
 
@@ -100,12 +100,12 @@ impl Head {
         let mut renderer = self.renderer(&Gpu::new()?)?;
         let mut views = ViewOutputs::default();
         let mut scans = super::detection::ScanRenderer::default();
-        let mut encoder = self.encoder(self.live.snapshot().output.fps)?;
+        let mut encoder = self.encoder(self.settings().output.fps)?;
         let start = Instant::now();
         let mut pacer = Pacer::default();
         let mut last_frame: Option<Frame> = None;
-        // The state of the last frame rendered.
-        let mut shown: Option<Arc<State>> = None;
+        // The settings and objects of the last frame rendered.
+        let mut shown: Option<(Arc<Settings>, Arc<Vec<Tracked>>)> = None;
         // The status last reported: None idle, Some(running or not).
         let mut healthy: Option<bool> = None;
         let fault = Fault::for_stage("frames");
@@ -113,8 +113,9 @@ impl Head {
         let mut replaced_then = self.slot.stats().dropped;
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("frames");
-            let state = self.live.snapshot();
-            let period = Duration::from_secs_f64(1.0 / state.output.fps as f64);
+            let (settings, tracked) = (self.settings(), self.gate.sensed().tracked());
+            let state = State::of(&settings, self.gate.sensed().vehicle(), &tracked);
+            let period = Duration::from_secs_f64(1.0 / state.settings.output.fps as f64);
             let due = pacer.due();
             if let Some(early) = due.checked_sub(start.elapsed()) {
                 std::thread::sleep(early);
@@ -149,11 +150,14 @@ impl Head {
                 arrived.saturating_duration_since(start)
             });
             pacer.taken(due, arrived, replaced, start.elapsed(), period);
-            let moved = !shown.as_ref().is_some_and(|s| Arc::ptr_eq(s, &state));
+            // A view steered, or the objects the tiles follow changed.
+            let moved = !shown
+                .as_ref()
+                .is_some_and(|(s, t)| Arc::ptr_eq(s, &settings) && Arc::ptr_eq(t, &tracked));
             if !pacer.worth_rendering(is_fresh, signal, moved, start.elapsed()) {
                 continue;
             }
-            shown = Some(state.clone());
+            shown = Some((settings, tracked));
             let pts = pacer.pts(start.elapsed());
             let t0 = Instant::now();
             // The state and lens the frame was rendered with and its capture time, for the
@@ -173,7 +177,10 @@ impl Head {
                 }),
                 _ => {
                     stamps = None;
-                    Ok(no_signal::frame(state.output.width, state.output.height))
+                    Ok(no_signal::frame(
+                        state.settings.output.width,
+                        state.settings.output.height,
+                    ))
                 }
             };
             let (data, layout) = match rendered {
@@ -185,7 +192,7 @@ impl Head {
                 Err(RenderFailure::Gpu(e)) => {
                     // The GPU failed: say so, start a new device and renderer, go on.
                     error!("GPU: {e}; rebuilding the renderer");
-                    self.live.set_failure(Failure::Gpu);
+                    self.report.set_failure(Failure::Gpu);
                     healthy = Some(false);
                     std::thread::sleep(Duration::from_secs(1));
                     match Gpu::new().and_then(|g| self.renderer(&g)) {
@@ -210,19 +217,25 @@ impl Head {
             }
             let dropped_before = encoder.dropped;
             let side = Side { stamps, klv };
-            if let Err(e) = encoder.push_with(data, &layout, pts, state.output.fps, side) {
+            if let Err(e) = encoder.push_with(data, &layout, pts, state.settings.output.fps, side) {
                 error!("{e}; rebuilding the encoder");
-                self.live.set_failure(Failure::Encoder);
+                self.report.set_failure(Failure::Encoder);
                 healthy = Some(false);
                 drop(encoder);
-                encoder = self.rebuild_encoder(state.output.fps)?;
+                encoder = self.rebuild_encoder(state.settings.output.fps)?;
                 continue;
             }
             self.stats
                 .encoder_dropped
                 .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
             let context = framed.as_ref();
-            self.render_views(&mut views, &mut renderer, context, pts, state.output.fps);
+            self.render_views(
+                &mut views,
+                &mut renderer,
+                context,
+                pts,
+                state.settings.output.fps,
+            );
             if let (Some(frame), Some(framed)) = (&last_frame, context) {
                 self.offer_scan(&mut scans, &mut renderer, frame, framed);
             }
@@ -230,15 +243,15 @@ impl Head {
             let now_ok = health(signal, self.source_error().is_some(), last_frame.is_some());
             if now_ok != healthy {
                 match now_ok {
-                    Some(true) => self.live.set_status(RunStatus::Running),
-                    Some(false) => self.live.set_failure(Failure::Source),
+                    Some(true) => self.report.set_status(RunStatus::Running),
+                    Some(false) => self.report.set_failure(Failure::Source),
                     None => {}
                 }
                 healthy = now_ok;
             }
         }
         drop(encoder);
-        self.live.set_status(RunStatus::Finished);
+        self.report.set_status(RunStatus::Finished);
         Ok(())
     }
 
@@ -274,7 +287,7 @@ impl Head {
     /// The rolling shutter's table of a frame whose middle row was read at `middle_us`, the
     /// vehicle turning as the telemetry has it (None for a global shutter).
     fn shutter(&self, s: &State, lens: &Lens, middle_us: u64) -> Option<ShutterTable> {
-        let (middle, mount) = (s.vehicle.attitude.euler(), s.mount.euler());
+        let (middle, mount) = (s.vehicle.attitude.euler(), s.settings.mount.euler());
         let at = |dt_us: f64| {
             let t = middle_us.saturating_add_signed(dt_us.round() as i64);
             let attitude = self.telemetry.at(t).0.unwrap_or(middle);
@@ -312,23 +325,24 @@ impl Head {
         s.moved_on_to(frame.captured_us);
         let size = (frame.layout.width, frame.layout.height);
         let lens = self
-            .live
+            .gate
+            .settings()
             .lenses()
-            .for_frame(s.lens, size, s.sensor.roi())
+            .for_frame(s.settings.lens, size, s.settings.sensor.roi())
             .map_err(|e| RenderFailure::Frame(e.to_string()))?;
         let shutter = self.shutter(&s, &lens, middle_us);
         // What the web page and the services draw over this frame is placed with these.
         let drawn = shutter.clone().map(|t| (t, (lens.width, lens.height)));
-        self.live.set_rendered(RenderedFrame {
+        self.report.set_rendered(RenderedFrame {
             captured_us: frame.captured_us,
             pts_us: pts.as_micros() as u64,
-            vehicle: s.vehicle.clone(),
+            vehicle: s.vehicle,
             shutter: drawn,
         });
         let plan = FramePlan::new(&s, &lens)
             .map_err(|e| RenderFailure::Frame(e.to_string()))?
             .with_shutter(shutter.clone());
-        let camera = (&lens, s.mount.euler());
+        let camera = (&lens, s.settings.mount.euler());
         self.readout_probe
             .offer(frame, camera, self.cfg.readout, &self.telemetry);
         let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());

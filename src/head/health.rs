@@ -184,7 +184,7 @@ impl Head {
                 per(b.detect_us - a.detect_us, scans),
             ),
             crops: (b.crops - a.crops) as f64 / secs,
-            tracked: self.live.snapshot().tracked.len(),
+            tracked: self.state().tracked.len(),
             latency: self.latency.since(a.clock_us),
             klv: self.klv.lock().unwrap_or_else(|e| e.into_inner()).clone(),
             demo_score: self

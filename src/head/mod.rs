@@ -1,6 +1,7 @@
 //! The video head: source → upload → GPU render → readback → H.264 → RTSP (and recording),
-//! frame after frame. One service among the others: it reads the live state and the
-//! vehicle's telemetry and knows nothing of who writes them; the serve assembly
+//! frame after frame. One service among the others: it reads the operator's settings, what
+//! is sensed and the vehicle's telemetry, and knows nothing of who writes them; it writes
+//! what it reports (`crate::state::Report`); the serve assembly
 //! (`crate::app`) builds it from its parts of the configuration ([`HeadConfig`]) and the
 //! outputs it feeds ([`HeadParts`]). A source thread (`source_thread`: a camera, file or
 //! image through GStreamer, or the demo) puts frames in a newest-wins slot; the frame loop
@@ -39,7 +40,7 @@ use crate::lens::LensError;
 use crate::render::gpu::GpuError;
 use crate::source::demo::{DemoConfig, Flight};
 use crate::source::{FrameSlot, SourceSpec};
-use crate::state::Live;
+use crate::state::{Gate, Report, Settings, State};
 use crate::stream::rtsp::VIEW_MOUNTS;
 use crate::stream::{EncoderConfig, Preview, Publisher, Rtsp, StreamError};
 use crate::telemetry::Telemetry;
@@ -96,7 +97,10 @@ pub enum HeadError {
 /// Shared by the head's threads.
 pub struct Head {
     pub cfg: HeadConfig,
-    pub live: Arc<Live>,
+    /// The settings and what is sensed; the detection stage keeps its followers through it.
+    pub gate: Arc<Gate>,
+    /// What the head reports: status, failures, the last frame.
+    pub report: Arc<Report>,
     pub capture: Arc<Capture>,
     pub telemetry: Arc<Telemetry>,
     pub rtsp: Arc<Rtsp>,
@@ -141,7 +145,8 @@ pub struct Head {
 
 /// What the head reads, writes and feeds, built by the assembly.
 pub struct HeadParts {
-    pub live: Arc<Live>,
+    pub gate: Arc<Gate>,
+    pub report: Arc<Report>,
     pub capture: Arc<Capture>,
     pub rtsp: Arc<Rtsp>,
     /// The relays the stream is published to.
@@ -179,7 +184,8 @@ struct Stats {
 impl Head {
     pub fn new(cfg: HeadConfig, parts: HeadParts) -> Arc<Head> {
         let HeadParts {
-            live,
+            gate,
+            report,
             capture,
             rtsp,
             publishers,
@@ -192,7 +198,8 @@ impl Head {
         let exposure = exposure::ExposureStage::new(&cfg.source, cfg.exposure.auto);
         Arc::new(Head {
             cfg,
-            live,
+            gate,
+            report,
             capture,
             telemetry,
             rtsp,
@@ -284,6 +291,18 @@ impl Head {
     fn demo_truth(&self) -> Option<detection::score::DemoTruth> {
         let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
         truth.clone()
+    }
+}
+
+impl Head {
+    /// The operator's settings now.
+    pub fn settings(&self) -> Arc<Settings> {
+        self.gate.settings().snapshot()
+    }
+
+    /// The state now: the settings with the vehicle and objects as last sensed.
+    pub fn state(&self) -> State {
+        State::now(self.gate.settings(), self.gate.sensed())
     }
 }
 

@@ -69,13 +69,15 @@ impl Head {
     /// The simulated camera and flight, paced at the demo's frame rate.
     fn demo_source(&self) -> Result<(), HeadError> {
         let d = &self.cfg.demo;
-        let state = self.live.snapshot();
-        let lens =
-            self.live
-                .lenses()
-                .for_frame(state.lens, (d.width, d.height), state.sensor.roi())?;
+        let state = self.state();
+        let lens = self.gate.settings().lenses().for_frame(
+            state.settings.lens,
+            (d.width, d.height),
+            state.settings.sensor.roi(),
+        )?;
         let layout = PlaneLayout::tight(d.format, d.width, d.height)?;
-        let camera = DemoCamera::new(&lens, layout, state.mount.euler()).with_readout(d.readout_ms);
+        let camera =
+            DemoCamera::new(&lens, layout, state.settings.mount.euler()).with_readout(d.readout_ms);
         let flight = Flight {
             hover: state.vehicle.position,
             // Spinning is about level and north, by the clock alone: never about an attitude
@@ -139,7 +141,7 @@ impl Head {
             let stamp = d.stamp.then_some((captured_us / 1000) as u32);
             // The exposure and gain as they are now, read after the capture time is taken:
             // the auto exposure knows a frame stamped after its change shows it.
-            let sensor = &self.live.snapshot().sensor;
+            let sensor = &self.settings().sensor;
             let sensor = SensorModel::new(Setting {
                 exposure_us: sensor.exposure_us,
                 gain: sensor.gain,

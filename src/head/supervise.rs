@@ -8,7 +8,7 @@
 //! has run half a second ([`Fault`]).
 
 use super::{Head, HeadError};
-use crate::supervise::{Report, panic_message};
+use crate::supervise::{FailureLog, panic_message};
 use std::collections::VecDeque;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::Ordering;
@@ -40,7 +40,7 @@ impl Head {
             panics.retain(|t| t.elapsed() < WINDOW);
             let give_up = panics.len() >= MAX_RESTARTS || self.stop.load(Ordering::Relaxed);
             // SYSTEM_STATUS error 5, and /api/status's `services` name the stage.
-            self.live.failed(stage, &why, give_up);
+            self.report.failed(stage, &why, give_up);
             if give_up {
                 error!(
                     "the {stage} stage failed ({why}) {} times within {} s: stopping",
@@ -61,7 +61,7 @@ impl Head {
                 }
                 std::thread::sleep(Duration::from_millis(50));
             }
-            self.live.restarted(stage);
+            self.report.restarted(stage);
         }
     }
 }

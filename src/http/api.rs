@@ -49,8 +49,8 @@ async fn estimate_readout(
     Query(query): Query<HashMap<String, String>>,
 ) -> Response {
     use crate::policy::{Act, Peer};
-    let policy = &web.controller.policy;
-    if let Err(e) = policy.allow(Peer::Net(peer.ip()), Act::Change, "readout estimate") {
+    let gate = &web.controller.gate;
+    if let Err(e) = gate.permit(Peer::Net(peer.ip()), Act::Change, "readout estimate") {
         return ApiError(StatusCode::FORBIDDEN, e.0.into()).into_response();
     }
     let Some(video) = &web.video else {
@@ -129,10 +129,11 @@ pub(crate) fn snapshot(web: &Web) -> Value {
 /// All from one snapshot of the state.
 fn objects(web: &Web) -> Value {
     let c = &web.controller;
-    let state = c.live.snapshot();
+    let state = c.state();
     let replies = crate::control::detection::detected_roi(&state, 255).unwrap_or_default();
-    let frame = c.live.rendered();
-    let seen = crate::control::detection::seen(&c.live, &state, frame.as_ref());
+    let frame = c.report.rendered();
+    let lenses = c.gate.settings().lenses();
+    let seen = crate::control::detection::seen(lenses, &state, frame.as_ref());
     let pts_us = frame.map(|f| f.pts_us);
     let mut list: Vec<Value> = replies.iter().map(|p| json!(p)).collect();
     for ((object, views), tracked) in list.iter_mut().zip(seen).zip(&state.tracked) {
@@ -300,7 +301,7 @@ async fn put_param(
 
 /// The run's status, the head's figures over the last second, and the autopilot link.
 pub(crate) fn status_value(web: &Web) -> Value {
-    let s = &web.controller.live;
+    let s = &web.controller.report;
     json!({
         "status": s.status() as u8,
         "failure": s.failure(),
@@ -316,7 +317,7 @@ async fn status(State(web): State<Web>) -> Response {
 }
 
 async fn lenses(State(web): State<Web>) -> Response {
-    let names = web.controller.live.lenses().names();
+    let names = web.controller.gate.settings().lenses().names();
     let list: Vec<_> = names
         .into_iter()
         .map(|(id, name)| json!({ "lens_id": id, "name": name }))

@@ -1,5 +1,6 @@
 //! One trust boundary for every control path. The DigiView protocol, the web API, its
-//! WebSocket and MAVLink all ask the same [`Policy`] whether a peer may change the state
+//! WebSocket and MAVLink all ask the same [`Policy`] (through one function,
+//! `crate::state::Gate::permit`) whether a peer may change the state
 //! ([`Act::Change`]), stop the system ([`Act::Stop`]) or delete files ([`Act::Delete`]), and
 //! note each refusal in the one rate-limited [`Refusals`] log. Shared data at the bottom:
 //! it knows peers and lists, no service.
@@ -101,8 +102,8 @@ impl Default for Permissions {
 }
 
 impl Permissions {
-    /// Whether `peer` may do `act`.
-    pub fn check(&self, peer: Peer, act: Act) -> Result<(), Forbidden> {
+    /// Whether `peer` may do `act` (asked through [`Policy::allow`], which notes a refusal).
+    fn check(&self, peer: Peer, act: Act) -> Result<(), Forbidden> {
         let (list, refused) = match act {
             Act::Change => (&self.set, "SET is not permitted from here"),
             Act::Stop => (&self.quit, "QUIT is not permitted from here"),
@@ -139,7 +140,8 @@ impl Policy {
         }
     }
 
-    /// Whether `peer` may do `act`; a refusal is noted with `what` was asked.
+    /// Whether `peer` may do `act`; a refusal is noted with `what` was asked. Every control
+    /// path asks it through one function, `crate::state::Gate::permit`.
     pub fn allow(&self, peer: Peer, act: Act, what: &str) -> Result<(), Forbidden> {
         self.permissions
             .check(peer, act)

@@ -4,10 +4,11 @@
 //! walk the same plan, so they differ only in where the colour comes from.
 
 use crate::geometry::shutter::ShutterTable;
-use crate::geometry::view::{crop, lens_from_world};
+use crate::geometry::view::lens_from_world;
 use crate::geometry::{Euler, Projection, rotation::direction};
-use crate::layout::{Layout, LayoutError, Rect, Slot, layout};
+use crate::layout::{Layout, LayoutError, Rect, Slot};
 use crate::lens::Lens;
+use crate::modes::Crop;
 use crate::render::mip::{Filter, MAX_LEVELS};
 use crate::state::{State, Tracked};
 use glam::{DMat3, DVec2, DVec3};
@@ -63,21 +64,21 @@ pub struct FramePlan {
 impl FramePlan {
     /// Plans the output frame of `state` for fisheye frames that `lens` describes.
     pub fn new(state: &State, lens: &Lens) -> Result<FramePlan, LayoutError> {
-        let out = &state.output;
-        let layout = layout(out.width, out.height, out.layout, out.overlay)?;
+        let settings = &state.settings;
+        let layout = settings.output.layout()?;
         let vehicle = state.vehicle.attitude.euler();
         let position = &state.vehicle.position;
-        let lens_from_world = lens_from_world(vehicle, state.mount.euler());
+        let lens_from_world = lens_from_world(vehicle, settings.mount.euler());
         let mut views = Vec::new();
         for (i, &(rect, slot)) in layout.views.iter().enumerate() {
             let map = match slot {
                 Slot::Debug => debug_map(rect, lens),
                 _ => {
-                    let cam = &state.cameras[i];
+                    let cam = &settings.cameras[i];
                     camera_map(
                         rect,
-                        cam.crop,
-                        cam.fov,
+                        cam.crop(),
+                        cam.fov(),
                         cam.steering().world_from_view(vehicle, position),
                         lens,
                         &lens_from_world,
@@ -115,15 +116,16 @@ impl FramePlan {
     pub fn single_view(state: &State, lens: &Lens, i: usize, width: u32, height: u32) -> FramePlan {
         let rect = Rect::new(0, 0, width, height);
         let vehicle = &state.vehicle;
-        let lens_from_world = lens_from_world(vehicle.attitude.euler(), state.mount.euler());
-        let cam = &state.cameras[i];
+        let mount = state.settings.mount.euler();
+        let lens_from_world = lens_from_world(vehicle.attitude.euler(), mount);
+        let cam = &state.settings.cameras[i];
         let world_from_view = cam
             .steering()
             .world_from_view(vehicle.attitude.euler(), &vehicle.position);
         let map = camera_map(
             rect,
-            cam.crop,
-            cam.fov,
+            cam.crop(),
+            cam.fov(),
             world_from_view,
             lens,
             &lens_from_world,
@@ -203,7 +205,7 @@ impl FramePlan {
             true => self.views[i],
             false => {
                 let rect = Rect::new(0, 0, UNSHOWN_VIEW, UNSHOWN_VIEW);
-                let cam = &state.cameras[i];
+                let cam = &state.settings.cameras[i];
                 let vehicle = &state.vehicle;
                 let world_from_view = cam
                     .steering()
@@ -212,8 +214,8 @@ impl FramePlan {
                     rect,
                     map: camera_map(
                         rect,
-                        cam.crop,
-                        cam.fov,
+                        cam.crop(),
+                        cam.fov(),
                         world_from_view,
                         &self.lens,
                         &self.lens_from_world,
@@ -400,7 +402,7 @@ impl FramePlan {
 
 fn camera_map(
     rect: Rect,
-    crop_mode: u8,
+    crop_mode: Crop,
     fov: f64,
     world_from_view: DMat3,
     lens: &Lens,
@@ -408,7 +410,7 @@ fn camera_map(
 ) -> ViewMap {
     let (w, h) = (rect.w as f64, rect.h as f64);
     match crop_mode {
-        crop::RECTILINEAR | crop::RECTIFIED_CROP | crop::PANORAMA => {
+        Crop::Rectilinear | Crop::RectifiedCrop | Crop::Panorama => {
             let view = Euler::from_matrix(&world_from_view);
             let projection =
                 Projection::for_view(crop_mode, w, h, fov, view).expect("rectified crop mode");
@@ -417,7 +419,7 @@ fn camera_map(
                 world_from_view,
             }
         }
-        crop::FISHEYE_CROP => {
+        Crop::FisheyeCrop => {
             // An axis-aligned crop of the fisheye around where the view's forward ray lands,
             // as wide as the view's fov at the lens's radial scale there.
             let fwd = *lens_from_world * world_from_view * DVec3::X;
@@ -432,7 +434,7 @@ fn camera_map(
                 scale,
             }
         }
-        crop::DEBUG => debug_map(rect, lens),
+        Crop::Whole => debug_map(rect, lens),
         _ => ViewMap::Black,
     }
 }

@@ -65,7 +65,7 @@ pub(crate) fn supersample<F: Fn(DVec2) -> Option<DVec3> + Sync>(
 /// time: black outside the image circle, each pixel the mean of 3 × 3 rays over its area.
 pub fn fisheye(world: &dyn World, lens: &Lens, state: &State) -> RgbImage {
     let world_from_lens =
-        lens_from_world(state.vehicle.attitude.euler(), state.mount.euler()).transpose();
+        lens_from_world(state.vehicle.attitude.euler(), state.settings.mount.euler()).transpose();
     let (eye, t) = (eye(state), state.time);
     // Sample points measured from the top-left corner; OpenCV pixel coordinates are 0.5 less.
     supersample(lens.width, lens.height, SYNTH_SAMPLES, |p| {
@@ -85,7 +85,7 @@ pub fn rolling_fisheye(
     readout: &Readout,
     attitude: impl Fn(f64) -> Euler + Sync,
 ) -> RgbImage {
-    let mount = state.mount.euler();
+    let mount = state.settings.mount.euler();
     let (eye, t) = (eye(state), state.time);
     let size = (lens.width, lens.height);
     supersample(lens.width, lens.height, SYNTH_SAMPLES, |p| {

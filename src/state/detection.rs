@@ -75,66 +75,75 @@ impl DetectionSettings {
     /// overlaps outside [0, 0.99) keep their value; box limits are clamped to 10..=500; a score
     /// field of 255 keeps its value.
     pub fn set(&mut self, p: &Detection) {
-        // Each field as its rule has the protocol take it (super::rules).
-        let take = |field: &str, v: f64, was: f64| {
-            super::rules::take(crate::protocol::ParamType::Detection, field, v, was)
-        };
+        use super::rules::*;
         let d = self;
-        d.sorting_mode = take("sorting_mode", p.sorting_mode as f64, d.sorting_mode as f64) as u8;
-        for (name, field, v) in [
+        d.sorting_mode = DETECTION_SORTING.take(p.sorting_mode as f64, d.sorting_mode as f64) as u8;
+        for (rule, field, v) in [
             (
-                "crop_confidence_threshold",
+                &DETECTION_CROP_CONFIDENCE,
                 &mut d.crop_confidence_threshold,
                 p.crop_confidence_threshold,
             ),
             (
-                "var_confidence_threshold",
+                &DETECTION_VAR_CONFIDENCE,
                 &mut d.var_confidence_threshold,
                 p.var_confidence_threshold,
             ),
             (
-                "crop_box_overlap",
+                &DETECTION_CROP_BOX_OVERLAP,
                 &mut d.crop_box_overlap,
                 p.crop_box_overlap,
             ),
-            ("var_box_overlap", &mut d.var_box_overlap, p.var_box_overlap),
-        ] {
-            *field = take(name, v, *field);
-        }
-        for (name, field, v) in [
-            ("crop_box_limit", &mut d.crop_box_limit, p.crop_box_limit),
-            ("var_box_limit", &mut d.var_box_limit, p.var_box_limit),
-        ] {
-            *field = take(name, v as f64, *field as f64) as u16;
-        }
-        for (name, field, v) in [
             (
-                "creation_score_scale",
+                &DETECTION_VAR_BOX_OVERLAP,
+                &mut d.var_box_overlap,
+                p.var_box_overlap,
+            ),
+        ] {
+            *field = rule.take(v, *field);
+        }
+        for (rule, field, v) in [
+            (
+                &DETECTION_CROP_BOX_LIMIT,
+                &mut d.crop_box_limit,
+                p.crop_box_limit,
+            ),
+            (
+                &DETECTION_VAR_BOX_LIMIT,
+                &mut d.var_box_limit,
+                p.var_box_limit,
+            ),
+        ] {
+            *field = rule.take(v as f64, *field as f64) as u16;
+        }
+        for (rule, field, v) in [
+            (
+                &DETECTION_CREATION_SCORE,
                 &mut d.creation_score_scale,
                 p.creation_score_scale,
             ),
             (
-                "bonus_detection_scale",
+                &DETECTION_BONUS_DETECTION,
                 &mut d.bonus_detection_scale,
                 p.bonus_detection_scale,
             ),
             (
-                "bonus_redetection_scale",
+                &DETECTION_BONUS_REDETECTION,
                 &mut d.bonus_redetection_scale,
                 p.bonus_redetection_scale,
             ),
             (
-                "missed_detection_penalty",
+                &DETECTION_MISSED_DETECTION,
                 &mut d.missed_detection_penalty,
                 p.missed_detection_penalty,
             ),
             (
-                "missed_redetection_penalty",
+                &DETECTION_MISSED_REDETECTION,
                 &mut d.missed_redetection_penalty,
                 p.missed_redetection_penalty,
             ),
         ] {
-            *field = take(name, v as f64, *field as f64) as u8;
+            *field = rule.take(v as f64, *field as f64) as u8;
         }
     }
 }

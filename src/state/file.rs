@@ -2,10 +2,13 @@
 //! `"30deg"`, `[[camera]]` tables placed by their `id`. A bad file is an error that names the
 //! file and line, or the field and its range.
 
-use super::{Camera, Invalid, MAX_CAMERAS, State};
+use super::{
+    Angles, Camera, DetectionSettings, Invalid, MAX_CAMERAS, Output, Sensor, Settings, State,
+    Tracked, Vehicle,
+};
 use crate::lens::LensCal;
 use crate::units::line_of;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::cell::RefCell;
 use std::path::Path;
 
@@ -14,8 +17,74 @@ thread_local! {
     static LENS_NAMES: RefCell<Vec<(String, u8)>> = const { RefCell::new(Vec::new()) };
 }
 
+/// A state file as written: the settings' sections and the state's own beside them, at the
+/// top level.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub(super) struct StateFile {
+    output: Output,
+    /// lens_id in lens.cal; a file may give the lens's name.
+    #[serde(deserialize_with = "lens_id")]
+    lens: u8,
+    camera: Vec<Camera>,
+    vehicle: Vehicle,
+    mount: Angles,
+    sensor: Sensor,
+    detection: DetectionSettings,
+    tracked: Vec<Tracked>,
+    time: f64,
+}
+
+impl Default for StateFile {
+    fn default() -> Self {
+        StateFile::from(State::default())
+    }
+}
+
+impl From<StateFile> for State {
+    fn from(f: StateFile) -> State {
+        State {
+            settings: Settings {
+                output: f.output,
+                lens: f.lens,
+                cameras: f.camera,
+                mount: f.mount,
+                sensor: f.sensor,
+                detection: f.detection,
+            },
+            vehicle: f.vehicle,
+            tracked: f.tracked,
+            time: f.time,
+        }
+    }
+}
+
+impl From<State> for StateFile {
+    fn from(s: State) -> StateFile {
+        let Settings {
+            output,
+            lens,
+            cameras,
+            mount,
+            sensor,
+            detection,
+        } = s.settings;
+        StateFile {
+            output,
+            lens,
+            camera: cameras,
+            vehicle: s.vehicle,
+            mount,
+            sensor,
+            detection,
+            tracked: s.tracked,
+            time: s.time,
+        }
+    }
+}
+
 /// `lens`: a lens_id, or a lens's name in the lens.cal the file is read with.
-pub(super) fn lens_id<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u8, D::Error> {
+fn lens_id<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u8, D::Error> {
     #[derive(Deserialize)]
     #[serde(untagged)]
     enum IdOrName {
@@ -81,10 +150,10 @@ impl State {
             line: e.span().map_or(1, |s| line_of(text, s.start)),
             message: e.message().trim().to_string(),
         })?;
-        state.even_output();
+        state.settings.output.even();
         if !gives_exposure(text) {
             // The default exposure fits the file's frame rate, as GENERAL_SETTINGS shortens it.
-            let sensor = &mut state.sensor;
+            let sensor = &mut state.settings.sensor;
             sensor.exposure_us = sensor.exposure_us.min(sensor.longest_exposure_us());
         }
         state
@@ -110,7 +179,7 @@ fn gives_exposure(text: &str) -> bool {
 impl State {
     /// Puts `[[camera]]` tables at their ids and fills missing cameras with defaults.
     fn place_cameras(&mut self) -> Result<(), Invalid> {
-        let given = std::mem::take(&mut self.cameras);
+        let given = std::mem::take(&mut self.settings.cameras);
         if given.len() > MAX_CAMERAS {
             return Err(Invalid(format!(
                 "{} cameras given, at most {MAX_CAMERAS}",
@@ -118,17 +187,17 @@ impl State {
             )));
         }
         let mut slots: Vec<Option<Camera>> = vec![None; MAX_CAMERAS];
-        for (i, cam) in given.into_iter().enumerate() {
-            let id = cam.id.unwrap_or(i);
+        for (i, mut cam) in given.into_iter().enumerate() {
+            let id = cam.id.take().unwrap_or(i);
             if id >= MAX_CAMERAS || slots[id].is_some() {
                 return Err(Invalid(format!(
                     "camera id {id} is out of range (0..={}) or given twice",
                     MAX_CAMERAS - 1
                 )));
             }
-            slots[id] = Some(Camera { id: None, ..cam });
+            slots[id] = Some(cam);
         }
-        self.cameras = slots
+        self.settings.cameras = slots
             .into_iter()
             .enumerate()
             .map(|(i, c)| c.unwrap_or_else(|| Camera::numbered(i)))
@@ -149,7 +218,7 @@ mod tests {
     #[test]
     fn a_state_file_names_its_lens_by_id_or_by_name() {
         let s = State::parse("lens = \"cil018\"", "s.toml", &cal()).unwrap();
-        assert_eq!(s.lens, 1);
+        assert_eq!(s.settings.lens, 1);
         let e = State::parse("\nlens = \"CIL999\"", "s.toml", &cal()).unwrap_err();
         let e = e.to_string();
         assert!(
@@ -183,19 +252,20 @@ mod tests {
             &cal(),
         )
         .unwrap();
-        assert_eq!(s.lens, 2);
-        assert_eq!(s.output.layout, 0);
-        assert_eq!(s.cameras.len(), 4);
-        assert!((s.cameras[2].yaw - 45f64.to_radians()).abs() < 1e-12);
-        assert_eq!(s.cameras[2].fov, 1.0);
-        assert_eq!(s.cameras[1], Camera::numbered(1));
+        let c = &s.settings.cameras;
+        assert_eq!(s.settings.lens, 2);
+        assert_eq!(s.settings.output.layout, crate::modes::LayoutMode::One);
+        assert_eq!(c.len(), 4);
+        assert!((c[2].yaw() - 45f64.to_radians()).abs() < 1e-12);
+        assert_eq!(c[2].fov(), 1.0);
+        assert_eq!(c[1], Camera::numbered(1));
         assert!((s.vehicle.attitude.roll - 20f64.to_radians()).abs() < 1e-12);
     }
 
     #[test]
     fn an_exposure_left_out_fits_the_frame_rate_and_one_given_is_checked() {
         let s = State::parse("[sensor]\nfps = 120\n", "s.toml", &cal()).unwrap();
-        assert_eq!(s.sensor.exposure_us, 8_333);
+        assert_eq!(s.settings.sensor.exposure_us, 8_333);
         let e = State::parse(
             "[sensor]\nfps = 120\nexposure_us = 10000\n",
             "s.toml",
@@ -205,7 +275,7 @@ mod tests {
         .to_string();
         assert!(e.contains("outside 1..=8333"), "{e}");
         let s = State::parse("[sensor]\nfps = 25\n", "s.toml", &cal()).unwrap();
-        assert_eq!(s.sensor.exposure_us, 10_000);
+        assert_eq!(s.settings.sensor.exposure_us, 10_000);
     }
 
     #[test]
@@ -218,7 +288,7 @@ mod tests {
         let e = err("[output]\nwidht = 3\n");
         assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
         let e = err("[output]\nlayout = 9\n");
-        assert_eq!(e, "s.toml: output layout 9 is outside 0..=6");
+        assert_eq!(e, "s.toml:2: layout mode 9 is outside 0..=6");
         let e = err("[[camera]]\nyaw = \"north\"\n");
         assert!(e.starts_with("s.toml:2: "), "{e}");
         let e = err("[[camera]]\nfov = \"200deg\"\n");

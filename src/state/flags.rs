@@ -2,7 +2,9 @@
 //! position or a tracked object (`--cam 0:yaw=45deg,fov=90deg`), the same fields a state file
 //! names. Each flag changes only what it names; the caller validates the whole state after.
 
+use super::view::Field;
 use super::{Angles, State, Tracked};
+use crate::modes::NotAMode;
 use crate::units::{UnitError, parse_angle};
 
 /// Why a flag was refused.
@@ -20,6 +22,8 @@ pub enum FlagError {
     Camera { flag: String, why: String },
     #[error(transparent)]
     Angle(#[from] UnitError),
+    #[error(transparent)]
+    Mode(#[from] NotAMode),
 }
 
 impl State {
@@ -36,28 +40,24 @@ impl State {
             .trim()
             .parse()
             .map_err(|_| refused(format!("camera id `{id}` is not a number")))?;
-        let last = self.cameras.len() - 1;
-        let cam = self
-            .cameras
+        let cameras = &mut self.settings.cameras;
+        let last = cameras.len() - 1;
+        let cam = cameras
             .get_mut(id)
             .ok_or_else(|| refused(format!("camera id {id} is outside 0..={last}")))?;
         for (key, value) in key_values(pairs)? {
-            match key {
-                "yaw" => cam.yaw = parse_angle(value)?,
-                "pitch" => cam.pitch = parse_angle(value)?,
-                "roll" => cam.roll = parse_angle(value)?,
-                "fov" => cam.fov = parse_angle(value)?,
-                "zoom" => cam.zoom = number(key, value)?,
-                "crop" => cam.crop = number(key, value)?,
-                "lock" => cam.lock = number(key, value)?,
-                "control" => cam.control = number(key, value)?,
-                _ => {
-                    return Err(unknown(
-                        key,
-                        "a camera field (yaw, pitch, roll, fov, zoom, crop, lock, control)",
-                    ));
-                }
-            }
+            let Some(field) = Field::parse(key) else {
+                return Err(unknown(
+                    key,
+                    "a camera field (yaw, pitch, roll, fov, zoom, crop, lock, control)",
+                ));
+            };
+            let v = match field {
+                _ if field.angle() => parse_angle(value)?,
+                Field::Zoom => number::<i8>(key, value)? as f64,
+                _ => number::<u8>(key, value)? as f64,
+            };
+            cam.put(field, v)?;
         }
         Ok(())
     }
@@ -93,7 +93,7 @@ impl State {
     /// Applies `--cam-sensor ae=0,target=100,exposure=5000,gain=1000` (CAM_SENSOR's fields:
     /// exposure in microseconds, gain in thousandths).
     pub fn apply_sensor(&mut self, flag: &str) -> Result<(), FlagError> {
-        let s = &mut self.sensor;
+        let s = &mut self.settings.sensor;
         for (key, value) in key_values(flag)? {
             match key {
                 "ae" => s.ae = number::<u8>(key, value)? != 0,
@@ -179,7 +179,8 @@ mod tests {
     fn flags_override_fields_and_reject_unknown_keys() {
         let mut s = State::default();
         s.apply_camera_flag("1:yaw=10deg,crop=2,lock=3").unwrap();
-        assert_eq!((s.cameras[1].crop, s.cameras[1].lock), (2, 3));
+        let c = &s.settings.cameras[1];
+        assert_eq!((c.crop().code(), c.locks().0), (2, 3));
         assert!(
             s.apply_camera_flag("4:yaw=0")
                 .unwrap_err()
@@ -208,7 +209,7 @@ mod tests {
         let mut s = State::default();
         s.apply_sensor("ae=0,target=100,exposure=5000,gain=2000")
             .unwrap();
-        let sensor = &s.sensor;
+        let sensor = &s.settings.sensor;
         assert_eq!(
             (
                 sensor.ae,

@@ -1,10 +1,10 @@
 //! How the supervised services of a running DigiView fare: for each that has failed, how
 //! often it was started again, why it failed last, and whether it was given up. The
-//! supervisor (`crate::supervise`) reports to the live state, which keeps it here and makes
+//! supervisor (`crate::supervise`) reports to the head's report (`super::Report`), which keeps it here and makes
 //! the run's status error 5 (internal); `/api/status` reads it.
 
-use super::{Failure, Live};
-use crate::supervise::Report;
+use super::report::{Failure, Report};
+use crate::supervise::FailureLog;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
@@ -53,7 +53,7 @@ impl Services {
     }
 }
 
-impl Report for Live {
+impl FailureLog for Report {
     fn failed(&self, service: &'static str, why: &str, given_up: bool) {
         self.services.failed(service, why, given_up);
         self.set_failure(Failure::Internal);

@@ -1,11 +1,17 @@
-//! The one check every way into the state goes through (state files, flags, the control
-//! protocol, and what comes later): every field against the range the protocol allows.
+//! The one check every way into the settings and the state goes through (state files, flags,
+//! the serve configuration, the control paths): every field the one table of rules reads
+//! (`rules::RULES`, each through where it says the field is held) against its range, and the
+//! bounds that join fields.
 
-use super::{State, rules};
-use crate::geometry::view::{clamp_fov, control, crop, fov_range};
+use super::State;
+use super::rules::{Of, RULES, Rule};
+use super::settings::{Output, Settings};
+use crate::geometry::view::{clamp_fov, fov_range};
 use crate::lens::Lenses;
+use crate::modes::Control;
+use std::ops::ControlFlow;
 
-/// Why a state is refused: the field, its value and the range it must lie in.
+/// Why settings or a state are refused: the field, its value and the range it must lie in.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{0}")]
 pub struct Invalid(pub String);
@@ -14,25 +20,54 @@ fn invalid<T>(message: String) -> Result<T, Invalid> {
     Err(Invalid(message))
 }
 
-impl State {
-    /// Rounds an odd output width or height down to even, as every entry does (flags, state
-    /// files, the protocol's VIDEO_OUTPUT): 4:2:0 video has no odd sizes.
-    pub fn even_output(&mut self) {
-        let o = &mut self.output;
-        let even = (o.width & !1, o.height & !1);
-        if even != (o.width, o.height) {
+/// Which one of a field's values: of a camera, of a tracked object, a part of the sensor
+/// crop; said only when a value is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Place {
+    Only,
+    Camera(usize),
+    Object(u32),
+    Part(usize),
+}
+
+impl Place {
+    /// What a reader calls the value: `camera 2 fov`, `tracked object 7 size`.
+    pub fn label(self, rule: &Rule) -> String {
+        match self {
+            Place::Only => rule.label.to_string(),
+            Place::Camera(i) => format!("camera {i} {}", rule.label),
+            Place::Object(id) => format!("tracked object {id} {}", rule.label),
+            Place::Part(k) => {
+                let part = ["x", "y", "width", "height"][k.min(3)];
+                format!("{} {part}", rule.label)
+            }
+        }
+    }
+}
+
+/// A value the one check reads: its rule, which one, the number.
+pub type Value = (&'static Rule, Place, f64);
+
+impl Output {
+    /// Rounds an odd width or height down to even, as every entry does (flags, state files,
+    /// the protocol's VIDEO_OUTPUT): 4:2:0 video has no odd sizes.
+    pub fn even(&mut self) {
+        let even = (self.width & !1, self.height & !1);
+        if even != (self.width, self.height) {
             tracing::info!(
                 "output size {}x{} rounded down to {}x{} (4:2:0 video needs even sizes)",
-                o.width,
-                o.height,
+                self.width,
+                self.height,
                 even.0,
                 even.1
             );
-            (o.width, o.height) = even;
+            (self.width, self.height) = even;
         }
     }
+}
 
-    /// The one check of a whole state, whichever way it came in: every field against the
+impl Settings {
+    /// The one check of whole settings, whichever way they came in: every field against the
     /// range the protocol allows, and the lens and the sensor crop against lens.cal.
     pub fn validate(&self, lenses: &Lenses) -> Result<(), Invalid> {
         self.validate_fields()?;
@@ -55,25 +90,12 @@ impl State {
         Ok(())
     }
 
-    /// Every field against its rule ([`rules::RULES`], what the protocol takes unchanged),
-    /// and the bounds that join fields (what can be checked without lens.cal;
-    /// [`State::validate`] checks the rest).
+    /// Every field against its rule (what the protocol takes unchanged), and the bounds that
+    /// join fields (what can be checked without lens.cal; [`Settings::validate`] checks the
+    /// rest).
     pub fn validate_fields(&self) -> Result<(), Invalid> {
-        for (label, key, v) in self.values() {
-            let Some(rule) = rules::of_key(key) else {
-                return invalid(format!("{label}: no rule for `{key}` (a bug)"));
-            };
-            if !rule.holds(v) {
-                let also = match rule.also {
-                    "" => String::new(),
-                    a => format!(", and {a}"),
-                };
-                return invalid(format!(
-                    "{label} {} is outside {}{also}",
-                    num(v),
-                    rule.range()
-                ));
-            }
+        if let ControlFlow::Break(e) = self.each_value(&mut refuse_outside) {
+            return Err(e);
         }
         let o = &self.output;
         if o.width % 2 == 1 || o.height % 2 == 1 {
@@ -83,14 +105,15 @@ impl State {
             ));
         }
         for (i, c) in self.cameras.iter().enumerate() {
-            if clamp_fov(c.fov, c.crop) != c.fov && c.crop <= crop::DEBUG {
-                let (lo, hi) = fov_range(c.crop);
+            if c.crop().code() <= 4 && clamp_fov(c.fov(), c.crop()) != c.fov() {
+                let (lo, hi) = fov_range(c.crop());
                 return invalid(format!(
                     "camera {i}: fov {:.3} rad is outside {lo}..={hi:.3} for crop mode {}",
-                    c.fov, c.crop
+                    c.fov(),
+                    c.crop().code()
                 ));
             }
-            if c.control == control::COORDINATE && c.target.is_none() {
+            if c.control() == Control::Coordinate && c.target().is_none() {
                 return invalid(format!(
                     "camera {i}: control mode 2 needs a target (lat, lon, alt)"
                 ));
@@ -107,141 +130,103 @@ impl State {
         Ok(())
     }
 
-    /// Every number the state holds: what it is to a reader, its key in [`rules::RULES`],
-    /// its value.
-    pub fn values(&self) -> Vec<(String, &'static str, f64)> {
-        let mut out: Vec<(String, &'static str, f64)> = vec![];
-        let mut put = |label: String, key: &'static str, v: f64| out.push((label, key, v));
-        let o = &self.output;
-        put("output width".into(), "output.width", o.width as f64);
-        put("output height".into(), "output.height", o.height as f64);
-        put("output fps".into(), "output.fps", o.fps as f64);
-        put("output layout".into(), "output.layout", o.layout as f64);
-        put("output overlay".into(), "output.overlay", o.overlay as f64);
-        put("lens_id".into(), "lens", self.lens as f64);
-        for (i, c) in self.cameras.iter().enumerate() {
-            let cam = |f: &str| format!("camera {i} {f}");
-            put(cam("yaw"), "camera.yaw", c.yaw);
-            put(cam("pitch"), "camera.pitch", c.pitch);
-            put(cam("roll"), "camera.roll", c.roll);
-            put(cam("fov"), "camera.fov", c.fov);
-            put(cam("zoom"), "camera.zoom", c.zoom as f64);
-            put(cam("crop mode"), "camera.crop", c.crop as f64);
-            put(cam("lock flags"), "camera.lock", c.lock as f64);
-            put(cam("control mode"), "camera.control", c.control as f64);
-            if let Some(t) = &c.target {
-                put(cam("target latitude"), "camera.target.lat", t.lat);
-                put(cam("target longitude"), "camera.target.lon", t.lon);
-                put(cam("target altitude"), "camera.target.alt", t.alt);
+    /// Calls `f` with every number the settings hold, through the rules that read them.
+    pub fn each_value<B>(&self, f: &mut dyn FnMut(Value) -> ControlFlow<B>) -> ControlFlow<B> {
+        for rule in RULES {
+            match rule.of {
+                Of::Output(get) => f((rule, Place::Only, get(&self.output)))?,
+                Of::Lens => f((rule, Place::Only, self.lens as f64))?,
+                Of::Mount(get) => f((rule, Place::Only, get(&self.mount)))?,
+                Of::Sensor(get) => f((rule, Place::Only, get(&self.sensor)))?,
+                Of::Detection(get) => f((rule, Place::Only, get(&self.detection)))?,
+                Of::SensorCrop => {
+                    for (k, v) in self.sensor.roi.unwrap_or_default().into_iter().enumerate() {
+                        f((rule, Place::Part(k), v as f64))?;
+                    }
+                }
+                Of::Camera(get) => {
+                    for (i, c) in self.cameras.iter().enumerate() {
+                        if let Some(v) = get(c) {
+                            f((rule, Place::Camera(i), v))?;
+                        }
+                    }
+                }
+                _ => {}
             }
         }
-        let a = &self.vehicle.attitude;
-        put("vehicle attitude yaw".into(), "vehicle.attitude.yaw", a.yaw);
-        put(
-            "vehicle attitude pitch".into(),
-            "vehicle.attitude.pitch",
-            a.pitch,
-        );
-        put(
-            "vehicle attitude roll".into(),
-            "vehicle.attitude.roll",
-            a.roll,
-        );
-        let p = &self.vehicle.position;
-        put("vehicle latitude".into(), "vehicle.position.lat", p.lat);
-        put("vehicle longitude".into(), "vehicle.position.lon", p.lon);
-        put("vehicle altitude".into(), "vehicle.position.alt", p.alt);
-        put(
-            "vehicle height above home".into(),
-            "vehicle.position.relative_alt",
-            p.relative_alt,
-        );
-        put("mount yaw".into(), "mount.yaw", self.mount.yaw);
-        put("mount pitch".into(), "mount.pitch", self.mount.pitch);
-        put("mount roll".into(), "mount.roll", self.mount.roll);
-        let s = &self.sensor;
-        put("sensor width".into(), "sensor.width", s.width as f64);
-        put("sensor height".into(), "sensor.height", s.height as f64);
-        put("sensor fps".into(), "sensor.fps", s.fps as f64);
-        for (name, v) in ["x", "y", "width", "height"]
-            .iter()
-            .zip(s.roi.unwrap_or_default())
-        {
-            put(format!("sensor crop {name}"), "sensor.roi", v as f64);
-        }
-        put("sensor ae".into(), "sensor.ae", s.ae as u8 as f64);
-        put(
-            "sensor target brightness".into(),
-            "sensor.target_brightness",
-            s.target_brightness as f64,
-        );
-        put(
-            "sensor exposure".into(),
-            "sensor.exposure_us",
-            s.exposure_us as f64,
-        );
-        put("sensor gain".into(), "sensor.gain", s.gain as f64);
-        let d = &self.detection;
-        for (key, v) in [
-            ("detection.run_ai", d.run_ai as u8 as f64),
-            ("detection.mode", d.mode as f64),
-            ("detection.sorting_mode", d.sorting_mode as f64),
-            (
-                "detection.crop_confidence_threshold",
-                d.crop_confidence_threshold,
-            ),
-            (
-                "detection.var_confidence_threshold",
-                d.var_confidence_threshold,
-            ),
-            ("detection.crop_box_limit", d.crop_box_limit as f64),
-            ("detection.var_box_limit", d.var_box_limit as f64),
-            ("detection.crop_box_overlap", d.crop_box_overlap),
-            ("detection.var_box_overlap", d.var_box_overlap),
-            (
-                "detection.creation_score_scale",
-                d.creation_score_scale as f64,
-            ),
-            (
-                "detection.bonus_detection_scale",
-                d.bonus_detection_scale as f64,
-            ),
-            (
-                "detection.bonus_redetection_scale",
-                d.bonus_redetection_scale as f64,
-            ),
-            (
-                "detection.missed_detection_penalty",
-                d.missed_detection_penalty as f64,
-            ),
-            (
-                "detection.missed_redetection_penalty",
-                d.missed_redetection_penalty as f64,
-            ),
-        ] {
-            put(key.replacen('.', " ", 1), key, v);
-        }
-        for t in &self.tracked {
-            let obj = |f: &str| format!("tracked object {} {f}", t.id);
-            put(obj("id"), "tracked.id", t.id as f64);
-            put(obj("yaw"), "tracked.yaw", t.yaw);
-            put(obj("pitch"), "tracked.pitch", t.pitch);
-            put(obj("size"), "tracked.size", t.size);
-            put(obj("score"), "tracked.score", t.score as f64);
-            for v in t.velocity {
-                put(obj("velocity"), "tracked.velocity", v);
-            }
-            put(obj("sighting time"), "tracked.seen_us", t.seen_us as f64);
-        }
-        put("scene time".into(), "time", self.time);
-        out
+        ControlFlow::Continue(())
     }
 }
 
-/// `v` as a reader takes it in: as it is, or in scientific notation when huge.
-fn num(v: f64) -> String {
-    match v.abs() < 1e6 {
+/// Breaks with the refusal of a value outside its rule's range.
+fn refuse_outside((rule, place, v): Value) -> ControlFlow<Invalid> {
+    if rule.holds(v) {
+        return ControlFlow::Continue(());
+    }
+    let also = match rule.also {
+        "" => String::new(),
+        a => format!(", and {a}"),
+    };
+    let shown = match v.abs() < 1e6 {
         true => format!("{v}"),
         false => format!("{v:e}"),
+    };
+    ControlFlow::Break(Invalid(format!(
+        "{} {shown} is outside {}{also}",
+        place.label(rule),
+        rule.range()
+    )))
+}
+
+impl State {
+    /// The one check of a whole state (a file's, the flags'): the settings, and the vehicle,
+    /// the tracked objects and the scene's time against their rules.
+    pub fn validate(&self, lenses: &Lenses) -> Result<(), Invalid> {
+        self.validate_fields()?;
+        self.settings.validate(lenses)
+    }
+
+    /// [`State::validate`] of what can be checked without lens.cal.
+    pub fn validate_fields(&self) -> Result<(), Invalid> {
+        if let ControlFlow::Break(e) = self.each_value(&mut refuse_outside) {
+            return Err(e);
+        }
+        self.settings.validate_fields()
+    }
+
+    /// Calls `f` with every number the state holds beyond its settings.
+    pub fn each_value<B>(&self, f: &mut dyn FnMut(Value) -> ControlFlow<B>) -> ControlFlow<B> {
+        for rule in RULES {
+            match rule.of {
+                Of::Vehicle(get) => f((rule, Place::Only, get(&self.vehicle)))?,
+                Of::Time => f((rule, Place::Only, self.time))?,
+                Of::Tracked(get) => {
+                    for t in &self.tracked {
+                        f((rule, Place::Object(t.id), get(t)))?;
+                    }
+                }
+                Of::TrackedVelocity => {
+                    for t in &self.tracked {
+                        for v in t.velocity {
+                            f((rule, Place::Object(t.id), v))?;
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// Every number the state holds, the settings' first: its rule, which one, its value.
+    pub fn values(&self) -> Vec<Value> {
+        let mut out = vec![];
+        let mut put = |v: Value| {
+            out.push(v);
+            ControlFlow::<()>::Continue(())
+        };
+        let _ = self.settings.each_value(&mut put);
+        let _ = self.each_value(&mut put);
+        out
     }
 }

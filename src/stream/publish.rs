@@ -12,7 +12,7 @@
 
 use super::{AccessUnit, Codec, Restamp, StreamError};
 use crate::gst::{GstError, element, element_error, launch};
-use crate::supervise::{self, Fault, Report};
+use crate::supervise::{self, FailureLog, Fault};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
@@ -162,7 +162,7 @@ impl Publisher {
     /// one). Fails at once only when the target's element is not installed.
     pub fn start(
         target: PublishTarget,
-        report: Arc<dyn Report>,
+        report: Arc<dyn FailureLog>,
         want_key: impl Fn() + Send + Sync + 'static,
     ) -> Result<Publisher, StreamError> {
         super::init()?;

@@ -43,9 +43,9 @@ fn an_external_detectors_lines_are_tracked_where_they_point() {
     let person = direction(-60.0 * DEG, -50.0 * DEG);
     let state = State::default();
     let lens = Lenses::new(&common::lens_cal())
-        .for_frame(state.lens, (1280, 720), None)
+        .for_frame(state.settings.lens, (1280, 720), None)
         .unwrap();
-    let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.mount.euler());
+    let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.settings.mount.euler());
     let p = lens.project(to_lens * person).unwrap();
     let half = DVec2::new(6.0, 12.0);
     let line = serde_json::json!({

@@ -12,6 +12,7 @@ use common::serve::Serve;
 use common::{DEG, four_view_state};
 use digiview::geometry::Euler;
 use digiview::geometry::rotation::direction;
+use digiview::state::view::Field;
 use glam::DVec3;
 
 const YAW_RATE: f64 = 30.0 * DEG;
@@ -34,7 +35,8 @@ fn the_klv_heading_follows_a_yawing_autopilot_and_an_earth_locked_view_keeps_its
     let _alone = crate::one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let mut state = four_view_state(7);
-    (state.cameras[0].yaw, state.cameras[0].pitch) = (50.0 * DEG, -40.0 * DEG);
+    let aim = [(Field::Yaw, 50.0 * DEG), (Field::Pitch, -40.0 * DEG)];
+    state.settings.cameras[0] = state.settings.cameras[0].clone().with(&aim).unwrap();
     let state_file = dir.path().join("state.toml");
     std::fs::write(&state_file, toml::to_string(&state).unwrap()).unwrap();
     // A camera's frames, as a still: the autopilot is then the vehicle's only attitude (the

@@ -34,7 +34,7 @@ fn truth_of(state: &State) -> (FramePlan, RgbImage) {
     let lens = cal
         .entries
         .iter()
-        .find(|e| e.lens_id == state.lens)
+        .find(|e| e.lens_id == state.settings.lens)
         .unwrap()
         .lens()
         .for_frame(DEMO.0, DEMO.1, None);
@@ -56,7 +56,7 @@ fn the_demo_streams_over_rtsp_and_follows_the_control_protocol() {
     let _alone = crate::one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let mut state = four_view_state(7);
-    state.output.fps = FPS;
+    state.settings.output.fps = FPS;
     let state_file = dir.path().join("state.toml");
     std::fs::write(&state_file, toml::to_string(&state).unwrap()).unwrap();
     let serve = Serve::start_video(&[
@@ -121,8 +121,11 @@ fn the_demo_streams_over_rtsp_and_follows_the_control_protocol() {
     }))
     .unwrap();
     let mut changed = state.clone();
-    changed.output.layout = 0;
-    changed.cameras[0].fov = 60f64.to_radians();
+    changed.settings.output.layout = digiview::modes::LayoutMode::One;
+    let fov = digiview::state::view::Field::Fov;
+    changed.settings.cameras[0]
+        .put(fov, 60f64.to_radians())
+        .unwrap();
     let after = viewer.frame_after(Duration::from_secs(2));
     let (_, want_changed) = truth_of(&changed);
     let (now, before) = (psnr(&want_changed, &after), psnr(&want, &after));
@@ -142,7 +145,7 @@ fn the_demo_streams_over_rtsp_and_follows_the_control_protocol() {
     let resized = viewer.frame_after(Duration::from_secs(2));
     assert_eq!(resized.dimensions(), (800, 600));
     let mut bigger = changed.clone();
-    (bigger.output.width, bigger.output.height) = (800, 600);
+    (bigger.settings.output.width, bigger.settings.output.height) = (800, 600);
     let (_, want_bigger) = truth_of(&bigger);
     assert!(psnr(&want_bigger, &resized) > 24.0);
 }

@@ -9,11 +9,8 @@ use clap::Parser;
 use digiview::cli::StateArgs;
 use digiview::control::Controller;
 use digiview::protocol::{FRAME_LEN, Message};
-use digiview::state::Live;
-use digiview::state::capture::NoVideo;
 use std::collections::VecDeque;
 use std::net::{IpAddr, Ipv4Addr};
-use std::sync::Arc;
 
 #[derive(Parser)]
 struct Flags {
@@ -36,9 +33,8 @@ impl Direct {
             .expect("valid flags");
         let cal = lens_cal();
         let state = flags.state.state(&cal).expect("a valid state");
-        let live = Live::new(state, &cal, Box::new(NoVideo)).expect("a valid state");
         Direct {
-            controller: Controller::new(Arc::new(live), Arc::default()),
+            controller: Controller::direct(state, &cal),
             pending: Vec::new(),
             replies: VecDeque::new(),
         }

@@ -4,6 +4,7 @@
 use super::{DEG, four_view_state, three_tracked};
 use digiview::frame::{PixelFormat, PlaneLayout, yuv};
 use digiview::layout::Rect;
+use digiview::modes::OverlayMode;
 use digiview::render::Filter;
 use digiview::render::gpu::{Gpu, Renderer};
 use digiview::state::State;
@@ -28,8 +29,8 @@ pub fn whole(img: &RgbImage) -> Rect {
 /// Four views and three detection tiles at 480x272, the vehicle rolled.
 pub fn base_state() -> State {
     let mut s = four_view_state(7);
-    (s.output.width, s.output.height) = (480, 272);
-    s.output.overlay = 2;
+    (s.settings.output.width, s.settings.output.height) = (480, 272);
+    s.settings.output.overlay = OverlayMode::Right;
     s.vehicle.attitude.roll = 10.0 * DEG;
     s.tracked = three_tracked();
     s

@@ -18,10 +18,11 @@ use digiview::geometry::rotation::yaw_pitch;
 use digiview::image_ops::{centroid, pixel};
 use digiview::layout::Rect;
 use digiview::lens::{Lens, LensCal};
+use digiview::modes::{LayoutMode, OverlayMode};
 use digiview::render::{FramePlan, ViewMap};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::eye;
-use digiview::state::{State, Tracked};
+use digiview::state::{Camera, State, Tracked};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use std::path::PathBuf;
@@ -49,20 +50,31 @@ pub fn small_lens(name: &str) -> Lens {
 /// Layout 4 at 640x480 with views at pitch 0, -45°, -90° and (yaw 180°) -45°, 90° rectilinear.
 pub fn four_view_state(lock: u8) -> State {
     let mut s = State::default();
-    s.output.width = 640;
-    s.output.height = 480;
-    s.output.layout = 4;
-    s.output.overlay = 0;
+    s.settings.output.width = 640;
+    s.settings.output.height = 480;
+    s.settings.output.layout = LayoutMode::Four;
+    s.settings.output.overlay = OverlayMode::None;
     let views = [(0.0, 0.0), (0.0, -45.0), (0.0, -90.0), (180.0, -45.0)];
-    for (cam, (yaw, pitch)) in s.cameras.iter_mut().zip(views) {
-        cam.yaw = yaw * DEG;
-        cam.pitch = pitch * DEG;
-        cam.roll = 0.0;
-        cam.fov = 90.0 * DEG;
-        cam.crop = 1;
-        cam.lock = lock;
+    for (cam, (yaw, pitch)) in s.settings.cameras.iter_mut().zip(views) {
+        *cam = view(yaw, pitch, 90.0, 1, lock);
     }
     s
+}
+
+/// A view described whole, as a state file or a `--cam` flag describes it (angles in
+/// degrees, roll 0, directional control): nothing clamped, the state's one check to come.
+pub fn view(yaw: f64, pitch: f64, fov: f64, crop: u8, lock: u8) -> Camera {
+    use digiview::state::view::Field;
+    Camera::default()
+        .with(&[
+            (Field::Yaw, yaw * DEG),
+            (Field::Pitch, pitch * DEG),
+            (Field::Roll, 0.0),
+            (Field::Fov, fov * DEG),
+            (Field::Crop, crop as f64),
+            (Field::Lock, lock as f64),
+        ])
+        .expect("a view")
 }
 
 /// A landmark's centroid in a rendered view and in the ground truth.

@@ -3,6 +3,7 @@
 
 use digiview::image_ops::psnr;
 use digiview::layout::layout;
+use digiview::modes::{LayoutMode, OverlayMode};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -93,7 +94,10 @@ fn synth_then_render_matches_synth_truth_through_the_command_line() {
         image::open(&truth).unwrap().to_rgb8(),
     );
     assert_eq!(a.dimensions(), (640, 480));
-    for (rect, _) in layout(640, 480, 3, 5).unwrap().views {
+    for (rect, _) in layout(640, 480, LayoutMode::TwoAndPanorama, OverlayMode::Bottom)
+        .unwrap()
+        .views
+    {
         let db = psnr(&a, &b, rect);
         assert!(db >= 32.0, "view {rect:?}: {db:.1} dB");
     }

@@ -6,30 +6,30 @@ use crate::common;
 use common::*;
 use digiview::geometry::Projection;
 use digiview::image_ops::{pixel, psnr};
+use digiview::modes::{LayoutMode, OverlayMode};
 use digiview::render::{Filter, FramePlan, ViewMap, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;
+use digiview::state::view::Field;
 
 #[test]
 fn every_layout_and_crop_mode_matches_ground_truth() {
     let (world, lens) = (GridWorld::default(), small_lens("CIL018"));
     let mut state = four_view_state(7);
-    state.output.overlay = 2;
+    state.settings.output.overlay = OverlayMode::Right;
     state.vehicle.attitude.roll = 10.0 * DEG;
     state.tracked = three_tracked();
     let fish = fisheye(&world, &lens, &state);
-    for layout in 0..7u8 {
+    for &layout in LayoutMode::ALL {
         for rotate in 0..4usize {
             let mut s = state.clone();
-            s.output.layout = layout;
-            for (i, cam) in s.cameras.iter_mut().enumerate() {
-                cam.crop = [0, 1, 2, 4][(i + rotate) % 4];
-                cam.fov = if cam.crop == 2 {
-                    200.0 * DEG
-                } else {
-                    80.0 * DEG
-                };
+            s.settings.output.layout = layout;
+            for (i, cam) in s.settings.cameras.iter_mut().enumerate() {
+                let crop = [0, 1, 2, 4][(i + rotate) % 4];
+                let fov = if crop == 2 { 200.0 } else { 80.0 } * DEG;
+                cam.put(Field::Crop, crop as f64).unwrap();
+                cam.put(Field::Fov, fov).unwrap();
             }
             let plan = FramePlan::new(&s, &lens).unwrap();
             let (got, want) = (
@@ -72,7 +72,7 @@ fn every_layout_and_crop_mode_matches_ground_truth() {
 fn an_unknown_crop_mode_renders_its_view_black() {
     let lens = small_lens("CIL216");
     let mut s: State = four_view_state(7);
-    s.cameras[1].crop = 9;
+    s.settings.cameras[1].put(Field::Crop, 9.0).unwrap();
     let fish = fisheye(&GridWorld::default(), &lens, &s);
     let plan = FramePlan::new(&s, &lens).unwrap();
     let got = cpu::render(&plan, &fish, Filter::Mip);
@@ -96,13 +96,19 @@ fn view_point_inverts_world_ray_in_every_crop_mode() {
     let lens = small_lens("CIL018");
     let mut state = four_view_state(7);
     state.vehicle.attitude.roll = 10.0 * DEG;
-    for layout in 0..7u8 {
+    for &layout in LayoutMode::ALL {
         let mut s = state.clone();
-        s.output.layout = layout;
-        for (i, cam) in s.cameras.iter_mut().enumerate() {
-            cam.crop = [0, 1, 2, 4][(i + layout as usize) % 4];
-            cam.fov = if cam.crop == 2 { 200.0 } else { 80.0 } * DEG;
-            (cam.yaw, cam.pitch) = (i as f64 * 90.0 * DEG, -50.0 * DEG);
+        s.settings.output.layout = layout;
+        for (i, cam) in s.settings.cameras.iter_mut().enumerate() {
+            let crop = [0, 1, 2, 4][(i + layout.code() as usize) % 4];
+            let fov = if crop == 2 { 200.0 } else { 80.0 } * DEG;
+            let aim = [
+                (Field::Yaw, i as f64 * 90.0 * DEG),
+                (Field::Pitch, -50.0 * DEG),
+            ];
+            *cam = cam.clone().with(&aim).unwrap();
+            cam.put(Field::Crop, crop as f64).unwrap();
+            cam.put(Field::Fov, fov).unwrap();
         }
         let plan = FramePlan::new(&s, &lens).unwrap();
         let mut checked = 0;

@@ -40,7 +40,7 @@ fn tracks_every_mover(world: GridWorld, speed: f64) -> Tracker {
         state.vehicle.position.lat = start.lat + speed * t / 111_320.0;
         let picture = fisheye(&world, &lens, &state);
         let (data, layout) = as_format(&picture, PixelFormat::Rgba);
-        let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.mount.euler());
+        let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.settings.mount.euler());
         let (views, plan) = visible(&lens, to_lens, MOTION_VIEWS);
         let out = gpu.render(&data, &layout, &plan).unwrap();
         let t0 = std::time::Instant::now();
@@ -86,7 +86,7 @@ fn tracks_every_mover(world: GridWorld, speed: f64) -> Tracker {
     );
     let state = last.unwrap();
     let eye = eye(&state);
-    let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.mount.euler());
+    let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.settings.mount.euler());
     let mut matched = vec![false; tracker.objects().len()];
     for (m, mover) in world.movers.iter().enumerate() {
         let at = mover.position(state.time);
@@ -178,7 +178,7 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
     let settings = digiview::state::DetectionSettings::default();
     let mut state = State::default();
     // The camera looks ahead, level: what is behind it is out of its field.
-    state.mount.pitch = 0.0;
+    state.settings.mount.pitch = 0.0;
     let attitude = |s: &mut State, t: f64| {
         s.time = t;
         s.vehicle.attitude.yaw = 12.0 * DEG * t;
@@ -188,7 +188,7 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
     // Each mover's direction and angular size at time t, and whether it is whole in the
     // frame (its centre 12 px clear of the frame's edges and the circle's).
     let movers = |s: &State| -> Vec<(DVec3, f64, bool)> {
-        let to_lens = lens_from_world(s.vehicle.attitude.euler(), s.mount.euler());
+        let to_lens = lens_from_world(s.vehicle.attitude.euler(), s.settings.mount.euler());
         world
             .movers
             .iter()
@@ -219,7 +219,7 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
         attitude(&mut state, t);
         let picture = fisheye(&world, &lens, &state);
         let (data, layout) = as_format(&picture, PixelFormat::Rgba);
-        let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.mount.euler());
+        let to_lens = lens_from_world(state.vehicle.attitude.euler(), state.settings.mount.euler());
         let (views, plan) = visible(&lens, to_lens, MOTION_VIEWS);
         let out = gpu.render(&data, &layout, &plan).unwrap();
         let stride = out.layout.stride as usize;

@@ -15,23 +15,20 @@ use digiview::control::Controller;
 use digiview::lens::LensCal;
 use digiview::protocol::params::*;
 use digiview::protocol::{Body, Message, Param, Verdict};
-use digiview::state::capture::NoVideo;
-use digiview::state::{Live, State};
+use digiview::state::State;
 use proptest::prelude::*;
 use std::net::{IpAddr, Ipv4Addr};
-use std::sync::Arc;
 
 /// What one path made of a value: the state it produced, or its refusal.
 pub(crate) type Outcome = Result<State, String>;
 
 /// The control protocol: one SET from a loopback client on the default state.
 pub(crate) fn by_protocol(cal: &LensCal, p: Param) -> Outcome {
-    let live = Live::new(State::default(), cal, Box::new(NoVideo)).unwrap();
-    let c = Controller::new(Arc::new(live), Arc::default());
+    let c = Controller::direct(State::default(), cal);
     let frame = Message::new(Body::Set(p)).encode();
     let out = c.handle(&frame, IpAddr::V4(Ipv4Addr::LOCALHOST));
     match out.replies[0].body {
-        Body::Verdict(Verdict::Acknowledgement, _) => Ok((*c.live.snapshot()).clone()),
+        Body::Verdict(Verdict::Acknowledgement, _) => Ok(c.state()),
         b => Err(format!("{b:?}")),
     }
 }
@@ -133,13 +130,14 @@ proptest! {
             ("state file", by_state_file(&cal, &toml)),
             ("config", by_config(&cal, &toml, None)),
         ];
-        let same = |a: &State, b: &State| a.output == b.output;
+        let same = |a: &State, b: &State| a.settings.output == b.settings.output;
         agree(protocol.clone(), &others, same)?;
         // The protocol changed nothing it was given (after rounding) exactly when the others
         // took it.
         let unchanged = protocol.as_ref().is_ok_and(|p| {
-            let o = &p.output;
-            (o.width, o.height, o.fps, o.layout, o.overlay) == (even.0, even.1, fps, layout, overlay)
+            let o = &p.settings.output;
+            let modes = (o.layout.code(), o.overlay.code());
+            (o.width, o.height, o.fps, modes) == (even.0, even.1, fps, (layout, overlay))
         });
         prop_assert_eq!(others[0].1.is_ok(), unchanged, "{:?}", others[0].1);
     }
@@ -154,14 +152,14 @@ proptest! {
         // One field at a time, as a client sets them: fov, crop, lock, control.
         let cases: [(Param, String, String, Reads); 4] = [
             (Param::CamFov(CamFov { cam_id: 0, fov }), format!("fov={fov}"),
-             format!("fov = {fov}"), Box::new(|s: &State| s.cameras[0].fov)),
+             format!("fov = {fov}"), Box::new(|s: &State| s.settings.cameras[0].fov())),
             (Param::CamCropMode(CamCropMode { cam_id: 0, mode: crop }), format!("crop={crop}"),
-             format!("crop = {crop}"), Box::new(|s: &State| s.cameras[0].crop as f64)),
+             format!("crop = {crop}"), Box::new(|s: &State| s.settings.cameras[0].crop().code() as f64)),
             (Param::CamLockFlags(CamLockFlags { cam_id: 0, flags: lock }), format!("lock={lock}"),
-             format!("lock = {lock}"), Box::new(|s: &State| s.cameras[0].lock as f64)),
+             format!("lock = {lock}"), Box::new(|s: &State| s.settings.cameras[0].locks().0 as f64)),
             (Param::CamControlMode(CamControlMode { cam_id: 0, mode: control }),
              format!("control={control}"), format!("control = {control}"),
-             Box::new(|s: &State| s.cameras[0].control as f64)),
+             Box::new(|s: &State| s.settings.cameras[0].control().code() as f64)),
         ];
         let (param, flag, line, field) = &cases[which];
         let asked = [fov, crop as f64, lock as f64, control as f64][which];
@@ -173,7 +171,7 @@ proptest! {
             ("state file", by_state_file(&cal, &toml)),
             ("config", by_config(&cal, &toml, None)),
         ];
-        let same = |a: &State, b: &State| a.cameras == b.cameras;
+        let same = |a: &State, b: &State| a.settings.cameras == b.settings.cameras;
         agree(protocol.clone(), &others, same)?;
         let unchanged = protocol.as_ref().is_ok_and(|p| field(p) == asked);
         prop_assert_eq!(others[0].1.is_ok(), unchanged, "{:?} {:?}", others[0].1, protocol);
@@ -198,7 +196,7 @@ proptest! {
             others.push(("state file by name", by_state_file(&cal, &format!("lens = {n:?}\n"))));
             others.push(("config by name", by_config(&cal, "", Some(n))));
         }
-        agree(protocol.clone(), &others, |a, b| a.lens == b.lens)?;
+        agree(protocol.clone(), &others, |a, b| a.settings.lens == b.settings.lens)?;
         prop_assert_eq!(others[0].1.is_ok(), protocol.is_ok());
 
         // The fisheye frame and its centred crop (GENERAL_SETTINGS; a state file's [sensor]).
@@ -208,7 +206,7 @@ proptest! {
         let protocol = by_protocol(&cal, Param::GeneralSettings(GeneralSettings {
             camera_width: cam_w as u16, camera_height: cam_h as u16,
             roi_width: rw as u16, roi_height: rh as u16, camera_fps: cam_fps.min(255) as u8,
-            mount_pitch: State::default().mount.pitch,
+            mount_pitch: State::default().settings.mount.pitch,
             ..GeneralSettings::default()
         }));
         let lens0 = &cal.entries[0];
@@ -226,7 +224,7 @@ proptest! {
             ("state file", by_state_file(&cal, &toml)),
             ("config", by_config(&cal, &toml, None)),
         ];
-        agree(protocol.clone(), &others, |a, b| a.sensor == b.sensor)?;
+        agree(protocol.clone(), &others, |a, b| a.settings.sensor == b.settings.sensor)?;
         prop_assert_eq!(others[0].1.is_ok(), protocol.is_ok(), "{:?} {:?}", others[0].1, protocol);
     }
 }

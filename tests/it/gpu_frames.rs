@@ -20,6 +20,7 @@ use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::fisheye;
 use digiview::state::State;
+use digiview::state::view::Field;
 use glam::DVec2;
 use image::RgbImage;
 
@@ -77,9 +78,10 @@ fn pixels_put_on_parabolas_land_within_a_hundredth_of_a_pixel_of_their_projectio
         for crop in [1, 2, 4] {
             for fov in [30.0, 90.0, 120.0, 170.0, 300.0] {
                 let mut state = base_state();
-                (state.output.width, state.output.height) = (640, 360);
-                for cam in &mut state.cameras {
-                    (cam.crop, cam.fov) = (crop, fov * DEG);
+                (state.settings.output.width, state.settings.output.height) = (640, 360);
+                for cam in &mut state.settings.cameras {
+                    cam.put(Field::Crop, crop as f64).unwrap();
+                    cam.put(Field::Fov, fov * DEG).unwrap();
                 }
                 let (n, f, w) = parabola_runs(&FramePlan::new(&state, lens).unwrap());
                 (runs, fitted) = (runs + n, fitted + f);
@@ -98,7 +100,7 @@ fn pixels_put_on_parabolas_land_within_a_hundredth_of_a_pixel_of_their_projectio
     // A frame like the benchmark's: 1920x1080, four 540x540 views of 90° and tiles, CIL216
     // at 4K.
     let mut state = base_state();
-    (state.output.width, state.output.height) = (1920, 1080);
+    (state.settings.output.width, state.settings.output.height) = (1920, 1080);
     let lens = lens_cal().find("CIL216").unwrap().lens();
     let (n, f, w) = parabola_runs(&FramePlan::new(&state, &lens).unwrap());
     eprintln!("a 1080p frame of four views: {f} of {n} runs on parabolas, worst {w:.5} px");
@@ -118,7 +120,7 @@ fn pushed_frames_come_back_in_order_each_as_rendered_alone() {
         state.vehicle.attitude.yaw = (20.0 * i as f64) * DEG;
         // The output size changes mid-stream; the renderer follows it.
         if i >= 3 {
-            (state.output.width, state.output.height) = (400, 240);
+            (state.settings.output.width, state.settings.output.height) = (400, 240);
         }
         let fish = fisheye(&world, &lens, &state);
         let (data, layout) = as_format(&fish, PixelFormat::Nv12);
@@ -266,10 +268,10 @@ fn new_view_kinds_and_lens_models_are_drawn_at_once_by_generic_pipelines_alike()
     // so that path runs too), take over once ready, and the picture does not change.
     let rectilinear = base_state();
     let mut mixed = rectilinear.clone();
-    mixed.cameras[1].crop = 2;
-    mixed.cameras[2].crop = 4;
+    mixed.settings.cameras[1].put(Field::Crop, 2.0).unwrap();
+    mixed.settings.cameras[2].put(Field::Crop, 4.0).unwrap();
     let mut panorama = rectilinear.clone();
-    panorama.cameras[3].crop = 2;
+    panorama.settings.cameras[3].put(Field::Crop, 2.0).unwrap();
     let cil = seen("CIL216", &rectilinear);
     let mut r = renderer(PixelFormat::I420, Filter::Mip);
     draw(&mut r, &cil, &rectilinear);
@@ -384,7 +386,10 @@ fn outputs_drawn_again_from_one_upload_match_each_rendered_alone() {
             .unwrap();
         let view_plan = FramePlan::single_view(&state, &lens, i, 320, 180);
         let mut scanned = state.clone();
-        (scanned.output.width, scanned.output.height) = (256, 128);
+        (
+            scanned.settings.output.width,
+            scanned.settings.output.height,
+        ) = (256, 128);
         let scan_plan = FramePlan::new(&scanned, &lens).unwrap();
         let got = r.redraw(&[(view, &view_plan), (scan, &scan_plan)]).unwrap();
         let want = [

@@ -15,12 +15,14 @@ use digiview::image_ops::{pixel, psnr};
 use digiview::layout::Rect;
 use digiview::lens::Lens;
 use digiview::lens::samples::sample_lenses;
+use digiview::modes::{LayoutMode, LayoutMode::Whole, OverlayMode};
 use digiview::render::gpu::Renderer;
 use digiview::render::gpu::renderer::render_image;
 use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;
+use digiview::state::view::Field;
 use image::RgbImage;
 
 struct Scores {
@@ -63,15 +65,17 @@ fn every_layout_and_crop_mode_matches_the_cpu_reference_and_ground_truth() {
     let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
     let state = base_state();
     let fish = fisheye(&world, &lens, &state);
-    for layout in 0..7u8 {
+    for &layout in LayoutMode::ALL {
         // Each camera takes each crop mode once over the four rotations (0, 1, 2, 3, 4 and an
         // unknown one, which is black); layout 6 shows no camera, so once is enough.
-        for rotate in 0..if layout == 6 { 1 } else { 4 } {
+        for rotate in 0..if layout == LayoutMode::Whole { 1 } else { 4 } {
             let mut s = state.clone();
-            s.output.layout = layout;
-            for (i, cam) in s.cameras.iter_mut().enumerate() {
-                cam.crop = [0, 1, 2, 4, 3, 9][(i + rotate) % 6];
-                cam.fov = if cam.crop == 2 { 200.0 } else { 80.0 } * DEG;
+            s.settings.output.layout = layout;
+            for (i, cam) in s.settings.cameras.iter_mut().enumerate() {
+                let crop = [0, 1, 2, 4, 3, 9][(i + rotate) % 6];
+                let fov = if crop == 2 { 200.0 } else { 80.0 } * DEG;
+                cam.put(Field::Crop, crop as f64).unwrap();
+                cam.put(Field::Fov, fov).unwrap();
             }
             let label = format!("layout {layout} rotation {rotate}");
             assert_parity(&label, &scores(&mut r, &lens, &s, &fish));
@@ -89,8 +93,8 @@ fn light_outside_the_lens_image_circle_never_reaches_the_output() {
     let mut state = base_state();
     // The debug view: the whole fisheye minified 40 times, so the rim samples mip levels 5
     // and 6, whose texels reach past the imaged box's margin.
-    (state.output.width, state.output.height) = (48, 28);
-    (state.output.layout, state.output.overlay) = (6, 0);
+    (state.settings.output.width, state.settings.output.height) = (48, 28);
+    (state.settings.output.layout, state.settings.output.overlay) = (Whole, OverlayMode::None);
     let plan = FramePlan::new(&state, &lens).unwrap();
     let dark = fisheye(&world, &lens, &state);
     // Flare around the image circle: everything outside the imaged box white.
@@ -128,9 +132,11 @@ fn every_lens_model_matches_the_cpu_reference_and_ground_truth() {
     for lens in sample_lenses() {
         let lens = lens.for_frame(960, 720, None);
         let mut state = base_state();
-        for (i, cam) in state.cameras.iter_mut().enumerate() {
-            cam.crop = [1, 2, 0, 1][i];
-            cam.fov = if cam.crop == 2 { 180.0 } else { 80.0 } * DEG;
+        for (i, cam) in state.settings.cameras.iter_mut().enumerate() {
+            let crop = [1, 2, 0, 1][i];
+            let fov = if crop == 2 { 180.0 } else { 80.0 } * DEG;
+            cam.put(Field::Crop, crop as f64).unwrap();
+            cam.put(Field::Fov, fov).unwrap();
         }
         let fish = fisheye(&world, &lens, &state);
         assert_parity(&lens.name, &scores(&mut r, &lens, &state, &fish));
@@ -207,7 +213,7 @@ fn i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range() {
     let lens = small_lens("CIL216");
     let mut state = base_state();
     // 472 is not a multiple of 8: the GPU pads its rows; the decoded picture must not care.
-    state.output.width = 472;
+    state.settings.output.width = 472;
     let fish = fisheye(&GridWorld::default(), &lens, &state);
     let plan = FramePlan::new(&state, &lens).unwrap();
     let rgba = render_image(&mut renderer(PixelFormat::Rgba, Filter::Mip), &fish, &plan)
@@ -322,8 +328,8 @@ fn a_minified_debug_view_of_a_fine_checkerboard_does_not_alias() {
     });
     let lens = small_lens("CIL216");
     let mut state = State::default();
-    (state.output.width, state.output.height) = (240, 136);
-    (state.output.layout, state.output.overlay) = (6, 0);
+    (state.settings.output.width, state.settings.output.height) = (240, 136);
+    (state.settings.output.layout, state.settings.output.overlay) = (Whole, OverlayMode::None);
     let plan = FramePlan::new(&state, &lens).unwrap();
     let view = plan.views[0].rect;
     let digiview::render::ViewMap::Fisheye { origin, scale } = plan.views[0].map else {
@@ -331,33 +337,37 @@ fn a_minified_debug_view_of_a_fine_checkerboard_does_not_alias() {
     };
     // Box reference: the mean of the checks over each output pixel's square footprint, inside
     // the image circle only (as the renderer masks it).
-    let reference = RgbImage::from_fn(state.output.width, state.output.height, |x, y| {
-        if !view.contains(x, y) {
-            return image::Rgb([0; 3]);
-        }
-        let p = glam::DVec2::new((x - view.x) as f64 + 0.5, (y - view.y) as f64 + 0.5);
-        if plan.fisheye_pixel(&plan.views[0], p).is_none() {
-            return image::Rgb([0; 3]);
-        }
-        let (x0, y0) = (
-            origin.x + (p.x - 0.5) * scale,
-            origin.y + (p.y - 0.5) * scale,
-        );
-        let (mut sum, mut n) = (0.0f64, 0.0f64);
-        let steps = 32;
-        for j in 0..steps {
-            for i in 0..steps {
-                let fx = x0 + (i as f64 + 0.5) / steps as f64 * scale;
-                let fy = y0 + (j as f64 + 0.5) / steps as f64 * scale;
-                let (cx, cy) = (fx.floor() as i64, fy.floor() as i64);
-                if cx >= 0 && cy >= 0 && (cx as u32) < fw && (cy as u32) < fh {
-                    sum += pixel(&checks, cx as u32, cy as u32).x;
-                    n += 1.0;
+    let reference = RgbImage::from_fn(
+        state.settings.output.width,
+        state.settings.output.height,
+        |x, y| {
+            if !view.contains(x, y) {
+                return image::Rgb([0; 3]);
+            }
+            let p = glam::DVec2::new((x - view.x) as f64 + 0.5, (y - view.y) as f64 + 0.5);
+            if plan.fisheye_pixel(&plan.views[0], p).is_none() {
+                return image::Rgb([0; 3]);
+            }
+            let (x0, y0) = (
+                origin.x + (p.x - 0.5) * scale,
+                origin.y + (p.y - 0.5) * scale,
+            );
+            let (mut sum, mut n) = (0.0f64, 0.0f64);
+            let steps = 32;
+            for j in 0..steps {
+                for i in 0..steps {
+                    let fx = x0 + (i as f64 + 0.5) / steps as f64 * scale;
+                    let fy = y0 + (j as f64 + 0.5) / steps as f64 * scale;
+                    let (cx, cy) = (fx.floor() as i64, fy.floor() as i64);
+                    if cx >= 0 && cy >= 0 && (cx as u32) < fw && (cy as u32) < fh {
+                        sum += pixel(&checks, cx as u32, cy as u32).x;
+                        n += 1.0;
+                    }
                 }
             }
-        }
-        image::Rgb([(sum / n.max(1.0)).round() as u8; 3])
-    });
+            image::Rgb([(sum / n.max(1.0)).round() as u8; 3])
+        },
+    );
     // Measured on a square well inside the image circle.
     let c = (view.x + view.w / 2, view.y + view.h / 2);
     let window = Rect::new(c.0 - 40, c.1 - 40, 80, 80);

@@ -13,6 +13,7 @@ use digiview::geometry::Euler;
 use digiview::geometry::ground::ground_point;
 use digiview::geometry::rotation::direction;
 use digiview::render::FramePlan;
+use digiview::state::view::Field::{Pitch, Yaw};
 use digiview::stream::klv::ViewMetadata;
 use glam::DVec3;
 use serde_json::Value;
@@ -68,8 +69,12 @@ fn klvdata_reads_a_views_pose_pointing_and_footprint_as_digiview_sees_them() {
         let a = &mut state.vehicle.attitude;
         (a.yaw, a.pitch, a.roll) = (30.0 * DEG, pitch * DEG, roll * DEG);
         // Camera 0 looks 45° east of north, 60° down, earth-locked; camera 1 10° up.
-        (state.cameras[0].yaw, state.cameras[0].pitch) = (45.0 * DEG, -60.0 * DEG);
-        state.cameras[1].pitch = 10.0 * DEG;
+        let cams = &mut state.settings.cameras;
+        cams[0] = cams[0]
+            .clone()
+            .with(&[(Yaw, 45.0 * DEG), (Pitch, -60.0 * DEG)])
+            .unwrap();
+        cams[1].put(Pitch, 10.0 * DEG).unwrap();
         for cam in [0, 1] {
             let plan = FramePlan::single_view(&state, &lens, cam, 640, 360);
             let source = format!("DigiView cam {cam}");
@@ -121,8 +126,8 @@ fn klvdata_reads_a_views_pose_pointing_and_footprint_as_digiview_sees_them() {
         let platform = euler(value(p, 5), pitch, m.platform.roll);
         let relative = euler(value(p, 18), value(p, 19), value(p, 20));
         let seen = platform.matrix() * relative.matrix() * DVec3::X;
-        let cam = &state.cameras[k % 2];
-        let want = direction(cam.yaw, cam.pitch);
+        let cam = &state.settings.cameras[k % 2];
+        let want = direction(cam.yaw(), cam.pitch());
         let off = seen.angle_between(want).to_degrees();
         assert!(
             off < 0.01,

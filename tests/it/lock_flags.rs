@@ -69,8 +69,9 @@ fn unlocked_views_turn_with_the_vehicle_exactly() {
         let plan = FramePlan::new(&s, &lens).unwrap();
         // Fixed to the vehicle: every view pixel samples the same fisheye pixel as when level.
         let yaw_only = attitude.1 == 0.0 && attitude.2 == 0.0;
-        let rigid =
-            |i: usize| yaw_only || s.cameras[i].euler() == digiview::geometry::Euler::default();
+        let rigid = |i: usize| {
+            yaw_only || s.settings.cameras[i].euler() == digiview::geometry::Euler::default()
+        };
         assert!(rigid(0), "camera 0 looks straight ahead");
         for (i, (v0, v)) in plan0
             .views

@@ -132,7 +132,7 @@ fn the_package_holds_the_service_and_the_packaged_binary_serves_the_demo() {
         frame.pixels().map(|p| p[1] as f64).sum::<f64>() / (frame.width() * frame.height()) as f64;
     let _ = serve.kill();
     let _ = serve.wait();
-    let o = digiview::state::State::default().output;
+    let o = digiview::state::State::default().settings.output;
     assert_eq!((frame.width(), frame.height()), (o.width, o.height));
     assert!(
         mean > 20.0,

@@ -10,6 +10,7 @@ use common::frames::{Client, MRAD, ack, raw_frame, verdict};
 use digiview::geometry::GeoPoint;
 use digiview::geometry::ground::from_ned;
 use digiview::layout::layout;
+use digiview::modes::{LayoutMode, OverlayMode};
 use digiview::protocol::params::*;
 use digiview::protocol::{Body, FRAME_LEN, Message, Param, ParamType, Verdict};
 use glam::DVec3;
@@ -64,7 +65,7 @@ fn video_output_reports_the_rendered_rectangles_and_follows_the_seed_rules() {
         ),
         (1280, 720, 25, 3, 4)
     );
-    let l = layout(1280, 720, 3, 4).unwrap();
+    let l = layout(1280, 720, LayoutMode::TwoAndPanorama, OverlayMode::Top).unwrap();
     assert_eq!(v.views.len(), l.views.len(), "the layout's views, no more");
     for (b, (r, _)) in v.views.iter().zip(&l.views) {
         assert_eq!(
@@ -138,7 +139,8 @@ fn video_output_packs_only_the_layouts_views_as_the_original_header_does() {
             views << 4 | mode,
             "layout {mode}: views and mode"
         );
-        let want = layout(1920, 1080, mode, 2).unwrap();
+        let mode_enum = LayoutMode::try_from(mode).unwrap();
+        let want = layout(1920, 1080, mode_enum, OverlayMode::Right).unwrap();
         assert_eq!(want.views.len(), views as usize);
         let boxes: Vec<_> = (0..=views as usize)
             .map(|i| {

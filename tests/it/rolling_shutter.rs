@@ -19,6 +19,7 @@ use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{eye, fisheye, rolling_fisheye, truth};
 use digiview::state::State;
+use digiview::state::view::Field;
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 
@@ -56,8 +57,12 @@ fn aimed_state(names: &[&str]) -> State {
     for (i, name) in names.iter().enumerate() {
         let l = world.landmarks.iter().find(|l| l.name == *name).unwrap();
         let (yaw, pitch) = landmark_direction(&s, l.position);
-        let cam = &mut s.cameras[i];
-        (cam.yaw, cam.pitch, cam.fov) = (yaw, pitch, 30.0 * DEG);
+        let aim = [
+            (Field::Yaw, yaw),
+            (Field::Pitch, pitch),
+            (Field::Fov, 30.0 * DEG),
+        ];
+        s.settings.cameras[i] = s.settings.cameras[i].clone().with(&aim).unwrap();
     }
     s
 }
@@ -138,7 +143,7 @@ fn check(turn: Turn, names: &[&str]) {
     let lens = small_lens("CIL216");
     let world = GridWorld::default();
     let attitude = turning(state.vehicle.attitude.euler(), turn);
-    let mount = state.mount.euler();
+    let mount = state.settings.mount.euler();
     let lens_at = |dt: f64| lens_from_world(attitude(dt), mount);
     let fish = rolling_fisheye(&world, &lens, &state, &readout, &attitude);
     let global = FramePlan::new(&state, &lens).unwrap();
@@ -250,7 +255,7 @@ fn two_steps_find_where_the_rolling_rows_saw_a_ray_at_4k() {
         .for_frame(3840, 2160, None);
     for turn in [Turn::Yaw, Turn::Roll] {
         let attitude = turning(state.vehicle.attitude.euler(), turn);
-        let mount = state.mount.euler();
+        let mount = state.settings.mount.euler();
         let lens_at = |dt: f64| lens_from_world(attitude(dt), mount);
         let plan = FramePlan::new(&state, &lens).unwrap();
         let table = ShutterTable::new(&readout, (lens.width, lens.height), lens_at).unwrap();
@@ -297,10 +302,11 @@ fn estimated(readout_ms: f64) -> digiview::render::shutter_fit::Fit {
         .lens()
         .for_frame(w, h, None);
     let layout = PlaneLayout::tight(PixelFormat::Nv12, w, h).unwrap();
-    let camera = DemoCamera::new(&lens, layout, state.mount.euler()).with_readout(readout_ms);
+    let camera =
+        DemoCamera::new(&lens, layout, state.settings.mount.euler()).with_readout(readout_ms);
     let sensor = digiview::exposure::SensorModel::new(digiview::exposure::Setting {
-        exposure_us: state.sensor.exposure_us,
-        gain: state.sensor.gain,
+        exposure_us: state.settings.sensor.exposure_us,
+        gain: state.settings.sensor.gain,
     });
     let position = state.vehicle.position;
     let frames: Vec<FitFrame> = (0..120)
@@ -319,7 +325,7 @@ fn estimated(readout_ms: f64) -> digiview::render::shutter_fit::Fit {
     let fit = estimate(
         &frames,
         &lens,
-        state.mount.euler(),
+        state.settings.mount.euler(),
         Readout::default(),
         |_, _| {},
     );

@@ -12,6 +12,7 @@ use digiview::image_ops::psnr;
 use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
+use digiview::state::view::Field;
 
 #[test]
 fn views_drawn_from_one_level_match_the_truth_as_well_as_the_mip_filter() {
@@ -30,8 +31,8 @@ fn views_drawn_from_one_level_match_the_truth_as_well_as_the_mip_filter() {
         (40.0, -60.0, (640, 360)),
     ] {
         let mut state = four_view_state(7);
-        state.cameras[0].fov = fov * DEG;
-        state.cameras[0].pitch = pitch * DEG;
+        let aim = [(Field::Fov, fov * DEG), (Field::Pitch, pitch * DEG)];
+        state.settings.cameras[0] = state.settings.cameras[0].clone().with(&aim).unwrap();
         state.vehicle.attitude.roll = 8.0 * DEG;
         let fish = fisheye(&world, &lens, &state);
         let (data, layout) = as_format(&fish, PixelFormat::I420);

@@ -221,14 +221,17 @@ fn demo_frame(cfg: &Config, lens_cal: Option<&Path>) -> Outcome {
     let made = (|| -> anyhow::Result<String> {
         let (cal, _) = locate::lens_cal(lens_cal)?;
         let state = crate::state::State::default();
-        let lens =
-            crate::lens::Lenses::new(&cal).for_frame(state.lens, (d.width, d.height), None)?;
+        let lens = crate::lens::Lenses::new(&cal).for_frame(
+            state.settings.lens,
+            (d.width, d.height),
+            None,
+        )?;
         let layout = crate::frame::PlaneLayout::tight(d.format, d.width, d.height)?;
         let t = Instant::now();
-        let camera = DemoCamera::new(&lens, layout, state.mount.euler());
+        let camera = DemoCamera::new(&lens, layout, state.settings.mount.euler());
         let sensor = crate::exposure::SensorModel::new(crate::exposure::Setting {
-            exposure_us: state.sensor.exposure_us,
-            gain: state.sensor.gain,
+            exposure_us: state.settings.sensor.exposure_us,
+            gain: state.settings.sensor.gain,
         });
         let pose = (state.vehicle.attitude.euler(), state.vehicle.position);
         camera.frame(|_| pose.0, &pose.1, 0.0, (sensor, 0), None);

@@ -110,7 +110,7 @@ impl Head {
             Detector::External => self.external.get().is_some(),
             Detector::Off => false,
         };
-        ready && state.detection.run_ai
+        ready && state.settings.detection.run_ai
     }
 
     /// An output of the frame loop's renderer for the scans or crops: I420 for the motion
@@ -145,7 +145,7 @@ impl Head {
         let cfg = &self.cfg.detection;
         let to_lens = crate::geometry::view::lens_from_world(
             state.vehicle.attitude.euler(),
-            state.mount.euler(),
+            state.settings.mount.euler(),
         );
         // What the detection thread would not take within a period is not drawn yet (nor
         // again while one waits): a model slower than the rate sets the pace, the frame loop's
@@ -231,13 +231,13 @@ impl Head {
         let mut scorer: Option<score::Scorer> = None;
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("detection");
-            let state = self.live.snapshot();
+            let state = self.state();
             if self.detecting(&state) {
                 self.adopt_clicks(&mut tracker, &state, &mut adopted);
             }
             if !self.detecting(&state) {
                 if owns_list {
-                    // Turning run_ai off emptied the list in the same change.
+                    // Turning run_ai off emptied the list in the same change (`Gate::change`).
                     info!("detection: off (run_ai); its objects are dropped");
                     (detector, tracker, owns_list) = (MotionDetector::new(), Tracker::new(), false);
                     adopted.clear();
@@ -283,7 +283,7 @@ impl Head {
                 let eye: DVec3 = to_ned(home, scan.position.point());
                 let found = match self.model.get() {
                     Some(model) => {
-                        let threshold = state.detection.var_confidence_threshold as f32;
+                        let threshold = state.settings.detection.var_confidence_threshold as f32;
                         let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
                         let (v, p) = (&scan.views, &scan.plan);
                         match model.scan(v, p, &scan.picture, scan.stride, threshold) {
@@ -303,7 +303,7 @@ impl Head {
             };
             let sees = |ray| plan.views.iter().any(|v| plan.view_point(v, ray).is_some());
             let covered = |b: &AngularBox| sees(b.centre);
-            tracker.scan(&state.detection, t, found, covered);
+            tracker.scan(&state.settings.detection, t, found, covered);
             let (list, tiled) = self.show(&mut tracker, &state, &labels, (&mut adopted, t));
             owns_list = true;
             if scorer.is_none() {
@@ -332,12 +332,12 @@ impl Head {
         let Some(model) = self.model.get() else {
             return;
         };
-        let threshold = state.detection.crop_confidence_threshold as f32;
+        let threshold = state.settings.detection.crop_confidence_threshold as f32;
         let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
         for ((view, planned), &id) in crops.views.iter().zip(&crops.plan.views).zip(&crops.crops) {
             match model.crop(view, planned, &crops.picture, crops.stride, threshold) {
                 Ok(found) => {
-                    tracker.track(&state.detection, crops.t, id, found);
+                    tracker.track(&state.settings.detection, crops.t, id, found);
                 }
                 Err(e) => return warn!("detection: {e}"),
             }

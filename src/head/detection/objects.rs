@@ -11,9 +11,9 @@ use crate::detect::tracker::Object;
 use crate::detect::tracker::UNKNOWN_CLASS;
 use crate::detect::{AngularBox, Tracker};
 use crate::geometry::rotation::{direction, yaw_pitch};
-use crate::layout::layout;
 use crate::lens::Lens;
 use crate::render::FramePlan;
+use crate::state::view::{Seen, follow};
 use crate::state::{IN_SIGHT, Invalid, State, Tracked};
 use tracing::{info, warn};
 
@@ -29,8 +29,8 @@ impl Head {
     /// reaching the clicked one, the nearest), else a new object seeded there at full score.
     /// The next [`Head::show`] makes the camera follow it.
     pub(super) fn adopt_clicks(&self, tracker: &mut Tracker, state: &State, adopted: &mut Adopted) {
-        for (i, cam) in state.cameras.iter().enumerate() {
-            let Some(f) = cam.follow.filter(|f| f.object.is_none()) else {
+        for (i, cam) in state.settings.cameras.iter().enumerate() {
+            let Some(f) = cam.follow().filter(|f| f.object.is_none()) else {
                 continue;
             };
             if adopted
@@ -74,9 +74,8 @@ impl Head {
         labels: &[String],
         (adopted, now): (&mut Adopted, f64),
     ) -> (Vec<Tracked>, usize) {
-        let o = &state.output;
-        let shown = layout(o.width, o.height, o.layout, o.overlay).map_or(0, |l| l.tiles.len());
-        let tiles = tracker.tiles(state.detection.sorting_mode, shown);
+        let shown = state.settings.output.layout().map_or(0, |l| l.tiles.len());
+        let tiles = tracker.tiles(state.settings.detection.sorting_mode, shown);
         let name = |class: u16| match self.cfg.detection.detector {
             Detector::External => labels.get(class as usize).cloned().unwrap_or_default(),
             Detector::Motion if class == MOVING => "moving".into(),
@@ -85,8 +84,8 @@ impl Head {
         };
         let followed = |id: u32| {
             let id = Some(id);
-            let camera = |c: &crate::state::Camera| c.follow.is_some_and(|f| f.object == id);
-            state.cameras.iter().any(camera) || adopted.iter().any(|a| Some(a.2) == id)
+            let camera = |c: &crate::state::Camera| c.follow().is_some_and(|f| f.object == id);
+            state.settings.cameras.iter().any(camera) || adopted.iter().any(|a| Some(a.2) == id)
         };
         let in_sight = |o: &Object| now - o.seen <= IN_SIGHT || followed(o.id);
         let list = tracked(tracker, &tiles, name, in_sight);
@@ -94,29 +93,32 @@ impl Head {
         (list, shown)
     }
 
-    /// Puts the objects in the live state, unless detection was turned off meanwhile: each
+    /// Puts the objects in what is sensed, unless detection was turned off meanwhile: each
     /// camera whose click was adopted (and not replaced by another since) follows its
-    /// object, each whose object is gone stops, and the followers are aimed.
+    /// object, each whose object is gone stops, and the followers are aimed (`view::follow`).
     fn publish(&self, list: Vec<Tracked>, adopted: Adopted) {
-        let result = self.live.update(|s| {
-            if !s.detection.run_ai {
-                return Ok::<_, Invalid>(vec![]);
-            }
-            s.tracked = list;
+        if !self.settings().detection.run_ai {
+            return;
+        }
+        let vehicle = self.gate.sensed().vehicle();
+        let result = self.gate.change(|s| {
             for (i, since, id) in adopted {
-                if let Some(f) = s.cameras[i].follow.as_mut().filter(|f| f.since_us == since) {
-                    f.object = Some(id);
-                }
+                follow::adopt(&mut s.cameras, i, since, id);
             }
-            let lost = s.drop_lost_followers();
-            s.aim_followers();
-            Ok(lost)
+            let lost = follow::drop_lost(&mut s.cameras, &list);
+            let seen = Seen {
+                vehicle: &vehicle,
+                tracked: &list,
+            };
+            follow::aim_followers(&mut s.cameras, &seen);
+            Ok::<_, Invalid>(lost)
         });
+        self.gate.sensed().set_tracked(list);
         for i in result.as_ref().map_or(&[][..], |l| &l[..]) {
             info!("camera {i}: lost the object it followed; it stays aimed where it last was");
         }
         if let Err(e) = result {
-            warn!("detection: the objects were not taken: {e}");
+            warn!("detection: the followers were not aimed: {e}");
         }
     }
 }

@@ -93,6 +93,7 @@ impl BlockMap {
 mod tests {
     use super::*;
     use crate::layout::layout;
+    use crate::modes::{LayoutMode, OverlayMode};
 
     /// The view at a pixel as the shader's per-pixel lookup finds it: the last rectangle
     /// containing it.
@@ -127,7 +128,7 @@ mod tests {
     fn blocks_inside_one_view_name_it_and_the_rest_are_listed() {
         // The benchmark's layout: four 540-px squares (one edge at x = 900, not a multiple
         // of 8) and the detection column at x = 1800.
-        let l = layout(1920, 1080, 4, 2).unwrap();
+        let l = layout(1920, 1080, LayoutMode::Four, OverlayMode::Right).unwrap();
         let rects: Vec<Rect> = l.views.iter().map(|(r, _)| *r).chain(l.tiles).collect();
         let map = check(1920, 1080, &rects);
         // Only the column of blocks across x = 900 is mixed.
@@ -156,8 +157,8 @@ mod tests {
     #[test]
     fn every_layout_maps_exactly() {
         for (w, h) in [(640, 480), (1280, 720), (1366, 768), (1001, 603)] {
-            for mode in 0..7 {
-                for overlay in 0..6 {
+            for &mode in LayoutMode::ALL {
+                for &overlay in OverlayMode::ALL {
                     if let Ok(l) = layout(w, h, mode, overlay) {
                         let rects: Vec<Rect> =
                             l.views.iter().map(|(r, _)| *r).chain(l.tiles).collect();

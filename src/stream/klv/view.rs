@@ -135,7 +135,7 @@ impl ViewMetadata {
     ) -> Option<ViewMetadata> {
         let frame = plan
             .shows_camera(cam)
-            .then_some((state.output.width, state.output.height));
+            .then_some((state.settings.output.width, state.settings.output.height));
         let view = plan.camera_view(state, cam);
         ViewMetadata::of(
             plan,

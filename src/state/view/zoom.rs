@@ -5,19 +5,20 @@
 //! match the view.
 
 use crate::geometry::view::{clamp_fov, fov_range};
+use crate::modes::Crop;
 
 /// The sensor width the focal lengths refer to (a 35 mm frame), mm.
 pub const SENSOR_WIDTH_MM: f64 = 36.0;
 
 /// 0 (widest) to 100 (narrowest): the fov's place on a log scale between the crop mode's
 /// limits.
-pub fn level(fov: f64, crop: u8) -> f32 {
+pub fn level(fov: f64, crop: Crop) -> f32 {
     let (lo, hi) = fov_range(crop);
     (100.0 * (hi / clamp_fov(fov, crop)).ln() / (hi / lo).ln()) as f32
 }
 
 /// The fov at a zoom level (0..=100, clamped).
-pub fn fov_at_level(level: f64, crop: u8) -> f64 {
+pub fn fov_at_level(level: f64, crop: Crop) -> f64 {
     let (lo, hi) = fov_range(crop);
     hi * (lo / hi).powf(level.clamp(0.0, 100.0) / 100.0)
 }
@@ -40,21 +41,20 @@ pub fn fov_of_focal_length(mm: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::view::crop;
 
     #[test]
     fn levels_span_the_crop_modes_fov_range_and_invert() {
-        let (lo, hi) = fov_range(crop::RECTILINEAR);
-        assert_eq!(level(hi, crop::RECTILINEAR), 0.0);
-        assert!((level(lo, crop::RECTILINEAR) - 100.0).abs() < 1e-4);
+        let (lo, hi) = fov_range(Crop::Rectilinear);
+        assert_eq!(level(hi, Crop::Rectilinear), 0.0);
+        assert!((level(lo, Crop::Rectilinear) - 100.0).abs() < 1e-4);
         for l in [0.0, 12.5, 50.0, 99.0] {
-            let fov = fov_at_level(l, crop::RECTILINEAR);
+            let fov = fov_at_level(l, Crop::Rectilinear);
             assert!(
-                (level(fov, crop::RECTILINEAR) as f64 - l).abs() < 1e-3,
+                (level(fov, Crop::Rectilinear) as f64 - l).abs() < 1e-3,
                 "{l}"
             );
         }
-        assert!(level(1.0, crop::RECTILINEAR) > level(1.5, crop::RECTILINEAR));
+        assert!(level(1.0, Crop::Rectilinear) > level(1.5, Crop::Rectilinear));
     }
 
     #[test]
