@@ -31,7 +31,7 @@ for p in "${packages[@]}"; do
 done
 
 # On Debian 12 (bookworm), lavapipe comes from bookworm-backports: Mesa 25 rather than 22.3,
-# whose mip-chain passes take about a third longer (docs/performance.md, "Mesa 25").
+# whose mip-chain passes take about a third longer (docs/performance.md, "Mesa 22.3").
 backports=()
 if [ -r /etc/os-release ] && [ "$(. /etc/os-release; echo "${VERSION_CODENAME:-}")" = bookworm ]; then
   mesa=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)

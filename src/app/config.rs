@@ -177,9 +177,11 @@ impl Config {
     /// Ranges and forms the types alone do not hold.
     pub fn check(&self) -> Result<(), ConfigError> {
         self.source.parse::<SourceSpec>()?;
-        self.readout.check().map_err(ConfigError::Range)?;
+        self.readout
+            .check()
+            .map_err(|e| ConfigError::Range(e.to_string()))?;
         // Every number against its rule (config_rules); what joins numbers follows.
-        self.check_ranges().map_err(ConfigError::Range)?;
+        self.check_ranges()?;
         let d = &self.demo;
         if d.format.is_yuv() && (d.width % 2 == 1 || d.height % 2 == 1) {
             return out_of_range(format!(
@@ -220,6 +222,12 @@ impl Config {
         }
         self.publish_targets()?;
         self.view_publish_targets()?;
+        self.check_mavlink()?;
+        self.check_encoder()
+    }
+
+    /// The MAVLink link's key and endpoint.
+    fn check_mavlink(&self) -> Result<(), ConfigError> {
         if self
             .mavlink
             .signing_key
@@ -235,6 +243,11 @@ impl Config {
         self.mavlink
             .endpoint
             .parse::<crate::autopilot::Endpoint>()?;
+        Ok(())
+    }
+
+    /// An encoder named for the codec it encodes.
+    fn check_encoder(&self) -> Result<(), ConfigError> {
         let named = match self.encoder.kind.as_str() {
             "x264" | "x265" => Some(&self.encoder.kind[..]),
             k if k.contains("h264") => Some("x264"),

@@ -3,7 +3,7 @@
 //! [`Config::check`] refuses by it, naming the key and the range; a test fails when a number
 //! of the configuration has no rule here.
 
-use super::Config;
+use super::{Config, ConfigError};
 use crate::geometry::shutter::MAX_READOUT_MS;
 use crate::state::{MAX_CAMERAS, MAX_OUTPUT, MIN_OUTPUT};
 use crate::stream::encoder::BITRATE_KBPS;
@@ -78,10 +78,10 @@ impl Config {
     }
 
     /// Every number against its rule: "demo fps 200 is outside 1..=120 fps".
-    pub(super) fn check_ranges(&self) -> Result<(), String> {
+    pub(super) fn check_ranges(&self) -> Result<(), ConfigError> {
         for (key, v) in self.values() {
             let Some(r) = CONFIG_RULES.iter().find(|r| r.key == key) else {
-                return Err(format!("{key}: no rule (a bug)"));
+                return Err(ConfigError::Range(format!("{key}: no rule (a bug)")));
             };
             if !(v >= r.lo && v <= r.hi) {
                 let unit = match r.unit {
@@ -89,7 +89,8 @@ impl Config {
                     u => format!(" {u}"),
                 };
                 let key = key.replace('.', " ");
-                return Err(format!("{key} {v} is outside {}..={}{unit}", r.lo, r.hi));
+                let message = format!("{key} {v} is outside {}..={}{unit}", r.lo, r.hi);
+                return Err(ConfigError::Range(message));
             }
         }
         Ok(())

@@ -109,9 +109,11 @@ impl Core {
     }
 }
 
-/// The services on the autopilot link and the control protocol's request handling.
+/// The services on the autopilot link and the control protocol's request handling. The link
+/// runs while it is held.
 struct Services {
     cameras: Option<Arc<Cameras>>,
+    link: Option<Link>,
     controller: Arc<Controller>,
 }
 
@@ -141,11 +143,14 @@ fn services(core: &Core, cfg: &Config, no_video: bool) -> Result<Services, Serve
         false => core.capture.clone(),
     };
     let controller = Arc::new(Controller {
-        autopilot: link.map(|l| wiring::autopilot_status(l.status.clone())),
+        autopilot: link
+            .as_ref()
+            .map(|l| wiring::autopilot_status(l.status.clone())),
         ..Controller::new(core.gate.clone(), core.report.clone(), capture)
     });
     Ok(Services {
         cameras,
+        link,
         controller,
     })
 }
@@ -161,8 +166,10 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
         .parse()
         .map_err(|e| ServeError::ControlListen(cfg.control.listen.clone(), e))?;
     let core = Core::new(cal, &cfg, state, options)?;
+    // The link stops when this is dropped, as `serve` returns.
     let Services {
         cameras,
+        link: _link,
         controller,
     } = services(&core, &cfg, no_video)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -319,8 +326,8 @@ async fn serve_http(
             let stopped = stop.clone();
             match crate::http::serve(l, web, async move { stopped.wait().await }).await {
                 Ok(()) if stop.is_triggered() => Ok(()),
-                Ok(()) => Err("the server ended".to_string()),
-                Err(e) => Err(e.to_string()),
+                Ok(()) => Err(std::io::Error::other("the server ended")),
+                Err(e) => Err(e),
             }
         }
     };

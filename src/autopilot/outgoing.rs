@@ -34,94 +34,115 @@ pub(super) fn send_one(
     };
 }
 
+/// What the sending thread keeps from one round to the next.
+struct Sending {
+    beat: Instant,
+    /// When the rates were last asked for.
+    asked: Option<Instant>,
+    /// Attitudes counted since when, for the rate they come at (each 5 s, and each second).
+    counted: (Instant, u64),
+    second: (Instant, u64),
+    lost: bool,
+}
+
 /// Every 100 ms: HEARTBEAT each second, the rate requests, and the attitude's staleness.
 pub(super) fn send(shared: &Shared) {
-    let mut beat = Instant::now() - Duration::from_secs(1);
-    let mut asked: Option<Instant> = None;
-    let mut counted = (Instant::now(), 0u64);
-    let mut second = (Instant::now(), 0u64);
-    let mut lost = false;
+    let now = Instant::now();
+    let mut s = Sending {
+        beat: now - Duration::from_secs(1),
+        asked: None,
+        counted: (now, 0),
+        second: (now, 0),
+        lost: false,
+    };
     // The first report comes soon after the start, so the log shows the mapping settled.
-    let mut next_report = Instant::now() + FIRST_REPORT;
-    let mut reported = (Instant::now(), 0u64, 0u64);
+    let mut next_report = now + FIRST_REPORT;
+    let mut reported = (now, 0u64, 0u64);
     let fault = crate::supervise::Fault::for_service("mavlink-tx");
     while !shared.stop.load(Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(100));
         fault.check("mavlink-tx");
-        if second.0.elapsed() >= Duration::from_secs(1) {
+        if s.second.0.elapsed() >= Duration::from_secs(1) {
             let n = shared.status.attitudes.load(Ordering::Relaxed);
-            let hz = (n - second.1) as f64 / second.0.elapsed().as_secs_f64();
+            let hz = (n - s.second.1) as f64 / s.second.0.elapsed().as_secs_f64();
             shared
                 .status
                 .attitude_mhz
                 .store((hz * 1e3) as u64, Ordering::Relaxed);
-            second = (Instant::now(), n);
+            s.second = (Instant::now(), n);
         }
         if Instant::now() >= next_report {
             next_report += REPORT_EVERY;
             reported = report(&shared.status, reported);
         }
-        let connection = shared.connection();
-        let autopilot = *shared
-            .status
-            .autopilot
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        if let Some(c) = &connection {
-            let system = autopilot.map_or(1, |a| a.0);
-            let header = MavHeader {
-                system_id: system.into(),
-                component_id: OWN_COMPONENT,
-                sequence: 0,
-            };
-            if autopilot.is_some() {
-                request_timesync(shared, c, header);
-            }
-            if beat.elapsed() >= Duration::from_secs(1) {
-                beat = Instant::now();
-                send_one(shared, c, header, &heartbeat());
-            }
-            // Ask for the rates when the autopilot is found, and again every 10 s while the
-            // attitude comes at less than half the rate asked.
-            if let Some((system, component)) = autopilot {
-                let rate = {
-                    let n = shared.status.attitudes.load(Ordering::Relaxed);
-                    let hz = (n - counted.1) as f64 / counted.0.elapsed().as_secs_f64().max(1e-3);
-                    if counted.0.elapsed() >= Duration::from_secs(5) {
-                        counted = (Instant::now(), n);
-                    }
-                    hz
-                };
-                let due = asked.is_none_or(|t| {
-                    t.elapsed() >= Duration::from_secs(10) && rate < shared.cfg.attitude_hz / 2.0
-                });
-                if due {
-                    asked = Some(Instant::now());
-                    for (id, hz) in [(30, shared.cfg.attitude_hz), (33, shared.cfg.position_hz)] {
-                        send_one(
-                            shared,
-                            c,
-                            header,
-                            &message_interval(system, component, id, hz),
-                        );
-                    }
-                }
-            }
+        if let Some(c) = shared.connection() {
+            speak(shared, &c, &mut s);
         }
-        let newest = shared.status.attitude_us.load(Ordering::Relaxed);
-        let stale = newest != 0 && clock_us().saturating_sub(newest) > STALE.as_micros() as u64;
-        if stale != lost {
-            lost = stale;
-            shared.report.set_attitude_lost(stale);
-            if stale {
-                warn!(
-                    "mavlink: no attitude for {} ms: the views hold the last one",
-                    STALE.as_millis()
-                );
-            } else {
-                info!("mavlink: attitude again");
-            }
+        watch_staleness(shared, &mut s.lost);
+    }
+}
+
+/// What DigiView says on an open link: its HEARTBEAT each second, TIMESYNC requests, and the
+/// rates it needs, asked for when the autopilot is found and again every 10 s while the
+/// attitude comes at less than half the rate asked.
+fn speak(shared: &Shared, c: &Connection, s: &mut Sending) {
+    let autopilot = *shared
+        .status
+        .autopilot
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let header = MavHeader {
+        system_id: autopilot.map_or(1, |a| a.0).into(),
+        component_id: OWN_COMPONENT,
+        sequence: 0,
+    };
+    if autopilot.is_some() {
+        request_timesync(shared, c, header);
+    }
+    if s.beat.elapsed() >= Duration::from_secs(1) {
+        s.beat = Instant::now();
+        send_one(shared, c, header, &heartbeat());
+    }
+    let Some((system, component)) = autopilot else {
+        return;
+    };
+    let n = shared.status.attitudes.load(Ordering::Relaxed);
+    let rate = (n - s.counted.1) as f64 / s.counted.0.elapsed().as_secs_f64().max(1e-3);
+    if s.counted.0.elapsed() >= Duration::from_secs(5) {
+        s.counted = (Instant::now(), n);
+    }
+    let due = s.asked.is_none_or(|t| {
+        t.elapsed() >= Duration::from_secs(10) && rate < shared.cfg.attitude_hz / 2.0
+    });
+    if due {
+        s.asked = Some(Instant::now());
+        for (id, hz) in [(30, shared.cfg.attitude_hz), (33, shared.cfg.position_hz)] {
+            send_one(
+                shared,
+                c,
+                header,
+                &message_interval(system, component, id, hz),
+            );
         }
+    }
+}
+
+/// Reports the attitude going stale (none for [`STALE`]) and coming again.
+fn watch_staleness(shared: &Shared, lost: &mut bool) {
+    let newest = shared.status.attitude_us.load(Ordering::Relaxed);
+    let stale = newest != 0 && clock_us().saturating_sub(newest) > STALE.as_micros() as u64;
+    if stale == *lost {
+        return;
+    }
+    *lost = stale;
+    shared.report.set_attitude_lost(stale);
+    if stale {
+        warn!(
+            "mavlink: no attitude for {} ms: the views hold the last one",
+            STALE.as_millis()
+        );
+    } else {
+        info!("mavlink: attitude again");
     }
 }
 

@@ -37,6 +37,34 @@ fn normalized(v: &[f32]) -> bool {
     v.iter().all(|x| (0.0..=1.0).contains(x))
 }
 
+/// What a track command clicked in the camera's picture (0..1 from its top left): its shape,
+/// centre and two corners (a point's at its radius either side), or why it is no click.
+fn clicked(cmd: &Command) -> Result<(Shape, DVec2, [DVec2; 2]), String> {
+    let p = &cmd.params;
+    if cmd.command == MavCmd::MAV_CMD_CAMERA_TRACK_POINT {
+        // MAVSDK and others leave the radius NaN when they have none.
+        let radius = if p[2].is_nan() { 0.0 } else { p[2] };
+        if !normalized(&[p[0], p[1], radius]) {
+            return Err(format!("track point ({}, {}) radius {}", p[0], p[1], p[2]));
+        }
+        let r = radius as f64;
+        let (x, y) = (p[0] as f64, p[1] as f64);
+        let corners = [DVec2::new(x - r, y), DVec2::new(x + r, y)];
+        return Ok((Shape::Point, DVec2::new(x, y), corners));
+    }
+    if !normalized(&p[..4]) || p[0] >= p[2] || p[1] >= p[3] {
+        return Err(format!(
+            "track rectangle ({}, {}) to ({}, {})",
+            p[0], p[1], p[2], p[3]
+        ));
+    }
+    let (a, b) = (
+        DVec2::new(p[0] as f64, p[1] as f64),
+        DVec2::new(p[2] as f64, p[3] as f64),
+    );
+    Ok((Shape::Rectangle, (a + b) / 2.0, [a, b]))
+}
+
 impl Cameras {
     /// CAMERA_TRACK_POINT (x, y, radius), CAMERA_TRACK_RECTANGLE (top left x, y, bottom
     /// right x, y) and CAMERA_STOP_TRACKING for camera `i`.
@@ -46,56 +74,24 @@ impl Cameras {
         i: usize,
         cmd: &Command,
     ) -> Answer {
-        use MavCmd::*;
-        let p = &cmd.params;
         if let Err(e) = self.in_control(from, i) {
             return Answer::denied(e);
         }
-        let (shape, centre, corners) = match cmd.command {
-            MAV_CMD_CAMERA_STOP_TRACKING => {
-                return match self.gate.steer(i, Op::StopFollowing) {
-                    Ok(()) => Answer::accepted(vec![self.tracking_image_status(&self.state(), i)]),
-                    Err(e) => Answer::denied(e),
-                };
-            }
-            MAV_CMD_CAMERA_TRACK_POINT => {
-                // MAVSDK and others leave the radius NaN when they have none.
-                let radius = if p[2].is_nan() { 0.0 } else { p[2] };
-                if !normalized(&[p[0], p[1], radius]) {
-                    return Answer::denied(format!(
-                        "track point ({}, {}) radius {}",
-                        p[0], p[1], p[2]
-                    ));
-                }
-                let r = radius as f64;
-                let (x, y) = (p[0] as f64, p[1] as f64);
-                (
-                    Shape::Point,
-                    DVec2::new(x, y),
-                    [DVec2::new(x - r, y), DVec2::new(x + r, y)],
-                )
-            }
-            MAV_CMD_CAMERA_TRACK_RECTANGLE => {
-                if !normalized(&p[..4]) || p[0] >= p[2] || p[1] >= p[3] {
-                    return Answer::denied(format!(
-                        "track rectangle ({}, {}) to ({}, {})",
-                        p[0], p[1], p[2], p[3]
-                    ));
-                }
-                let (a, b) = (
-                    DVec2::new(p[0] as f64, p[1] as f64),
-                    DVec2::new(p[2] as f64, p[3] as f64),
-                );
-                (Shape::Rectangle, (a + b) / 2.0, [a, b])
-            }
-            _ => unreachable!("only the tracking commands come here"),
+        if cmd.command == MavCmd::MAV_CMD_CAMERA_STOP_TRACKING {
+            return match self.gate.steer(i, Op::StopFollowing) {
+                Ok(()) => Answer::accepted(vec![self.tracking_image_status(&self.state(), i)]),
+                Err(e) => Answer::denied(e),
+            };
+        }
+        let (shape, centre, corners) = match clicked(cmd) {
+            Ok(c) => c,
+            Err(why) => return Answer::denied(why),
         };
         let snapshot = self.state();
-        let rays = match self.picture_rays(&snapshot, i, centre, corners) {
+        let (ray, a, b) = match self.picture_rays(&snapshot, i, centre, corners) {
             Ok(r) => r,
             Err(e) => return Answer::denied(e),
         };
-        let (ray, a, b) = rays;
         let size = match shape {
             Shape::Point => a.angle_between(b),
             // The larger side: the corners' rays span the diagonal.

@@ -6,7 +6,7 @@
 use super::readout_args::ReadoutArgs;
 use super::{Backend, StateArgs, spinner};
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
-use crate::lens::{LensCal, Lenses};
+use crate::lens::{Lens, LensCal, Lenses};
 use crate::render::gpu::{Gpu, OutputId, Renderer, StageTimes};
 use crate::render::{Filter, FramePlan, cpu};
 use crate::scene::GridWorld;
@@ -144,29 +144,53 @@ fn attitude_at(base: &State, i: u32) -> State {
     s
 }
 
+/// Four detections, so the overlay's tiles are drawn, not left black.
+fn four_objects() -> Vec<Tracked> {
+    (0..4)
+        .map(|i| Tracked {
+            id: i,
+            yaw: (50.0 * i as f64 - 75.0).to_radians(),
+            pitch: (-40.0f64).to_radians(),
+            size: 10f64.to_radians(),
+            score: 90,
+            ..Tracked::default()
+        })
+        .collect()
+}
+
+/// Every frame's plan, built up front (as the video head builds one per frame) and timed;
+/// with `--views`, each frame's views alone too.
+fn plans(
+    args: &BenchArgs,
+    base: &State,
+    lens: &Lens,
+) -> Result<(Vec<FramePlan>, Vec<Vec<FramePlan>>, f64)> {
+    let (mut plans, mut view_plans, mut times) = (vec![], vec![], vec![]);
+    for i in 0..args.warmup + args.frames {
+        let t = Instant::now();
+        let state = attitude_at(base, i);
+        plans.push(FramePlan::new(&state, lens)?.with_shutter(args.readout.table(&state, lens)));
+        times.push(ms(t.elapsed()));
+        let (w, h) = args.view_size;
+        view_plans.push(
+            (0..args.views as usize)
+                .map(|v| FramePlan::single_view(&state, lens, v, w, h))
+                .collect::<Vec<_>>(),
+        );
+    }
+    Ok((plans, view_plans, median(times)))
+}
+
 pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
     if args.frames == 0 {
         bail!("--frames must be at least 1");
     }
     let mut base = args.state.state(cal)?;
     if base.tracked.is_empty() {
-        // Four detections so the overlay's tiles are drawn, not left black.
-        base.tracked = (0..4)
-            .map(|i| Tracked {
-                id: i,
-                yaw: (50.0 * i as f64 - 75.0).to_radians(),
-                pitch: (-40.0f64).to_radians(),
-                size: 10f64.to_radians(),
-                score: 90,
-                ..Tracked::default()
-            })
-            .collect();
+        base.tracked = four_objects();
     }
-    let lens = Lenses::new(cal).for_frame(
-        base.settings.lens,
-        args.input_size,
-        base.settings.sensor.roi(),
-    )?;
+    let settings = &base.settings;
+    let lens = Lenses::new(cal).for_frame(settings.lens, args.input_size, settings.sensor.roi())?;
     let input_layout = PlaneLayout::tight(args.input_format, args.input_size.0, args.input_size.1)?;
     let bar = spinner(&format!(
         "synthesising the {}x{} fisheye input",
@@ -175,49 +199,36 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
     let fish = fisheye(&GridWorld::default(), &lens, &base);
     let input = yuv::encode(&fish, &input_layout);
     bar.finish_and_clear();
-    let total = args.warmup + args.frames;
-    // Every frame's plan, built up front (as the video head builds one per frame) and timed.
-    let mut plan_times = vec![];
-    let mut plans = vec![];
-    // With --views, each frame's views alone too.
-    let mut view_plans = vec![];
-    for i in 0..total {
-        let t = Instant::now();
-        let state = attitude_at(&base, i);
-        plans.push(FramePlan::new(&state, &lens)?.with_shutter(args.readout.table(&state, &lens)));
-        plan_times.push(ms(t.elapsed()));
-        let (w, h) = args.view_size;
-        view_plans.push(
-            (0..args.views as usize)
-                .map(|v| FramePlan::single_view(&state, &lens, v, w, h))
-                .collect::<Vec<_>>(),
-        );
-    }
+    let (plans, view_plans, plan_ms) = plans(&args, &base, &lens)?;
     let measured = match args.backend {
         Backend::Gpu => bench_gpu(&args, &input, &input_layout, &plans, &view_plans)?,
         Backend::Cpu => bench_cpu(&args, &fish, &plans),
     };
+    let output = &base.settings.output;
     let report = Report {
         measured,
         input: format!(
             "{}x{} {}",
             args.input_size.0, args.input_size.1, args.input_format
         ),
-        output: format!(
-            "{}x{} {}",
-            base.settings.output.width, base.settings.output.height, args.output_format
-        ),
-        layout: base.settings.output.layout.code(),
-        overlay: base.settings.output.overlay.code(),
+        output: format!("{}x{} {}", output.width, output.height, args.output_format),
+        layout: output.layout.code(),
+        overlay: output.overlay.code(),
         filter: args.filter,
         frames: args.frames,
-        plan_ms: median(plan_times),
+        plan_ms,
         readout_ms: args.readout.readout_ms,
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
+    } else {
+        print_table(&report);
     }
+    Ok(())
+}
+
+/// The report as a table.
+fn print_table(report: &Report) {
     let r = &report.measured;
     println!("adapter      {} ({})", r.adapter, r.backend);
     println!(
@@ -251,7 +262,6 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
             v.count, v.size, v.shared_ms, v.alone_ms
         );
     }
-    Ok(())
 }
 
 fn progress(n: u32, what: &str) -> indicatif::ProgressBar {

@@ -117,39 +117,9 @@ pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
         (None, Some(dir)) => (Pictures::images(dir)?, dir),
         (None, None) => bail!("give the frames: --video FILE or --images DIR"),
     };
-    let finder = Finder::new(args.board);
-    let Found {
-        frames,
-        without,
-        looked,
-        size,
-    } = find_all(pictures, &finder)?;
-    let corners: Vec<_> = frames
-        .iter()
-        .flat_map(|f| f.image.iter().copied())
-        .collect();
-    eprintln!(
-        "board found in {} of {looked} frames ({} corners)",
-        frames.len(),
-        corners.len()
-    );
-    if !without.is_empty() {
-        let shown = without.len().min(20);
-        eprintln!(
-            "no board in {} frames: {}{}",
-            without.len(),
-            without[..shown].join(", "),
-            if shown < without.len() { ", …" } else { "" }
-        );
-    }
-    let chosen = select::spread(&frames, size, args.max_frames as usize);
-    if chosen.len() < frames.len() {
-        eprintln!(
-            "fitting {} of them, chosen to spread over the image (--max-frames)",
-            chosen.len()
-        );
-    }
-    let frames: Vec<Frame> = chosen.into_iter().map(|i| frames[i].clone()).collect();
+    let found = find_all(pictures, &Finder::new(args.board))?;
+    let size = found.size;
+    let frames = chosen(found, args.max_frames as usize);
     let corners: Vec<_> = frames
         .iter()
         .flat_map(|f| f.image.iter().copied())
@@ -180,8 +150,47 @@ pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
     );
     let a = &args.entry;
     let e = entry(&got, &a.name, a.id, size, a.fov, &today(), source)?;
-    let lens = e.lens();
-    let (covered, widest) = coverage(&lens, &corners);
+    warn_coverage(&e.lens(), &corners);
+    output_entry(flag, &e, &args.entry)
+}
+
+/// The frames the board was found in, said, and those fitted: at most `max`, chosen to spread
+/// over the image.
+fn chosen(found: Found, max: usize) -> Vec<Frame> {
+    let Found {
+        frames,
+        without,
+        looked,
+        size,
+    } = found;
+    let corners: usize = frames.iter().map(|f| f.image.len()).sum();
+    eprintln!(
+        "board found in {} of {looked} frames ({corners} corners)",
+        frames.len()
+    );
+    if !without.is_empty() {
+        let shown = without.len().min(20);
+        eprintln!(
+            "no board in {} frames: {}{}",
+            without.len(),
+            without[..shown].join(", "),
+            if shown < without.len() { ", …" } else { "" }
+        );
+    }
+    let chosen = select::spread(&frames, size, max);
+    if chosen.len() < frames.len() {
+        eprintln!(
+            "fitting {} of them, chosen to spread over the image (--max-frames)",
+            chosen.len()
+        );
+    }
+    chosen.into_iter().map(|i| frames[i].clone()).collect()
+}
+
+/// Warns where the board's corners leave the lens's circle uncovered: beyond the widest angle
+/// they reach (extrapolated), and each third of the circle's sectors with none.
+fn warn_coverage(lens: &crate::lens::Lens, corners: &[glam::DVec2]) {
+    let (covered, widest) = coverage(lens, corners);
     eprintln!(
         "the corners reach {:.1}° from the axis, of the {:.1}° the entry is valid to",
         widest.to_degrees(),
@@ -210,7 +219,6 @@ pub fn run(flag: Option<&Path>, args: CalibrateArgs) -> Result<()> {
             );
         }
     }
-    output_entry(flag, &e, &args.entry)
 }
 
 /// A fitted model's own coefficients, as lens.cal names them.

@@ -104,64 +104,18 @@ pub fn run(args: CtlArgs) -> Result<()> {
                 print_param(&p, json);
             }
         }
-        Action::Set { param, fields } => {
-            if fields.is_empty() {
-                bail!("nothing to set: give field=value pairs (see `digiview ctl params {param}`)");
-            }
-            let kind = param_type(&param)?;
-            let current = if reads_first(kind, &fields) {
-                let cam = cam_of(kind, &fields)?;
-                // Unnamed fields keep their values: read them first. A refusal here is the
-                // SET's refusal (a cam_id out of range), so it says SET.
-                let read = client.get_one(query(kind, cam)).map_err(|e| match e {
-                    ClientError::Refused {
-                        verdict, reason, ..
-                    } => ClientError::Refused {
-                        request: format!("SET {kind}"),
-                        verdict,
-                        reason,
-                    },
-                    e => e,
-                });
-                Some(read?)
-            } else {
-                None
-            };
-            let p = build(&param, &fields, current)?;
-            client.set(p)?;
-            if json {
-                println!(
-                    "{}",
-                    serde_json::json!({"param": kind.name(), "result": "ACKNOWLEDGEMENT"})
-                );
-            } else {
-                println!("{kind}: set");
-            }
-        }
+        Action::Set { param, fields } => set(&mut client, &param, &fields, json)?,
         Action::Watch {
             param,
             fields,
             interval,
             count,
-        } => {
-            let q = build(&param, &fields, None)?;
-            let mut last = None;
-            let mut printed = 0;
-            loop {
-                let now = client.get(q)?;
-                if last.as_ref() != Some(&now) {
-                    for p in &now {
-                        print_param(p, json);
-                    }
-                    printed += 1;
-                    last = Some(now);
-                    if count.is_some_and(|c| printed >= c) {
-                        break;
-                    }
-                }
-                std::thread::sleep(interval);
-            }
-        }
+        } => watch(
+            &mut client,
+            build(&param, &fields, None)?,
+            (interval, count),
+            json,
+        )?,
         Action::Quit => {
             client.quit()?;
             if !json {
@@ -176,6 +130,67 @@ pub fn run(args: CtlArgs) -> Result<()> {
         Action::Params { .. } | Action::Load { .. } => unreachable!("handled above"),
     }
     Ok(())
+}
+
+/// `ctl set`: the fields given over the parameter's current values where it has them (read
+/// first), so unnamed fields keep theirs.
+fn set(client: &mut Client, param: &str, fields: &[String], json: bool) -> Result<()> {
+    if fields.is_empty() {
+        bail!("nothing to set: give field=value pairs (see `digiview ctl params {param}`)");
+    }
+    let kind = param_type(param)?;
+    let current = if reads_first(kind, fields) {
+        let cam = cam_of(kind, fields)?;
+        // A refusal here is the SET's refusal (a cam_id out of range), so it says SET.
+        let read = client.get_one(query(kind, cam)).map_err(|e| match e {
+            ClientError::Refused {
+                verdict, reason, ..
+            } => ClientError::Refused {
+                request: format!("SET {kind}"),
+                verdict,
+                reason,
+            },
+            e => e,
+        });
+        Some(read?)
+    } else {
+        None
+    };
+    client.set(build(param, fields, current)?)?;
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({"param": kind.name(), "result": "ACKNOWLEDGEMENT"})
+        );
+    } else {
+        println!("{kind}: set");
+    }
+    Ok(())
+}
+
+/// `ctl watch`: the answer each time it changes, `count` times at most.
+fn watch(
+    client: &mut Client,
+    q: Param,
+    (interval, count): (Duration, Option<usize>),
+    json: bool,
+) -> Result<()> {
+    let mut last = None;
+    let mut printed = 0;
+    loop {
+        let now = client.get(q)?;
+        if last.as_ref() != Some(&now) {
+            for p in &now {
+                print_param(p, json);
+            }
+            printed += 1;
+            last = Some(now);
+            if count.is_some_and(|c| printed >= c) {
+                return Ok(());
+            }
+        }
+        std::thread::sleep(interval);
+    }
 }
 
 fn param_type(name: &str) -> Result<ParamType> {

@@ -2,10 +2,10 @@
 
 use super::lens_entry::{EntryArgs, output_entry};
 use super::locate;
-use crate::lens::LensEntry;
 use crate::lens::calibrate::Board;
 use crate::lens::check::check;
 use crate::lens::import::{Format, ImportOptions, import};
+use crate::lens::{LensCal, LensEntry};
 use crate::units::deg;
 use anyhow::{Result, anyhow, bail};
 use clap::Subcommand;
@@ -104,82 +104,10 @@ fn draw_board(board: &Board, out: &Path, dpi: f64) -> Result<()> {
 
 pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
     match cmd {
-        LensCommand::Board { board, out, dpi } => draw_board(&board, &out, dpi)?,
-        LensCommand::List => {
-            let (cal, _) = locate::lens_cal(flag)?;
-            println!(
-                "{:<10} {:>3}  {:<15} {:>10} {:>10} {:>9}  provenance",
-                "name", "id", "model", "frame", "fov", "circle"
-            );
-            for e in &cal.entries {
-                let lens = e.lens();
-                println!(
-                    "{:<10} {:>3}  {:<15} {:>10} {:>10} {:>7.1}px  {}",
-                    e.name,
-                    e.lens_id,
-                    e.model.name(),
-                    format!("{}x{}", e.width, e.height),
-                    deg(lens.fov()),
-                    lens.circle_radius(),
-                    e.provenance.kind
-                );
-            }
-        }
-        LensCommand::Show { lens } => {
-            let (cal, _) = locate::lens_cal(flag)?;
-            let e = cal.find(&lens)?;
-            let l = e.lens();
-            println!(
-                "# {} (lens_id {}), {}:{}",
-                e.name,
-                e.lens_id,
-                cal.path.display(),
-                e.line
-            );
-            println!(
-                "# model {}, valid fov {}, model limit {}",
-                e.model.name(),
-                deg(l.fov()),
-                deg(2.0 * l.radial.limits.theta_max)
-            );
-            println!(
-                "# image circle radius {:.1} px about ({:.1}, {:.1})",
-                l.circle_radius(),
-                l.centre().x,
-                l.centre().y
-            );
-            println!(
-                "# {:.1} px per degree at the centre",
-                l.pixels_per_radian(0.0).to_radians()
-            );
-            print!("{}", e.to_toml());
-        }
-        LensCommand::Check { lenses } => {
-            let (cal, _) = locate::lens_cal(flag)?;
-            let chosen: Vec<&LensEntry> = if lenses.is_empty() {
-                cal.entries.iter().collect()
-            } else {
-                lenses
-                    .iter()
-                    .map(|n| cal.find(n))
-                    .collect::<Result<_, _>>()?
-            };
-            let mut failures = 0;
-            for e in chosen {
-                for f in check(e) {
-                    println!(
-                        "{:<10} {}  {}",
-                        e.name,
-                        if f.ok { "ok  " } else { "FAIL" },
-                        f.what
-                    );
-                    failures += usize::from(!f.ok);
-                }
-            }
-            if failures > 0 {
-                bail!("{failures} check(s) failed");
-            }
-        }
+        LensCommand::Board { board, out, dpi } => draw_board(&board, &out, dpi),
+        LensCommand::List => list(&locate::lens_cal(flag)?.0),
+        LensCommand::Show { lens } => show(&locate::lens_cal(flag)?.0, &lens),
+        LensCommand::Check { lenses } => check_all(&locate::lens_cal(flag)?.0, &lenses),
         LensCommand::Import {
             file,
             format,
@@ -193,9 +121,89 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
                 camera: camera.as_deref(),
             };
             let entry = import(&file, format, &opts)?;
-            output_entry(flag, &entry, &args)?;
+            output_entry(flag, &entry, &args)
         }
-        LensCommand::Calibrate(args) => super::calibrate_cmd::run(flag, args)?,
+        LensCommand::Calibrate(args) => super::calibrate_cmd::run(flag, args),
+    }
+}
+
+/// `lens list`: one line a lens.
+fn list(cal: &LensCal) -> Result<()> {
+    println!(
+        "{:<10} {:>3}  {:<15} {:>10} {:>10} {:>9}  provenance",
+        "name", "id", "model", "frame", "fov", "circle"
+    );
+    for e in &cal.entries {
+        let lens = e.lens();
+        println!(
+            "{:<10} {:>3}  {:<15} {:>10} {:>10} {:>7.1}px  {}",
+            e.name,
+            e.lens_id,
+            e.model.name(),
+            format!("{}x{}", e.width, e.height),
+            deg(lens.fov()),
+            lens.circle_radius(),
+            e.provenance.kind
+        );
+    }
+    Ok(())
+}
+
+/// `lens show`: the entry as lens.cal holds it, with what it works out to.
+fn show(cal: &LensCal, lens: &str) -> Result<()> {
+    let e = cal.find(lens)?;
+    let l = e.lens();
+    println!(
+        "# {} (lens_id {}), {}:{}",
+        e.name,
+        e.lens_id,
+        cal.path.display(),
+        e.line
+    );
+    println!(
+        "# model {}, valid fov {}, model limit {}",
+        e.model.name(),
+        deg(l.fov()),
+        deg(2.0 * l.radial.limits.theta_max)
+    );
+    println!(
+        "# image circle radius {:.1} px about ({:.1}, {:.1})",
+        l.circle_radius(),
+        l.centre().x,
+        l.centre().y
+    );
+    println!(
+        "# {:.1} px per degree at the centre",
+        l.pixels_per_radian(0.0).to_radians()
+    );
+    print!("{}", e.to_toml());
+    Ok(())
+}
+
+/// `lens check`: every check of the lenses named (all of them by default), one line each.
+fn check_all(cal: &LensCal, lenses: &[String]) -> Result<()> {
+    let chosen: Vec<&LensEntry> = if lenses.is_empty() {
+        cal.entries.iter().collect()
+    } else {
+        lenses
+            .iter()
+            .map(|n| cal.find(n))
+            .collect::<Result<_, _>>()?
+    };
+    let mut failures = 0;
+    for e in chosen {
+        for f in check(e) {
+            println!(
+                "{:<10} {}  {}",
+                e.name,
+                if f.ok { "ok  " } else { "FAIL" },
+                f.what
+            );
+            failures += usize::from(!f.ok);
+        }
+    }
+    if failures > 0 {
+        bail!("{failures} check(s) failed");
     }
     Ok(())
 }

@@ -222,49 +222,37 @@ fn first_capture(job: &VideoJob, given: Option<f64>, length: Option<Duration>) -
     Ok(since.as_micros() as u64)
 }
 
-pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> {
+/// The input as a source: an image sequence (a `%d` pattern) or a video file.
+fn source_spec(job: &VideoJob) -> Result<SourceSpec> {
     let text = job.input.to_string_lossy().to_string();
-    let spec = if text.contains('%') {
-        SourceSpec::Sequence(text)
-    } else {
-        if job.input.is_dir() {
-            bail!(
-                "{} is a directory; give a video file or an image sequence such as {}/%05d.png",
-                job.input.display(),
-                job.input.display()
-            );
-        }
-        if !job.input.is_file() {
-            bail!("{}: no such file", job.input.display());
-        }
-        SourceSpec::File(job.input.clone())
+    if text.contains('%') {
+        return Ok(SourceSpec::Sequence(text));
+    }
+    if job.input.is_dir() {
+        bail!(
+            "{} is a directory; give a video file or an image sequence such as {}/%05d.png",
+            job.input.display(),
+            job.input.display()
+        );
+    }
+    if !job.input.is_file() {
+        bail!("{}: no such file", job.input.display());
+    }
+    Ok(SourceSpec::File(job.input.clone()))
+}
+
+/// A sequence's length: its files, counted from 0 until one is missing.
+fn sequence_length(spec: &SourceSpec, fps: u32) -> Option<Duration> {
+    let SourceSpec::Sequence(p) = spec else {
+        return None;
     };
-    let mut target = Some(Target::new(job)?);
-    let interrupted = output::interrupted();
-    let mut frames = FileFrames::open(&spec, job.input_fps)?;
-    let duration = frames.duration().or_else(|| match &spec {
-        // A sequence's length: its files, counted from 0 until one is missing.
-        SourceSpec::Sequence(p) => {
-            let n = (0..)
-                .take_while(|&i| numbered(p, i).is_ok_and(|f| Path::new(&f).is_file()))
-                .count();
-            Some(Duration::from_secs_f64(n as f64 / job.input_fps as f64))
-        }
-        _ => None,
-    });
-    let klv = match job.klv {
-        Some((cam, start)) => Some((cam, first_capture(job, start, duration)?)),
-        None => None,
-    };
-    let out_format = if job.out.to_string_lossy().contains('%') {
-        PixelFormat::Rgba
-    } else {
-        PixelFormat::I420
-    };
-    let lenses = Lenses::new(cal);
-    let gpu = Gpu::new()?;
-    let mut renderer = Renderer::new(&gpu, out_format, job.filter)?;
-    renderer.fixed_view_kinds();
+    let n = (0..)
+        .take_while(|&i| numbered(p, i).is_ok_and(|f| Path::new(&f).is_file()))
+        .count();
+    Some(Duration::from_secs_f64(n as f64 / fps as f64))
+}
+
+fn progress_bar(duration: Option<Duration>) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(duration.map_or(0, |d| d.as_millis() as u64));
     bar.set_style(
         indicatif::ProgressStyle::with_template(
@@ -273,33 +261,157 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         .expect("valid template")
         .progress_chars("=> "),
     );
-    let started = Instant::now();
-    let mut sink: Option<Sink> = None;
-    let mut plan: Option<((u32, u32), FramePlan)> = None;
-    let mut times: VecDeque<Duration> = VecDeque::new();
-    let mut count = 0u64;
-    let mut last = None;
+    bar
+}
+
+/// A render under way: the frames pushed and not yet out (their times), where they go, the
+/// plan for the input's size, and what was done.
+struct Run<'a> {
+    state: &'a State,
+    job: &'a VideoJob,
+    lenses: Lenses,
+    renderer: Renderer,
+    /// Where the frames go, once the first frame gave the rate.
+    target: Option<Target>,
+    sink: Option<Sink>,
+    plan: Option<((u32, u32), FramePlan)>,
+    times: VecDeque<Duration>,
+    /// KLV with every frame: its camera and the first frame's capture time (µs, UNIX).
+    klv: Option<(usize, u64)>,
+    count: u64,
+    /// The last frame's time and the input's rate then.
+    last: Option<(Duration, f64)>,
+    started: Instant,
+    bar: indicatif::ProgressBar,
+}
+
+impl Run<'_> {
+    /// Renders one frame (pipelined: what comes out is the one before).
+    fn frame(&mut self, frame: crate::frame::Frame, pts: Duration, fps: Option<f64>) -> Result<()> {
+        let (state, job) = (self.state, self.job);
+        self.last = Some((pts, fps.unwrap_or(job.input_fps as f64)));
+        let size = (frame.layout.width, frame.layout.height);
+        if self.plan.as_ref().is_none_or(|(s, _)| *s != size) {
+            let settings = &state.settings;
+            let lens = self
+                .lenses
+                .for_frame(settings.lens, size, settings.sensor.roi())?;
+            self.plan = Some((size, FramePlan::new(state, &lens)?));
+        }
+        if let Some(t) = self.target.take() {
+            self.sink = Some(Sink::open(t, job, fps.unwrap_or(job.input_fps as f64))?);
+        }
+        let (_, p) = self.plan.as_ref().expect("planned above");
+        self.times.push_back(pts);
+        if let Some(done) = self.renderer.push(&frame.data, &frame.layout, p)? {
+            let t = self.times.pop_front().unwrap_or_default();
+            let packet = self.klv.and_then(|k| klv_packet(p, state, k, t));
+            self.sink
+                .as_mut()
+                .expect("opened above")
+                .write(done, t, packet)?;
+        }
+        self.count += 1;
+        self.bar.set_position(pts.as_millis() as u64);
+        let rate = self.count as f64 / self.started.elapsed().as_secs_f64();
+        self.bar
+            .set_message(format!("{} frames, {rate:.1} fps", self.count));
+        Ok(())
+    }
+
+    /// Ctrl-C: an image sequence keeps every frame counted (the one in the pipeline written
+    /// too); a video is not written.
+    fn interrupted(mut self) -> Result<()> {
+        self.bar.finish_and_clear();
+        let (count, out) = (self.count, self.job.out.display());
+        let Some(images @ Sink::Images(_)) = &mut self.sink else {
+            bail!("interrupted after {count} frames: {out} was not written")
+        };
+        while let Some(done) = self.renderer.flush()? {
+            let t = self.times.pop_front().unwrap_or_default();
+            images.write(done, t, None)?;
+        }
+        bail!("interrupted after {count} frames; the frames rendered so far are in {out}")
+    }
+
+    /// The frames still in the pipeline written, the output closed, and what was done said;
+    /// an input shorter than its container announces is an error once its frames are kept.
+    fn finish(mut self, duration: Option<Duration>) -> Result<()> {
+        let (state, job, count) = (self.state, self.job, self.count);
+        let Some(mut sink) = self.sink.take() else {
+            bail!("{}: no frames", job.input.display());
+        };
+        while let Some(done) = self.renderer.flush()? {
+            let t = self.times.pop_front().unwrap_or_default();
+            let packet = match (self.klv, &self.plan) {
+                (Some(k), Some((_, p))) => klv_packet(p, state, k, t),
+                _ => None,
+            };
+            sink.write(done, t, packet)?;
+        }
+        sink.finish()?;
+        self.bar.finish_and_clear();
+        let secs = self.started.elapsed().as_secs_f64();
+        let out = &state.settings.output;
+        eprintln!(
+            "wrote {}: {count} frames ({}x{}) in {secs:.1} s, {:.1} fps",
+            job.out.display(),
+            out.width,
+            out.height,
+            count as f64 / secs
+        );
+        if let (Some(length), Some((pts, fps))) = (duration, self.last) {
+            let end = pts.as_secs_f64() + 1.0 / fps;
+            if end + 1.0 / fps < length.as_secs_f64() {
+                bail!(
+                    "{} ended at {end:.2} s of the {:.2} s its container announces (truncated \
+                     or damaged?); the {count} frames decoded were rendered to {}",
+                    job.input.display(),
+                    length.as_secs_f64(),
+                    job.out.display()
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> {
+    let spec = source_spec(job)?;
+    let target = Some(Target::new(job)?);
+    let interrupted = output::interrupted();
+    let mut frames = FileFrames::open(&spec, job.input_fps)?;
+    let duration = frames
+        .duration()
+        .or_else(|| sequence_length(&spec, job.input_fps));
+    let klv = match job.klv {
+        Some((cam, start)) => Some((cam, first_capture(job, start, duration)?)),
+        None => None,
+    };
+    let out_format = match job.out.to_string_lossy().contains('%') {
+        true => PixelFormat::Rgba,
+        false => PixelFormat::I420,
+    };
+    let mut renderer = Renderer::new(&Gpu::new()?, out_format, job.filter)?;
+    renderer.fixed_view_kinds();
+    let mut run = Run {
+        state,
+        job,
+        lenses: Lenses::new(cal),
+        renderer,
+        target,
+        sink: None,
+        plan: None,
+        times: VecDeque::new(),
+        klv,
+        count: 0,
+        last: None,
+        started: Instant::now(),
+        bar: progress_bar(duration),
+    };
     loop {
         if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
-            bar.finish_and_clear();
-            match &mut sink {
-                Some(images @ Sink::Images(_)) => {
-                    // The frame still in the pipeline is written too: every frame counted
-                    // is on disk.
-                    while let Some(done) = renderer.flush()? {
-                        let t = times.pop_front().unwrap_or_default();
-                        images.write(done, t, None)?;
-                    }
-                    bail!(
-                        "interrupted after {count} frames; the frames rendered so far are in {}",
-                        job.out.display()
-                    )
-                }
-                _ => bail!(
-                    "interrupted after {count} frames: {} was not written",
-                    job.out.display()
-                ),
-            }
+            return run.interrupted();
         }
         let next = frames
             .next_frame()
@@ -307,65 +419,9 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         let Some((frame, pts, fps)) = next else {
             break;
         };
-        last = Some((pts, fps.unwrap_or(job.input_fps as f64)));
-        let size = (frame.layout.width, frame.layout.height);
-        if plan.as_ref().is_none_or(|(s, _)| *s != size) {
-            let lens = lenses.for_frame(state.settings.lens, size, state.settings.sensor.roi())?;
-            plan = Some((size, FramePlan::new(state, &lens)?));
-        }
-        if let Some(t) = target.take() {
-            sink = Some(Sink::open(t, job, fps.unwrap_or(job.input_fps as f64))?);
-        }
-        let (_, p) = plan.as_ref().unwrap();
-        times.push_back(pts);
-        if let Some(done) = renderer.push(&frame.data, &frame.layout, p)? {
-            let t = times.pop_front().unwrap_or_default();
-            let packet = klv.and_then(|k| klv_packet(p, state, k, t));
-            sink.as_mut().unwrap().write(done, t, packet)?;
-        }
-        count += 1;
-        bar.set_position(pts.as_millis() as u64);
-        bar.set_message(format!(
-            "{count} frames, {:.1} fps",
-            count as f64 / started.elapsed().as_secs_f64()
-        ));
+        run.frame(frame, pts, fps)?;
     }
-    let Some(mut sink) = sink else {
-        bail!("{}: no frames", job.input.display());
-    };
-    while let Some(done) = renderer.flush()? {
-        let t = times.pop_front().unwrap_or_default();
-        let packet = match (klv, &plan) {
-            (Some(k), Some((_, p))) => klv_packet(p, state, k, t),
-            _ => None,
-        };
-        sink.write(done, t, packet)?;
-    }
-    sink.finish()?;
-    bar.finish_and_clear();
-    let secs = started.elapsed().as_secs_f64();
-    eprintln!(
-        "wrote {}: {count} frames ({}x{}) in {secs:.1} s, {:.1} fps",
-        job.out.display(),
-        state.settings.output.width,
-        state.settings.output.height,
-        count as f64 / secs
-    );
-    // A container that says it is longer than what decoded was cut short: the frames are
-    // kept, and the exit status says the input was not whole.
-    if let (Some(length), Some((pts, fps))) = (duration, last) {
-        let end = pts.as_secs_f64() + 1.0 / fps;
-        if end + 1.0 / fps < length.as_secs_f64() {
-            bail!(
-                "{} ended at {end:.2} s of the {:.2} s its container announces (truncated or \
-                 damaged?); the {count} frames decoded were rendered to {}",
-                job.input.display(),
-                length.as_secs_f64(),
-                job.out.display()
-            );
-        }
-    }
-    Ok(())
+    run.finish(duration)
 }
 
 #[cfg(test)]

@@ -122,7 +122,40 @@ impl Tracker {
     ) -> Vec<Change> {
         let limit = s.var_box_limit as usize;
         let found = suppress(found, s.var_confidence_threshold, s.var_box_overlap, limit);
-        // Pairs best first: same class, then overlap; each object and box used once.
+        let (object_found, used) = self.associate(&found, t);
+        let mut changes = vec![];
+        for (i, o) in self.objects.iter_mut().enumerate() {
+            match object_found[i] {
+                Some(j) => {
+                    let change = found_again(o, &found[j], t, s.bonus_detection_scale);
+                    changes.push(Change {
+                        why: Why::FoundByScan,
+                        ..change
+                    });
+                }
+                None if covered(&o.at(t)) => {
+                    changes.push(missed(o, s.missed_detection_penalty, Why::MissedByScan));
+                }
+                None => {}
+            }
+        }
+        // New objects: boxes no object took that overlap no object more than the scan allows.
+        for (j, d) in found.iter().enumerate() {
+            let duplicate = self
+                .objects
+                .iter()
+                .any(|o| o.score > 0 && o.bbox.overlap(&d.bbox) > s.var_box_overlap);
+            if !(used[j] || duplicate || s.creation_score_scale == 0) {
+                changes.push(self.create(d, s.creation_score_scale, t));
+            }
+        }
+        self.objects.retain(|o| o.score > 0);
+        changes
+    }
+
+    /// Which box each object is, if any, and which boxes an object took: pairs best first
+    /// (same class, then overlap), each object and box used once; then a second chance.
+    fn associate(&self, found: &[Detection], t: f64) -> (Vec<Option<usize>>, Vec<bool>) {
         let mut pairs: Vec<(usize, usize, (bool, f64))> = vec![];
         for (i, o) in self.objects.iter().enumerate() {
             for (j, d) in found.iter().enumerate() {
@@ -164,54 +197,31 @@ impl Tracker {
                 used[j] = true;
             }
         }
-        let mut changes = vec![];
-        for (i, o) in self.objects.iter_mut().enumerate() {
-            match object_found[i] {
-                Some(j) => {
-                    let change = found_again(o, &found[j], t, s.bonus_detection_scale);
-                    changes.push(Change {
-                        why: Why::FoundByScan,
-                        ..change
-                    });
-                }
-                None if covered(&o.at(t)) => {
-                    changes.push(missed(o, s.missed_detection_penalty, Why::MissedByScan));
-                }
-                None => {}
-            }
+        (object_found, used)
+    }
+
+    /// A new object where box `d` is, at the creation score.
+    fn create(&mut self, d: &Detection, creation: u8, t: f64) -> Change {
+        let score = creation.min(MAX_SCORE);
+        let id = self.next_id;
+        self.next_id += 1;
+        self.objects.push(Object {
+            id,
+            bbox: d.bbox,
+            class: d.class,
+            confidence: d.confidence,
+            score,
+            born: t,
+            seen: t,
+            velocity: d.velocity.unwrap_or(DVec3::ZERO),
+            trail: vec![(t, d.bbox.centre)],
+        });
+        Change {
+            id,
+            why: Why::Created,
+            from: 0,
+            to: score,
         }
-        // New objects: boxes no object took that overlap no object more than the scan allows.
-        for (j, d) in found.iter().enumerate() {
-            let duplicate = self
-                .objects
-                .iter()
-                .any(|o| o.score > 0 && o.bbox.overlap(&d.bbox) > s.var_box_overlap);
-            if used[j] || duplicate || s.creation_score_scale == 0 {
-                continue;
-            }
-            let score = s.creation_score_scale.min(MAX_SCORE);
-            let id = self.next_id;
-            self.next_id += 1;
-            self.objects.push(Object {
-                id,
-                bbox: d.bbox,
-                class: d.class,
-                confidence: d.confidence,
-                score,
-                born: t,
-                seen: t,
-                velocity: d.velocity.unwrap_or(DVec3::ZERO),
-                trail: vec![(t, d.bbox.centre)],
-            });
-            changes.push(Change {
-                id,
-                why: Why::Created,
-                from: 0,
-                to: score,
-            });
-        }
-        self.objects.retain(|o| o.score > 0);
-        changes
     }
 
     /// An object pointed at (a ground station's click), at full score, where `bbox` is

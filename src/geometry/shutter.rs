@@ -58,6 +58,11 @@ pub struct Readout {
     pub timestamp: StampRow,
 }
 
+/// A readout time that is no number or outside 0..=[`MAX_READOUT_MS`].
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("readout time_ms {0:?} is outside 0..={MAX_READOUT_MS} ms")]
+pub struct BadReadout(pub f64);
+
 impl Readout {
     /// A readout of `time_ms` top to bottom, stamped at its start.
     pub fn top_to_bottom(time_ms: f64) -> Readout {
@@ -73,13 +78,10 @@ impl Readout {
     }
 
     /// Refuses a readout that is not a number or is outside 0..=[`MAX_READOUT_MS`].
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), BadReadout> {
         match self.time_ms.is_finite() && (0.0..=MAX_READOUT_MS).contains(&self.time_ms) {
             true => Ok(()),
-            false => Err(format!(
-                "readout time_ms {:?} is outside 0..={MAX_READOUT_MS} ms",
-                self.time_ms
-            )),
+            false => Err(BadReadout(self.time_ms)),
         }
     }
 
@@ -260,7 +262,7 @@ mod tests {
     #[test]
     fn a_readout_that_is_not_a_number_of_milliseconds_in_range_is_refused() {
         for bad in [-1.0, 100.5, f64::NAN, f64::INFINITY, 1e300] {
-            let e = Readout::top_to_bottom(bad).check().unwrap_err();
+            let e = Readout::top_to_bottom(bad).check().unwrap_err().to_string();
             assert!(e.contains("time_ms") && e.contains("0..=100"), "{e}");
         }
         for good in [0.0, 25.0, 100.0] {

@@ -126,7 +126,7 @@ impl Head {
     }
 
     /// The frame loop's new frame: measured in the image circle, and with DigiView's auto
-    /// exposure on, the next exposure and gain written to the live state.
+    /// exposure on, the next exposure and gain written to the settings.
     pub(super) fn observe_exposure(&self, frame: &Frame, state: &State) {
         let stage = &self.exposure;
         let s = &state.settings.sensor;

@@ -47,6 +47,36 @@ struct Rendered {
     shutter: Option<ShutterTable>,
 }
 
+/// What the frame loop keeps from one frame to the next.
+struct Looping {
+    renderer: Renderer,
+    views: ViewOutputs,
+    scans: super::detection::ScanRenderer,
+    encoder: Encoder,
+    start: Instant,
+    pacer: Pacer,
+    last_frame: Option<Frame>,
+    /// The settings and objects of the last frame rendered.
+    shown: Option<(Arc<Settings>, Arc<Vec<Tracked>>)>,
+    /// The status last reported: None idle, Some(running or not).
+    healthy: Option<bool>,
+    /// Frames the source replaced in the slot before they were taken, as of the last take.
+    replaced_then: u64,
+}
+
+/// A frame due out: the state it is drawn with, its presentation time, when the frame loop
+/// took it, whether the source is live, and a fresh frame's stamps.
+struct Turn {
+    state: State,
+    pts: Duration,
+    taken: Instant,
+    signal: bool,
+    stamps: Option<Stamps>,
+}
+
+/// A picture drawn: its bytes, what it was drawn with (for the views alone), its KLV.
+type Drawn = (Vec<u8>, PlaneLayout, Option<Framed>, Option<Arc<[u8]>>);
+
 /// What the status should say: running while frames flow; error once the source failed or
 /// went silent; nothing new (idle) while the first frame is awaited.
 fn health(signal: bool, source_failed: bool, had_a_frame: bool) -> Option<bool> {
@@ -97,162 +127,213 @@ impl Head {
     }
 
     pub(super) fn frame_loop(self: &Arc<Head>) -> Result<(), HeadError> {
-        let mut renderer = self.renderer(&Gpu::new()?)?;
-        let mut views = ViewOutputs::default();
-        let mut scans = super::detection::ScanRenderer::default();
-        let mut encoder = self.encoder(self.settings().output.fps)?;
-        let start = Instant::now();
-        let mut pacer = Pacer::default();
-        let mut last_frame: Option<Frame> = None;
-        // The settings and objects of the last frame rendered.
-        let mut shown: Option<(Arc<Settings>, Arc<Vec<Tracked>>)> = None;
-        // The status last reported: None idle, Some(running or not).
-        let mut healthy: Option<bool> = None;
+        let mut l = Looping {
+            renderer: self.renderer(&Gpu::new()?)?,
+            views: ViewOutputs::default(),
+            scans: super::detection::ScanRenderer::default(),
+            encoder: self.encoder(self.settings().output.fps)?,
+            start: Instant::now(),
+            pacer: Pacer::default(),
+            last_frame: None,
+            shown: None,
+            healthy: None,
+            replaced_then: self.slot.stats().dropped,
+        };
         let fault = Fault::for_stage("frames");
-        // Frames the source replaced in the slot before they were taken, as of the last take.
-        let mut replaced_then = self.slot.stats().dropped;
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("frames");
-            let (settings, tracked) = (self.settings(), self.gate.sensed().tracked());
-            let state = State::of(&settings, self.gate.sensed().vehicle(), &tracked);
-            let period = Duration::from_secs_f64(1.0 / state.settings.output.fps as f64);
-            let due = pacer.due();
-            if let Some(early) = due.checked_sub(start.elapsed()) {
-                std::thread::sleep(early);
-            }
-            let fresh = self
-                .slot
-                .take_until(start + pacer.wait_until(start.elapsed(), period));
-            let taken = Instant::now();
-            let replaced_now = self.slot.stats().dropped;
-            let replaced = std::mem::replace(&mut replaced_then, replaced_now) != replaced_now;
-            let signal = self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
-            if fresh.is_some() && self.source_error().is_some() {
-                self.set_source_error(None);
-                info!("source: frames again");
-            }
-            let is_fresh = fresh.is_some();
-            if let Some((f, _)) = &fresh {
-                self.observe_exposure(f, &state);
-            }
-            // A fresh frame's way out, stamped stage by stage.
-            let mut stamps = fresh.as_ref().map(|(f, arrived)| {
-                let now = clock_us();
-                Stamps {
-                    captured: f.captured_us,
-                    arrived: now.saturating_sub(arrived.elapsed().as_micros() as u64),
-                    taken: now,
-                    ..Stamps::default()
-                }
-            });
-            let arrived = fresh.map(|(f, arrived)| {
-                last_frame = Some(f);
-                arrived.saturating_duration_since(start)
-            });
-            pacer.taken(due, arrived, replaced, start.elapsed(), period);
-            // A view steered, or the objects the tiles follow changed.
-            let moved = !shown
-                .as_ref()
-                .is_some_and(|(s, t)| Arc::ptr_eq(s, &settings) && Arc::ptr_eq(t, &tracked));
-            if !pacer.worth_rendering(is_fresh, signal, moved, start.elapsed()) {
-                continue;
-            }
-            shown = Some((settings, tracked));
-            let pts = pacer.pts(start.elapsed());
-            let t0 = Instant::now();
-            // The state and lens the frame was rendered with and its capture time, for the
-            // views alone.
-            let mut framed = None;
-            let mut klv = None;
-            let rendered = match (&last_frame, signal) {
-                (Some(frame), true) => self.render(&mut renderer, frame, &state, pts).map(|r| {
-                    framed = Some(Framed {
-                        state: r.state,
-                        lens: r.lens,
-                        unix_us: r.unix_us,
-                        shutter: r.shutter,
-                    });
-                    klv = r.klv;
-                    (r.data, r.layout)
-                }),
-                _ => {
-                    stamps = None;
-                    Ok(no_signal::frame(
-                        state.settings.output.width,
-                        state.settings.output.height,
-                    ))
-                }
-            };
-            let (data, layout) = match rendered {
-                Ok(r) => r,
-                Err(RenderFailure::Frame(e)) => {
-                    warn!("frame not rendered: {e}");
-                    continue;
-                }
-                Err(RenderFailure::Gpu(e)) => {
-                    // The GPU failed: say so, start a new device and renderer, go on.
-                    error!("GPU: {e}; rebuilding the renderer");
-                    self.report.set_failure(Failure::Gpu);
-                    healthy = Some(false);
-                    std::thread::sleep(Duration::from_secs(1));
-                    match Gpu::new().and_then(|g| self.renderer(&g)) {
-                        Ok(r) => renderer = r,
-                        Err(e) => error!("GPU: {e}"),
-                    }
-                    views.reset_gpu();
-                    scans.reset_gpu();
-                    continue;
-                }
-            };
-            self.stats
-                .render_us
-                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
-            self.stats.out.fetch_add(1, Ordering::Relaxed);
-            if let Some(s) = &mut stamps {
-                s.rendered = clock_us();
-            }
-            self.offer_still(&data, layout, last_frame.as_ref());
-            if self.key_wanted.swap(false, Ordering::Relaxed) | self.capture.take_key_request() {
-                encoder.force_key_unit();
-            }
-            let dropped_before = encoder.dropped;
-            let side = Side { stamps, klv };
-            if let Err(e) = encoder.push_with(data, &layout, pts, state.settings.output.fps, side) {
-                error!("{e}; rebuilding the encoder");
-                self.report.set_failure(Failure::Encoder);
-                healthy = Some(false);
-                drop(encoder);
-                encoder = self.rebuild_encoder(state.settings.output.fps)?;
-                continue;
-            }
-            self.stats
-                .encoder_dropped
-                .fetch_add(encoder.dropped - dropped_before, Ordering::Relaxed);
-            let context = framed.as_ref();
-            self.render_views(
-                &mut views,
-                &mut renderer,
-                context,
-                pts,
-                state.settings.output.fps,
-            );
-            if let (Some(frame), Some(framed)) = (&last_frame, context) {
-                self.offer_scan(&mut scans, &mut renderer, frame, framed);
-            }
-            views.frame_done(taken.elapsed());
-            let now_ok = health(signal, self.source_error().is_some(), last_frame.is_some());
-            if now_ok != healthy {
-                match now_ok {
-                    Some(true) => self.report.set_status(RunStatus::Running),
-                    Some(false) => self.report.set_failure(Failure::Source),
-                    None => {}
-                }
-                healthy = now_ok;
+            if let Some(turn) = self.next_turn(&mut l) {
+                self.draw_turn(&mut l, turn)?;
             }
         }
-        drop(encoder);
+        drop(l.encoder);
         self.report.set_status(RunStatus::Finished);
         Ok(())
+    }
+
+    /// Waits for the next beat and takes the newest frame: the turn to draw, or None when
+    /// drawing the last frame again would show nothing new.
+    fn next_turn(&self, l: &mut Looping) -> Option<Turn> {
+        let sensed = self.gate.sensed();
+        let (settings, tracked) = (self.settings(), sensed.tracked());
+        let state = State::of(&settings, sensed.vehicle(), &tracked);
+        let period = Duration::from_secs_f64(1.0 / state.settings.output.fps as f64);
+        let due = l.pacer.due();
+        if let Some(early) = due.checked_sub(l.start.elapsed()) {
+            std::thread::sleep(early);
+        }
+        let fresh = self
+            .slot
+            .take_until(l.start + l.pacer.wait_until(l.start.elapsed(), period));
+        let taken = Instant::now();
+        let replaced_now = self.slot.stats().dropped;
+        let replaced = std::mem::replace(&mut l.replaced_then, replaced_now) != replaced_now;
+        let signal = self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
+        if fresh.is_some() && self.source_error().is_some() {
+            self.set_source_error(None);
+            info!("source: frames again");
+        }
+        let is_fresh = fresh.is_some();
+        if let Some((f, _)) = &fresh {
+            self.observe_exposure(f, &state);
+        }
+        // A fresh frame's way out, stamped stage by stage.
+        let stamps = fresh.as_ref().map(|(f, arrived)| {
+            let now = clock_us();
+            Stamps {
+                captured: f.captured_us,
+                arrived: now.saturating_sub(arrived.elapsed().as_micros() as u64),
+                taken: now,
+                ..Stamps::default()
+            }
+        });
+        let arrived = fresh.map(|(f, arrived)| {
+            l.last_frame = Some(f);
+            arrived.saturating_duration_since(l.start)
+        });
+        l.pacer
+            .taken(due, arrived, replaced, l.start.elapsed(), period);
+        // A view steered, or the objects the tiles follow changed.
+        let moved = !l
+            .shown
+            .as_ref()
+            .is_some_and(|(s, t)| Arc::ptr_eq(s, &settings) && Arc::ptr_eq(t, &tracked));
+        if !l
+            .pacer
+            .worth_rendering(is_fresh, signal, moved, l.start.elapsed())
+        {
+            return None;
+        }
+        l.shown = Some((settings, tracked));
+        let pts = l.pacer.pts(l.start.elapsed());
+        Some(Turn {
+            state,
+            pts,
+            taken,
+            signal,
+            stamps,
+        })
+    }
+
+    /// Draws a turn's frame (or "no signal"), hands it to the encoder, then draws the views
+    /// and the scans from it and says how the head fares.
+    fn draw_turn(self: &Arc<Head>, l: &mut Looping, mut turn: Turn) -> Result<(), HeadError> {
+        let t0 = Instant::now();
+        let Some((data, layout, framed, klv)) = self.drawn(l, &mut turn) else {
+            return Ok(());
+        };
+        self.stats
+            .render_us
+            .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+        self.stats.out.fetch_add(1, Ordering::Relaxed);
+        if let Some(s) = &mut turn.stamps {
+            s.rendered = clock_us();
+        }
+        self.offer_still(&data, layout, l.last_frame.as_ref());
+        let fps = turn.state.settings.output.fps;
+        if !self.encode(
+            l,
+            (data, layout),
+            turn.pts,
+            fps,
+            Side {
+                stamps: turn.stamps,
+                klv,
+            },
+        )? {
+            return Ok(());
+        }
+        let context = framed.as_ref();
+        self.render_views(&mut l.views, &mut l.renderer, context, turn.pts, fps);
+        if let (Some(frame), Some(framed)) = (&l.last_frame, context) {
+            self.offer_scan(&mut l.scans, &mut l.renderer, frame, framed);
+        }
+        l.views.frame_done(turn.taken.elapsed());
+        let now_ok = health(
+            turn.signal,
+            self.source_error().is_some(),
+            l.last_frame.is_some(),
+        );
+        if now_ok != l.healthy {
+            match now_ok {
+                Some(true) => self.report.set_status(RunStatus::Running),
+                Some(false) => self.report.set_failure(Failure::Source),
+                None => {}
+            }
+            l.healthy = now_ok;
+        }
+        Ok(())
+    }
+
+    /// The turn's picture: the last frame rendered, or "no signal" while the source is
+    /// silent; with what it was drawn with and its KLV. None when nothing was drawn (a frame
+    /// that cannot be, or a GPU that failed and is being rebuilt).
+    fn drawn(&self, l: &mut Looping, turn: &mut Turn) -> Option<Drawn> {
+        let rendered = match (&l.last_frame, turn.signal) {
+            (Some(frame), true) => self.render(&mut l.renderer, frame, &turn.state, turn.pts),
+            _ => {
+                turn.stamps = None;
+                let out = &turn.state.settings.output;
+                let (data, layout) = no_signal::frame(out.width, out.height);
+                return Some((data, layout, None, None));
+            }
+        };
+        match rendered {
+            Ok(r) => {
+                let framed = Framed {
+                    state: r.state,
+                    lens: r.lens,
+                    unix_us: r.unix_us,
+                    shutter: r.shutter,
+                };
+                Some((r.data, r.layout, Some(framed), r.klv))
+            }
+            Err(RenderFailure::Frame(e)) => {
+                warn!("frame not rendered: {e}");
+                None
+            }
+            Err(RenderFailure::Gpu(e)) => {
+                // The GPU failed: say so, start a new device and renderer, go on.
+                error!("GPU: {e}; rebuilding the renderer");
+                self.report.set_failure(Failure::Gpu);
+                l.healthy = Some(false);
+                std::thread::sleep(Duration::from_secs(1));
+                match Gpu::new().and_then(|g| self.renderer(&g)) {
+                    Ok(r) => l.renderer = r,
+                    Err(e) => error!("GPU: {e}"),
+                }
+                l.views.reset_gpu();
+                l.scans.reset_gpu();
+                None
+            }
+        }
+    }
+
+    /// Hands a picture to the encoder; false when the encoder failed and was rebuilt (the
+    /// picture is lost, the status says so meanwhile).
+    fn encode(
+        self: &Arc<Head>,
+        l: &mut Looping,
+        (data, layout): (Vec<u8>, PlaneLayout),
+        pts: Duration,
+        fps: u32,
+        side: Side,
+    ) -> Result<bool, HeadError> {
+        if self.key_wanted.swap(false, Ordering::Relaxed) | self.capture.take_key_request() {
+            l.encoder.force_key_unit();
+        }
+        let dropped_before = l.encoder.dropped;
+        if let Err(e) = l.encoder.push_with(data, &layout, pts, fps, side) {
+            error!("{e}; rebuilding the encoder");
+            self.report.set_failure(Failure::Encoder);
+            l.healthy = Some(false);
+            l.encoder = self.rebuild_encoder(fps)?;
+            return Ok(false);
+        }
+        self.stats
+            .encoder_dropped
+            .fetch_add(l.encoder.dropped - dropped_before, Ordering::Relaxed);
+        Ok(true)
     }
 
     /// A new encoder after one failed, tried every half second until one starts or the

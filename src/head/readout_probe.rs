@@ -9,11 +9,22 @@ use crate::frame::Frame;
 use crate::geometry::Euler;
 use crate::geometry::shutter::Readout;
 use crate::lens::Lens;
-use crate::render::shutter_fit::{ATTITUDE_SPAN_US, Fit, FitFrame, estimate};
+use crate::render::shutter_fit::{ATTITUDE_SPAN_US, Fit, FitError, FitFrame, estimate};
 use crate::telemetry::Telemetry;
 use serde::Serialize;
 use std::sync::{Arc, Mutex};
 use tracing::{info, warn};
+
+/// Why an estimate came to no figure.
+#[derive(Debug, thiserror::Error)]
+enum NotFitted {
+    #[error("no frames with luma")]
+    NoLuma,
+    #[error(transparent)]
+    Fit(FitError),
+    #[error("starting the fit: {0}")]
+    Thread(std::io::Error),
+}
 
 /// Frames are kept at most this wide (area-averaged): 10 s at 30 fps then holds 70 MB.
 pub const MAX_WIDTH: u32 = 640;
@@ -170,22 +181,22 @@ impl ReadoutProbe {
             .name("readout-fit".into())
             .spawn(move || probe.fit(c, like));
         if let Err(e) = spawned {
-            self.finish(Err(format!("starting the fit: {e}")));
+            self.finish(Err(NotFitted::Thread(e)));
         }
     }
 
     fn fit(&self, c: Collecting, like: Readout) {
         let Some(lens) = c.lens else {
-            return self.finish(Err("no frames with luma".into()));
+            return self.finish(Err(NotFitted::NoLuma));
         };
         let progress = |done, of| {
             self.status.lock().unwrap_or_else(|e| e.into_inner()).steps = (done, of);
         };
-        let fit = estimate(&c.done, &lens, c.mount, like, progress).map_err(|e| e.to_string());
+        let fit = estimate(&c.done, &lens, c.mount, like, progress).map_err(NotFitted::Fit);
         self.finish(fit);
     }
 
-    fn finish(&self, result: Result<Fit, String>) {
+    fn finish(&self, result: Result<Fit, NotFitted>) {
         let mut status = self.status.lock().unwrap_or_else(|e| e.into_inner());
         match result {
             Ok(fit) => {
@@ -197,7 +208,7 @@ impl ReadoutProbe {
             }
             Err(e) => {
                 warn!("readout estimate failed: {e}");
-                (status.state, status.error) = ("failed", Some(e));
+                (status.state, status.error) = ("failed", Some(e.to_string()));
             }
         }
     }

@@ -69,41 +69,7 @@ impl Head {
     /// The simulated camera and flight, paced at the demo's frame rate.
     fn demo_source(&self) -> Result<(), HeadError> {
         let d = &self.cfg.demo;
-        let state = self.state();
-        let lens = self.gate.settings().lenses().for_frame(
-            state.settings.lens,
-            (d.width, d.height),
-            state.settings.sensor.roi(),
-        )?;
-        let layout = PlaneLayout::tight(d.format, d.width, d.height)?;
-        let camera =
-            DemoCamera::new(&lens, layout, state.settings.mount.euler()).with_readout(d.readout_ms);
-        let flight = Flight {
-            hover: state.vehicle.position,
-            // Spinning is about level and north, by the clock alone: never about an attitude
-            // an autopilot may already have written into the live state.
-            attitude: if d.spin {
-                Euler::default()
-            } else {
-                state.vehicle.attitude.euler()
-            },
-            motion: d.motion,
-            spin: d.spin,
-            radius: 30.0,
-            lap: 90.0,
-        };
-        info!(
-            "source: demo, {}x{} {} at {} fps, {}",
-            d.width,
-            d.height,
-            d.format,
-            d.fps,
-            match (d.spin, d.motion) {
-                (true, _) => "spinning (yaw 90°/s, roll ±20° at 1 Hz)",
-                (false, true) => "flying a circle",
-                (false, false) => "hovering",
-            }
-        );
+        let (camera, flight) = self.demo_camera()?;
         let period = Duration::from_secs_f64(1.0 / d.fps as f64);
         let start = Instant::now();
         *self.demo_truth.lock().unwrap_or_else(|e| e.into_inner()) = Some(DemoTruth {
@@ -134,32 +100,78 @@ impl Head {
                 // spend the CPU the renderer needs on a frame that would be dropped.
                 continue;
             }
-            let captured_us = clock_us();
-            let t = start.elapsed().as_secs_f64();
-            let (attitude, position) = flight.pose_at(t, captured_us as f64 / 1e6);
-            self.telemetry.simulated(captured_us, attitude, position);
-            let stamp = d.stamp.then_some((captured_us / 1000) as u32);
-            // The exposure and gain as they are now, read after the capture time is taken:
-            // the auto exposure knows a frame stamped after its change shows it.
-            let sensor = &self.settings().sensor;
-            let sensor = SensorModel::new(Setting {
-                exposure_us: sensor.exposure_us,
-                gain: sensor.gain,
-            });
             number += 1;
-            // A rolling shutter's later rows see the flight as it goes on.
-            let clock_s = captured_us as f64 / 1e6;
-            let at = |dt_us: f64| {
-                let dt = dt_us * 1e-6;
-                flight.pose_at(t + dt, clock_s + dt).0
-            };
-            let data = camera.frame(at, &position, t, (sensor, number), stamp);
-            self.slot.put(Frame {
-                data,
-                layout,
-                captured_us,
-            });
+            self.demo_frame(&camera, &flight, start.elapsed().as_secs_f64(), number);
         }
         Ok(())
+    }
+
+    /// The demo's camera and flight, as the settings and the vehicle now give them.
+    fn demo_camera(&self) -> Result<(DemoCamera, Flight), HeadError> {
+        let d = &self.cfg.demo;
+        let state = self.state();
+        let lens = self.gate.settings().lenses().for_frame(
+            state.settings.lens,
+            (d.width, d.height),
+            state.settings.sensor.roi(),
+        )?;
+        let layout = PlaneLayout::tight(d.format, d.width, d.height)?;
+        let camera =
+            DemoCamera::new(&lens, layout, state.settings.mount.euler()).with_readout(d.readout_ms);
+        let flight = Flight {
+            hover: state.vehicle.position,
+            // Spinning is about level and north, by the clock alone: never about an attitude
+            // an autopilot may already have reported.
+            attitude: if d.spin {
+                Euler::default()
+            } else {
+                state.vehicle.attitude.euler()
+            },
+            motion: d.motion,
+            spin: d.spin,
+            radius: 30.0,
+            lap: 90.0,
+        };
+        info!(
+            "source: demo, {}x{} {} at {} fps, {}",
+            d.width,
+            d.height,
+            d.format,
+            d.fps,
+            match (d.spin, d.motion) {
+                (true, _) => "spinning (yaw 90°/s, roll ±20° at 1 Hz)",
+                (false, true) => "flying a circle",
+                (false, false) => "hovering",
+            }
+        );
+        Ok((camera, flight))
+    }
+
+    /// The demo's frame `number`, `t` seconds into its flight, into the slot.
+    fn demo_frame(&self, camera: &DemoCamera, flight: &Flight, t: f64, number: u64) {
+        let d = &self.cfg.demo;
+        let captured_us = clock_us();
+        let (attitude, position) = flight.pose_at(t, captured_us as f64 / 1e6);
+        self.telemetry.simulated(captured_us, attitude, position);
+        let stamp = d.stamp.then_some((captured_us / 1000) as u32);
+        // The exposure and gain as they are now, read after the capture time is taken: the
+        // auto exposure knows a frame stamped after its change shows it.
+        let sensor = &self.settings().sensor;
+        let sensor = SensorModel::new(Setting {
+            exposure_us: sensor.exposure_us,
+            gain: sensor.gain,
+        });
+        // A rolling shutter's later rows see the flight as it goes on.
+        let clock_s = captured_us as f64 / 1e6;
+        let at = |dt_us: f64| {
+            let dt = dt_us * 1e-6;
+            flight.pose_at(t + dt, clock_s + dt).0
+        };
+        let data = camera.frame(at, &position, t, (sensor, number), stamp);
+        self.slot.put(Frame {
+            data,
+            layout: *camera.layout(),
+            captured_us,
+        });
     }
 }

@@ -96,20 +96,29 @@ pub fn annotate(frame: &[u8; FRAME_LEN]) -> String {
     );
     let pt = ParamType::from_u8(frame[10]).map_or("unknown".to_string(), |p| p.to_string());
     row(&mut out, 10, &frame[10..11], &format!("param_type = {pt}"));
+    let at = match decoded {
+        Ok(Message {
+            body: Body::Get(p) | Body::Set(p) | Body::Current(p),
+            ..
+        }) => annotate_fields(&mut out, frame, &p),
+        _ => DATA_AT,
+    };
+    annotate_end(&mut out, frame, at);
+    out
+}
+
+/// A parameter's fields, a row each, from [`DATA_AT`]; where they end.
+fn annotate_fields(out: &mut String, frame: &[u8; FRAME_LEN], p: &Param) -> usize {
     let mut at = DATA_AT;
-    if let Ok(Message {
-        body: Body::Get(p) | Body::Set(p) | Body::Current(p),
-        ..
-    }) = decoded
     {
-        for (f, v) in fields(&p) {
+        for (f, v) in fields(p) {
             if let Value::Array(boxes) = &v {
                 // VIDEO_OUTPUT's views: one row per box, as many as there are.
                 for (i, b) in boxes.iter().enumerate() {
                     let shown = show(Unit::Boxes, b);
                     let bytes = &frame[at + 8 * i..at + 8 * (i + 1)];
                     row(
-                        &mut out,
+                        out,
                         at + 8 * i,
                         bytes,
                         &format!("{}[{i}] = {shown}", f.name),
@@ -126,10 +135,15 @@ pub fn annotate(frame: &[u8; FRAME_LEN]) -> String {
                     frame[at] >> 4
                 );
             }
-            row(&mut out, at, &frame[at..at + f.size], &what);
+            row(out, at, &frame[at..at + f.size], &what);
             at += f.size;
         }
     }
+    at
+}
+
+/// What follows the fields from `at`: unused bytes, the checksum and the padding.
+fn annotate_end(out: &mut String, frame: &[u8; FRAME_LEN], at: usize) {
     let end = CHECKSUM_AT;
     if at < end {
         let zero = frame[at..end].iter().all(|&b| b == 0);
@@ -146,13 +160,12 @@ pub fn annotate(frame: &[u8; FRAME_LEN]) -> String {
     }
     let ok = crc8(&frame[..end]) == frame[end];
     row(
-        &mut out,
+        out,
         end,
         &frame[end..end + 1],
         &format!("checksum (CRC-8 {})", if ok { "ok" } else { "MISMATCH" }),
     );
-    row(&mut out, end + 1, &frame[end + 1..], "padding");
-    out
+    row(out, end + 1, &frame[end + 1..], "padding");
 }
 
 fn message_type_name(n: u8) -> String {

@@ -202,50 +202,11 @@ impl DemoCamera {
         stamp: Option<u32>,
     ) -> Vec<u8> {
         let (sensor, number) = sensor;
-        let eye = eye_at(position);
-        let (bw, bh) = self.blocks;
-        let size = (self.layout.width, self.layout.height);
-        let stamp_to_middle = self.readout.middle_after_stamp_us();
-        // The lens's orientation as each row of blocks was read.
-        let world_from_lens: Vec<DMat3> = (0..bh)
-            .map(|by| {
-                let row = DVec2::new(0.0, 2.0 * by as f64 + 0.5);
-                let dt = self.readout.point_us(row, size) + stamp_to_middle;
-                lens_from_world(attitude(dt), self.mount).transpose()
-            })
-            .collect();
-        // The world at every block centre, rows in parallel.
-        let colours: Vec<DVec3> = (0..bh)
-            .into_par_iter()
-            .flat_map_iter(|by| {
-                let world_from_lens = world_from_lens[by];
-                (0..bw).map(move |bx| match self.rays[by * bw + bx] {
-                    Some((r, size)) => {
-                        let ray = world_from_lens * r.as_dvec3();
-                        let seen = self.world.colour_seen(eye, ray, t, size as f64);
-                        (seen * sensor.scale).min(DVec3::splat(255.0))
-                    }
-                    None => DVec3::ZERO,
-                })
-            })
-            .collect();
+        let colours = self.block_colours(attitude, position, t, &sensor);
         let l = self.layout;
         let mut out = vec![0u8; l.size as usize];
         let (w, h) = (l.width as usize, l.height as usize);
-        // Pixel x lies (x - 0.5) / 2 block centres in; interpolate between the two around it
-        // (the taps of every column worked out once, those of a row once a row).
-        let taps = |x: usize, n: usize| -> (usize, usize, f64) {
-            let g = (x as f64 - 0.5) / 2.0;
-            let i = g.floor().clamp(0.0, (n - 1) as f64) as usize;
-            let j = (i + 1).min(n - 1);
-            (i, j, (g - i as f64).clamp(0.0, 1.0))
-        };
-        let columns: Vec<_> = (0..w).map(|x| taps(x, bw)).collect();
-        let value = |grid: &[f64], x: usize, (y0, y1, fy): (usize, usize, f64)| -> f64 {
-            let (x0, x1, fx) = columns[x];
-            let row = |r: usize| grid[r * bw + x0] * (1.0 - fx) + grid[r * bw + x1] * fx;
-            row(y0) * (1.0 - fy) + row(y1) * fy
-        };
+        let up = Upsample::new(self.blocks, w);
         if l.format == PixelFormat::Rgba {
             let channels: Vec<Vec<f64>> = (0..3)
                 .map(|k| colours.iter().map(|c| c[k]).collect())
@@ -254,9 +215,9 @@ impl DemoCamera {
                 .take(h)
                 .enumerate()
                 .for_each(|(y, row)| {
-                    let ty = taps(y, bh);
+                    let ty = taps(y, up.rows);
                     for x in 0..w {
-                        let c = [0, 1, 2].map(|k| byte(value(&channels[k], x, ty)));
+                        let c = [0, 1, 2].map(|k| byte(up.value(&channels[k], x, ty)));
                         row[4 * x..4 * x + 4].copy_from_slice(&[c[0], c[1], c[2], 255]);
                     }
                 });
@@ -270,27 +231,95 @@ impl DemoCamera {
             .par_chunks_mut(l.stride as usize)
             .enumerate()
             .for_each(|(y, row)| {
-                let ty = taps(y, bh);
+                let ty = taps(y, up.rows);
                 for (x, px) in row.iter_mut().take(w).enumerate() {
-                    *px = byte(value(&luma, x, ty));
+                    *px = byte(up.value(&luma, x, ty));
                 }
             });
+        let bw = self.blocks.0;
         for (i, c) in colours.iter().enumerate() {
             let yuv = rgb_to_yuv(*c);
             let (u, v) = l.chroma_at((i % bw) as u32, (i / bw) as u32);
             out[u] = byte(yuv.y);
             out[v] = byte(yuv.z);
         }
-        sensor.add_noise(
-            &mut out[..l.chroma[0] as usize],
-            l.stride as usize,
-            w,
-            number,
-        );
+        let luma_bytes = l.chroma[0] as usize;
+        sensor.add_noise(&mut out[..luma_bytes], l.stride as usize, w, number);
         if let Some(value) = stamp {
             stamp::draw(&mut out, &l, self.centre, value);
         }
         out
+    }
+
+    /// The world's colour at every 2x2 block's centre, through the sensor, each row of
+    /// blocks as the lens was when it was read; rows in parallel.
+    fn block_colours(
+        &self,
+        attitude: impl Fn(f64) -> Euler + Sync,
+        position: &GeoPosition,
+        t: f64,
+        sensor: &SensorModel,
+    ) -> Vec<DVec3> {
+        let eye = eye_at(position);
+        let (bw, bh) = self.blocks;
+        let size = (self.layout.width, self.layout.height);
+        let stamp_to_middle = self.readout.middle_after_stamp_us();
+        let world_from_lens: Vec<DMat3> = (0..bh)
+            .map(|by| {
+                let row = DVec2::new(0.0, 2.0 * by as f64 + 0.5);
+                let dt = self.readout.point_us(row, size) + stamp_to_middle;
+                lens_from_world(attitude(dt), self.mount).transpose()
+            })
+            .collect();
+        (0..bh)
+            .into_par_iter()
+            .flat_map_iter(|by| {
+                let world_from_lens = world_from_lens[by];
+                (0..bw).map(move |bx| match self.rays[by * bw + bx] {
+                    Some((r, size)) => {
+                        let ray = world_from_lens * r.as_dvec3();
+                        let seen = self.world.colour_seen(eye, ray, t, size as f64);
+                        (seen * sensor.scale).min(DVec3::splat(255.0))
+                    }
+                    None => DVec3::ZERO,
+                })
+            })
+            .collect()
+    }
+}
+
+/// Pixel x lies (x - 0.5) / 2 block centres in: the two block centres around it, and how far
+/// from the first, of `n`.
+fn taps(x: usize, n: usize) -> (usize, usize, f64) {
+    let g = (x as f64 - 0.5) / 2.0;
+    let i = g.floor().clamp(0.0, (n - 1) as f64) as usize;
+    let j = (i + 1).min(n - 1);
+    (i, j, (g - i as f64).clamp(0.0, 1.0))
+}
+
+/// The blocks' values interpolated to pixels: every column's taps worked out once, a row's
+/// once a row.
+struct Upsample {
+    columns: Vec<(usize, usize, f64)>,
+    across: usize,
+    rows: usize,
+}
+
+impl Upsample {
+    fn new((bw, bh): (usize, usize), width: usize) -> Upsample {
+        Upsample {
+            columns: (0..width).map(|x| taps(x, bw)).collect(),
+            across: bw,
+            rows: bh,
+        }
+    }
+
+    /// `grid` (a value a block) at pixel `x` of the row whose taps are `(y0, y1, fy)`.
+    fn value(&self, grid: &[f64], x: usize, (y0, y1, fy): (usize, usize, f64)) -> f64 {
+        let (x0, x1, fx) = self.columns[x];
+        let bw = self.across;
+        let row = |r: usize| grid[r * bw + x0] * (1.0 - fx) + grid[r * bw + x1] * fx;
+        row(y0) * (1.0 - fy) + row(y1) * fy
     }
 }
 

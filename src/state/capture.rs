@@ -1,5 +1,5 @@
 //! The capture hooks, shared below the services: where CAPTURE requests go ([`Capturer`], the
-//! live state's), and where the MAVLink cameras ask for stills and recordings of one view
+//! control protocol's), and where the MAVLink cameras ask for stills and recordings of one view
 //! ([`ViewShooter`]). The video pipeline takes stills and records; without one (`serve
 //! --no-video`) there is nothing to capture and the request is refused, saying why.
 

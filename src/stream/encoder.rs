@@ -313,57 +313,45 @@ impl Encoder {
             }
             std::thread::sleep(Duration::from_millis(1));
         }
-        let dims = (layout.width, layout.height, fps);
-        if self.caps != Some(dims) {
-            let caps = gst_video::VideoInfo::builder(
-                gst_video::VideoFormat::I420,
-                layout.width,
-                layout.height,
-            )
-            .fps(gst::Fraction::new(fps as i32, 1))
-            // Said, not left to GStreamer's default, which is BT.601 below 720 lines: the
-            // stream's VUI then tells players the matrix the renderer really used.
-            .colorimetry(&bt709())
-            .build()
-            .map_err(StreamError::Caps)?
-            .to_caps()
-            .map_err(StreamError::Caps)?;
-            self.src.set_caps(Some(&caps));
-            if self.caps.is_some() {
-                tracing::info!(
-                    "encoder: output now {}x{} at {fps} fps",
-                    layout.width,
-                    layout.height
-                );
-            }
-            self.caps = Some(dims);
-        }
-        let mut buffer = gst::Buffer::from_mut_slice(data);
-        {
-            let b = buffer.get_mut().expect("a new buffer is writable");
-            b.set_pts(pts);
-            b.set_duration(gst::ClockTime::SECOND / fps as u64);
-            gst_video::VideoMeta::add_full(
-                b,
-                gst_video::VideoFrameFlags::empty(),
-                gst_video::VideoFormat::I420,
-                layout.width,
-                layout.height,
-                &[0, layout.chroma[0] as usize, layout.chroma[1] as usize],
-                &[
-                    layout.stride as i32,
-                    layout.chroma_stride as i32,
-                    layout.chroma_stride as i32,
-                ],
-            )
-            .map_err(StreamError::Caps)?;
-        }
+        self.set_caps(layout, fps)?;
+        let buffer = i420_buffer(data, layout, pts, fps)?;
         self.src
             .push_buffer(buffer)
             .map_err(|flow| StreamError::Flow {
                 name: self.name.clone(),
                 flow,
             })?;
+        Ok(())
+    }
+
+    /// The source's caps for I420 frames of `layout` at `fps`, set when they change.
+    fn set_caps(&mut self, layout: &PlaneLayout, fps: u32) -> Result<(), StreamError> {
+        let dims = (layout.width, layout.height, fps);
+        if self.caps == Some(dims) {
+            return Ok(());
+        }
+        let caps = gst_video::VideoInfo::builder(
+            gst_video::VideoFormat::I420,
+            layout.width,
+            layout.height,
+        )
+        .fps(gst::Fraction::new(fps as i32, 1))
+        // Said, not left to GStreamer's default, which is BT.601 below 720 lines: the
+        // stream's VUI then tells players the matrix the renderer really used.
+        .colorimetry(&bt709())
+        .build()
+        .map_err(StreamError::Caps)?
+        .to_caps()
+        .map_err(StreamError::Caps)?;
+        self.src.set_caps(Some(&caps));
+        if self.caps.is_some() {
+            tracing::info!(
+                "encoder: output now {}x{} at {fps} fps",
+                layout.width,
+                layout.height
+            );
+        }
+        self.caps = Some(dims);
         Ok(())
     }
 
@@ -388,6 +376,35 @@ impl Drop for Encoder {
         let _ = self.src.end_of_stream();
         let _ = self.pipeline.set_state(gst::State::Null);
     }
+}
+
+/// An I420 frame as a GStreamer buffer: its planes described (`VideoMeta`), stamped at `pts`
+/// for one period of `fps`.
+fn i420_buffer(
+    data: Vec<u8>,
+    layout: &PlaneLayout,
+    pts: gst::ClockTime,
+    fps: u32,
+) -> Result<gst::Buffer, StreamError> {
+    let mut buffer = gst::Buffer::from_mut_slice(data);
+    let b = buffer.get_mut().expect("a new buffer is writable");
+    b.set_pts(pts);
+    b.set_duration(gst::ClockTime::SECOND / fps as u64);
+    gst_video::VideoMeta::add_full(
+        b,
+        gst_video::VideoFrameFlags::empty(),
+        gst_video::VideoFormat::I420,
+        layout.width,
+        layout.height,
+        &[0, layout.chroma[0] as usize, layout.chroma[1] as usize],
+        &[
+            layout.stride as i32,
+            layout.chroma_stride as i32,
+            layout.chroma_stride as i32,
+        ],
+    )
+    .map_err(StreamError::Caps)?;
+    Ok(buffer)
 }
 
 /// BT.709 limited range, what the renderer writes (frame::yuv).

@@ -106,8 +106,8 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
     until(Duration::from_secs(5), "the attitude arrives", || {
         centre_yaw(&mut ctl).abs() > 1e-3
     });
-    // The live state is brought up to date 50 times a second: at 90°/s the reading trails
-    // the autopilot by at most 20 ms of turn plus the link's delay and the reply's trip.
+    // What is sensed takes every sample (200 a second here): at 90°/s the reading trails the
+    // autopilot by the link's delay and the reply's trip.
     let worst = worst_following(&mut ctl, 20);
     eprintln!("following the autopilot: worst {:.2}°", worst / DEG);
     assert!(worst < 8.0 * DEG, "worst {:.1}°", worst / DEG);
@@ -340,7 +340,7 @@ fn the_demo_flies_through_the_mavlink_link_when_it_listens() {
     let _alone = crate::one_at_a_time();
     let size = ["--demo-size", "640x480", "--size", "640x480"];
     let (_serve, _, mut ctl) = serve_on("udpin", Serve::start_video, &size);
-    // Only the link writes the vehicle into the live state: the heading the protocol reports
+    // Only the link writes the vehicle into what is sensed: the heading the protocol reports
     // is the demo's, so it came over MAVLink. The flight heads 90° at its start and turns
     // 4°/s (a lap in 90 s); `serve` announces itself once its first frame is out, a second or
     // two into the flight.

@@ -1,7 +1,7 @@
 //! The control server over real sockets against `digiview serve --no-video`: UDP datagrams,
 //! permissions by client address, QUIT, a misaligned stream, pipelining, stalled clients and
 //! load, SIGTERM, and the `digiview ctl` client. The parameter rules are
-//! tests/protocol_system.rs's and tests/protocol_camera.rs's.
+//! tests/it/protocol_system.rs's and tests/it/protocol_camera.rs's.
 
 use crate::common;
 use common::frames::{Client, MRAD, ack, raw_frame, verdict};

@@ -5,7 +5,7 @@
 //! lens models are drawn at once by generic pipelines, and how far the draw's parabolas
 //! between projected pixels stray from the projection.
 //!
-//! Tolerances as in tests/gpu_render.rs: GPU vs CPU reference PSNR ≥ 45 dB per frame.
+//! Tolerances as in tests/it/gpu_render.rs: GPU vs CPU reference PSNR ≥ 45 dB per frame.
 
 use crate::common;
 use common::gpu::*;

@@ -2,7 +2,7 @@
 //! failure) against the CPU reference of the same math and against ground truth from the
 //! synthetic world: every layout, crop mode and lens model; camera-native NV12 and I420 input;
 //! encoder-ready I420 and NV12 output; filtering of minified views (mip and bilinear); 4:2:0
-//! colours passed through. tests/gpu_frames.rs has the renderer as a stream of frames.
+//! colours passed through. tests/it/gpu_frames.rs has the renderer as a stream of frames.
 //!
 //! Tolerances: GPU vs CPU reference PSNR ≥ 45 dB per frame; GPU vs truth within 0.5 dB of
 //! what the CPU reference scores; 4:2:0 input vs RGBA input ≥ 40 dB.

@@ -9,6 +9,7 @@
 mod common;
 
 mod cli;
+mod cli_errors;
 mod control_server;
 mod crop_modes;
 mod detect_motion;
@@ -29,6 +30,7 @@ mod mavlink_cameras;
 mod mavlink_commands;
 mod mavsdk;
 mod no_panics;
+mod one_path;
 mod package;
 mod players;
 mod protocol_camera;

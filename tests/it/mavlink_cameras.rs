@@ -3,7 +3,7 @@
 //! discovered by their heartbeats and answer both REQUEST_MESSAGE and the older commands;
 //! zoom and gimbal commands reach the views; hostile commands change nothing; the settings
 //! are PARAM_EXT parameters described by a camera definition file served over HTTP.
-//! (tests/mavlink_camera_video.rs: what the cameras show.)
+//! (tests/it/mavlink_camera_video.rs: what the cameras show.)
 
 use crate::common;
 

@@ -1,7 +1,7 @@
 //! The per-camera parameter types of the control protocol (CAM_EULER to CAM_TARGET), rule by
 //! rule as the seed and protocol.md give them, in-process through `Controller::handle`: angles,
 //! zoom, locks, control and crop modes, fov, cam_id ranges, the pixel-to-direction and
-//! pixel-to-ground queries. The server itself is tests/control_server.rs's.
+//! pixel-to-ground queries. The server itself is tests/it/control_server.rs's.
 
 use crate::common;
 use common::DEG;

@@ -1,7 +1,7 @@
 //! The whole-system parameter types of the control protocol (SYSTEM_STATUS, VIDEO_OUTPUT,
 //! CAPTURE, DETECTION, DETECTED_ROI, LENS, CAM_SENSOR, GENERAL_SETTINGS) and the replies to
 //! malformed requests, rule by rule as the seed and protocol.md give them, in-process through
-//! `Controller::handle`. The server itself is tests/control_server.rs's.
+//! `Controller::handle`. The server itself is tests/it/control_server.rs's.
 
 use crate::common;
 use common::DEG;

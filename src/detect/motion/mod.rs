@@ -5,15 +5,16 @@
 //! foreground; their connected blobs are the detections.
 
 mod blob;
+mod compare;
 mod warp;
 
 use super::angular::Detection;
-use super::scan::{ScanView, clear_of_edges, to_world};
+use super::scan::ScanView;
 use crate::geometry::Projection;
 use crate::render::FramePlan;
 use crate::render::plan::ViewMap;
-use blob::{Blob, JOIN, RING, blobs, changed, grow, shift, stain, stands_out};
-use glam::{DVec2, DVec3};
+use blob::JOIN;
+use glam::DVec3;
 use std::collections::HashMap;
 use warp::{resample, sources};
 
@@ -103,14 +104,8 @@ impl MotionDetector {
                 continue;
             };
             let r = planned.rect;
-            let (w, h) = (r.w as usize, r.h as usize);
             join = join.max(JOIN as f64 / Projection::focal(r.w as f64, view.fov));
-            let current: Vec<f32> = (0..h)
-                .flat_map(|y| {
-                    let row = (r.y as usize + y) * stride + r.x as usize;
-                    luma[row..row + w].iter().map(|&v| v as f32)
-                })
-                .collect();
+            let current = compare::view_luma(luma, stride, r);
             let Some(bg) = self.backgrounds.get_mut(&view.index) else {
                 self.backgrounds
                     .insert(view.index, Background::new(current, eye, time));
@@ -120,131 +115,35 @@ impl MotionDetector {
                 *bg = Background::new(current, eye, time);
                 continue;
             }
+            let (w, h) = (r.w as usize, r.h as usize);
             let from = sources(w, h, projection, world_from_view, bg.eye, eye);
-            let moved = resample(&bg.luma, w, h, &from);
-            let before = resample(&bg.last, w, h, &from);
-            let mut mask = vec![false; w * h];
-            let mut weak = vec![false; w * h];
-            let mut diff = vec![0f32; w * h];
-            let lit = |i: usize| current[i] > DARK && moved[i].is_some_and(|b| b > DARK);
-            for y in EDGE..h.saturating_sub(EDGE) {
-                for x in EDGE..w.saturating_sub(EDGE) {
-                    let i = y * w + x;
-                    let Some(b) = moved[i] else {
-                        continue;
-                    };
-                    let d = (current[i] - b).abs();
-                    diff[i] = d;
-                    let slope = |a: usize, c: usize| match (moved[a], moved[c]) {
-                        (Some(a), Some(c)) => (a - c).abs() / 2.0,
-                        _ => 0.0,
-                    };
-                    let edge = slope(i - 1, i + 1).max(slope(i - w, i + w));
-                    // Outside the lens's circle the views are black, and the circle's rim
-                    // moves with the vehicle's attitude: only pixels inside in both, with
-                    // their neighbours, count.
-                    weak[i] = d > THRESHOLD
-                        && [i, i - EDGE, i + EDGE, i - EDGE * w, i + EDGE * w]
-                            .into_iter()
-                            .all(lit);
-                    mask[i] = weak[i] && d > THRESHOLD + EDGE_SLACK * edge;
-                }
-            }
-            // A blob's surroundings are read where the picture matches the background.
-            let surroundings: Vec<bool> =
-                (0..w * h).map(|i| lit(i) && diff[i] <= THRESHOLD).collect();
-            // The pixels of a blob that look like its surroundings now where the background
-            // did not are a stain: what stood there when the background was taken, joined to
-            // the thing that moved away from it. They leave the blob before it is judged.
-            let mut stained = vec![];
-            for blob in blobs(&mask, w, h) {
-                stained.extend(stain(&blob, &current, &moved, &surroundings, w, h));
-            }
-            for &i in &stained {
-                mask[i] = false;
-            }
-            // A blob that looks like its surroundings now, or where nothing changed since the
-            // last scan, is not a thing moving but a stain in the background (what stood
-            // there when the view was first seen, or the wake of something that passed) or a
-            // thing that stopped: the background takes the picture there at once.
-            let (things, stains): (Vec<Blob>, Vec<Blob>) =
-                blobs(&mask, w, h).into_iter().partition(|b| {
-                    stands_out(b, &current, &surroundings, w, h) && changed(b, &current, &before)
-                });
-            for i in stains.iter().flat_map(|b| &b.pixels) {
-                mask[*i] = false;
-            }
-            // Where a thing crosses a background's edges, the edge slack drops its pixels
-            // there: a thing takes back the pixels beside it that differ by the plain
-            // threshold, a few pixels out at most (a line of the background a fraction of a
-            // pixel off would otherwise lead it along).
-            for &i in stains.iter().flat_map(|b| &b.pixels).chain(&stained) {
-                weak[i] = false;
-            }
-            let things: Vec<Blob> = things
-                .into_iter()
-                .map(|b| grow(b, &weak, &mut mask, w, h))
-                .collect();
-            let settled = bg.scans >= WARM_UP;
-            for i in 0..w * h {
-                bg.luma[i] = match moved[i] {
-                    Some(b) if b > DARK && current[i] > DARK => {
-                        let follow = if mask[i] { FOLLOW_FOREGROUND } else { FOLLOW };
-                        b + follow * (current[i] - b)
-                    }
-                    // Newly inside the circle (or the view), or a stain: taken as it is.
-                    _ => current[i],
-                };
-            }
-            for &i in stains.iter().flat_map(|b| &b.pixels).chain(&stained) {
-                bg.luma[i] = current[i];
-            }
+            let scan = compare::Scan {
+                moved: resample(&bg.luma, w, h, &from),
+                before: resample(&bg.last, w, h, &from),
+                current,
+                w,
+                h,
+            };
+            let mut seen = scan.differences();
+            let (things, taken) = scan.things(&mut seen);
+            scan.follow(bg, &seen.mask, &taken);
             let since = time - bg.time;
             (bg.eye, bg.time) = (eye, time);
             bg.scans += 1;
-            if !settled {
-                bg.last = current;
+            if bg.scans <= WARM_UP {
+                bg.last = scan.current;
                 continue;
             }
-            // How far each thing moved since the last scan, in this view's pixels.
-            let shifts: Vec<Option<DVec2>> = things
-                .iter()
-                .map(|b| shift(b, &current, &before, w, h))
-                .collect();
-            bg.last = current;
-            for (blob, shift) in things.into_iter().zip(shifts) {
-                let mean =
-                    blob.pixels.iter().map(|&i| diff[i]).sum::<f32>() / blob.pixels.len() as f32;
-                let Some(bbox) = to_world(view, planned, blob.low, blob.high + DVec2::ONE) else {
-                    continue;
-                };
-                // Thin slivers are the edges of lines a fraction of a pixel off, not things.
-                let extent = blob.high - blob.low + DVec2::ONE;
-                if extent.min_element() < MIN_SIDE {
-                    continue;
-                }
-                let was = shift.filter(|_| since > 1e-3).and_then(|m| {
-                    to_world(view, planned, blob.low - m, blob.high + DVec2::ONE - m)
-                });
-                let margin = (EDGE + RING) as f64;
-                found.push(Sighting {
-                    view: view.index,
-                    clear: clear_of_edges(view, planned, bbox.centre, bbox.size(), margin),
-                    detection: Detection {
-                        bbox,
-                        confidence: (mean / FULL_CONFIDENCE).min(0.99) as f64,
-                        class: MOVING,
-                        velocity: was.map(|was| (bbox.centre - was.centre) / since),
-                    },
-                });
-            }
+            let sightings = scan.sightings((view, planned), things, &seen.diff, since);
+            found.extend(sightings);
+            bg.last = scan.current;
         }
         one_per_thing(found, join)
     }
 }
 
 /// A thing as one scan view saw it.
-struct Sighting {
+pub(super) struct Sighting {
     view: usize,
     /// Whether the view shows it clear of its edges.
     clear: bool,

@@ -249,71 +249,91 @@ impl OnnxDetector {
             tensors.push((shape.iter().copied().collect::<Vec<i64>>(), data));
         }
         let wanted = |c: usize| self.wanted.is_empty() || self.wanted.get(c) == Some(&true);
-        Ok(match self.decoder {
-            Decoder::Nanodet => {
-                // Levels are told apart by their cell counts. Of a level's two outputs the
-                // distances are 4 × bins wide; where both are (80 classes, 44 distances), the
-                // narrower.
-                let cells = |stride: u32| (self.side.div_ceil(stride) as i64).pow(2);
-                let widths: Vec<i64> = tensors
-                    .iter()
-                    .filter(|(s, _)| s.len() == 3)
-                    .map(|(s, _)| s[2])
-                    .collect();
-                let spread = widths.iter().filter(|&&w| w % 4 == 0).min().copied();
-                let classes = widths.iter().copied().find(|&w| Some(w) != spread);
-                let (Some(spread), Some(classes)) = (spread, classes) else {
-                    return Err(OnnxError::Run(
-                        "its outputs are not NanoDet's (class scores and box distances per \
-                         stride); is the decoder right?"
-                            .into(),
-                    ));
-                };
-                let classes = classes as usize;
-                let levels: Vec<Level> = [8, 16, 32, 64]
-                    .into_iter()
-                    .filter_map(|stride| {
-                        let of = |scores: bool| {
-                            tensors.iter().find(|(s, _)| {
-                                s.len() == 3
-                                    && s[1] == cells(stride)
-                                    && s[2] == if scores { classes as i64 } else { spread }
-                            })
-                        };
-                        Some(Level {
-                            stride,
-                            scores: of(true)?.1,
-                            distances: of(false)?.1,
-                        })
-                    })
-                    .collect();
-                if levels.is_empty() {
-                    return Err(OnnxError::Run(
-                        "its outputs are not NanoDet's (class scores and box distances per \
-                         stride 8, 16, 32); is the decoder right?"
-                            .into(),
-                    ));
-                }
-                decode::nanodet(&levels, self.side, classes, threshold, wanted)
-            }
-            Decoder::Yolov8 => {
-                let Some((shape, data)) = tensors.first() else {
-                    return Err(OnnxError::Run("the model gave no output".into()));
-                };
-                // [1, 4 + classes, anchors]: fewer rows than anchors (84 × 8400 for COCO).
-                let anchors = match shape.as_slice() {
-                    [1, rows, anchors] if *rows > 4 && rows < anchors => *anchors as usize,
-                    _ => {
-                        return Err(OnnxError::Run(format!(
-                            "its output is {shape:?}, not YOLOv8's [1, 4 + classes, anchors]; \
-                             is the decoder right?"
-                        )));
-                    }
-                };
-                decode::yolov8(data, anchors, threshold, wanted)
-            }
-        })
+        match self.decoder {
+            Decoder::Nanodet => nanodet(&tensors, self.side, threshold, wanted),
+            Decoder::Yolov8 => yolov8(&tensors, threshold, wanted),
+        }
     }
+}
+
+/// A model's outputs: each tensor's shape and data.
+type Outputs<'a> = [(Vec<i64>, &'a [f32])];
+
+/// NanoDet's boxes from its outputs: levels are told apart by their cell counts; of a
+/// level's two outputs the distances are 4 × bins wide, and where both are (80 classes, 44
+/// distances), the narrower.
+fn nanodet(
+    tensors: &Outputs,
+    side: u32,
+    threshold: f32,
+    wanted: impl Fn(usize) -> bool,
+) -> Result<Vec<PixelBox>, OnnxError> {
+    let not_nanodet = |what: &str| {
+        OnnxError::Run(format!(
+            "its outputs are not NanoDet's (class scores and box distances per {what}); is \
+             the decoder right?"
+        ))
+    };
+    let cells = |stride: u32| (side.div_ceil(stride) as i64).pow(2);
+    let widths: Vec<i64> = tensors
+        .iter()
+        .filter(|(s, _)| s.len() == 3)
+        .map(|(s, _)| s[2])
+        .collect();
+    let spread = widths.iter().filter(|&&w| w % 4 == 0).min().copied();
+    let classes = widths.iter().copied().find(|&w| Some(w) != spread);
+    let (Some(spread), Some(classes)) = (spread, classes) else {
+        return Err(not_nanodet("stride"));
+    };
+    let levels: Vec<Level> = [8, 16, 32, 64]
+        .into_iter()
+        .filter_map(|stride| {
+            let of = |scores: bool| {
+                tensors.iter().find(|(s, _)| {
+                    s.len() == 3
+                        && s[1] == cells(stride)
+                        && s[2] == if scores { classes } else { spread }
+                })
+            };
+            Some(Level {
+                stride,
+                scores: of(true)?.1,
+                distances: of(false)?.1,
+            })
+        })
+        .collect();
+    if levels.is_empty() {
+        return Err(not_nanodet("stride 8, 16, 32"));
+    }
+    Ok(decode::nanodet(
+        &levels,
+        side,
+        classes as usize,
+        threshold,
+        wanted,
+    ))
+}
+
+/// YOLOv8's boxes from its one output, [1, 4 + classes, anchors]: fewer rows than anchors
+/// (84 × 8400 for COCO).
+fn yolov8(
+    tensors: &Outputs,
+    threshold: f32,
+    wanted: impl Fn(usize) -> bool,
+) -> Result<Vec<PixelBox>, OnnxError> {
+    let Some((shape, data)) = tensors.first() else {
+        return Err(OnnxError::Run("the model gave no output".into()));
+    };
+    let anchors = match shape.as_slice() {
+        [1, rows, anchors] if *rows > 4 && rows < anchors => *anchors as usize,
+        _ => {
+            return Err(OnnxError::Run(format!(
+                "its output is {shape:?}, not YOLOv8's [1, 4 + classes, anchors]; is the \
+                 decoder right?"
+            )));
+        }
+    };
+    Ok(decode::yolov8(data, anchors, threshold, wanted))
 }
 
 impl OnnxDetector {

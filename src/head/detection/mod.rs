@@ -3,8 +3,8 @@
 //! own) into one mosaic and hands it over, newest wins, to the detection thread; it never
 //! waits for it. There the detector (the built-in motion detector on the scans' luma, or an
 //! ONNX model on their colours, each view drawn at the model's input size) and the seed's
-//! tracker run, and the tracked objects, those the tiles show first, go into the live state,
-//! where the detection tiles and DETECTED_ROI read them. Between scans, at the crop rate, the
+//! tracker run, and the tracked objects, those the tiles show first, go into what is sensed
+//! (`crate::state::Sensed`), where the detection tiles and DETECTED_ROI read them. Between scans, at the crop rate, the
 //! ONNX detector's track step looks again for each object in the tiles, in a crop the frame
 //! loop renders around where it should be (handed over the same way, the older first).
 //! GENERAL_SETTINGS' run_ai turns it on and off.
@@ -17,13 +17,13 @@ pub(super) use handover::ScanSlot;
 
 use super::Head;
 use crate::detect::external::{Inbox, listen};
-use crate::detect::scan::{MOTION_VIEWS, model_views, visible};
+use crate::detect::scan::{MOTION_VIEWS, ScanView, model_views, visible};
 use crate::detect::{AngularBox, Detector, MotionDetector, OnnxDetector, OnnxError, Tracker};
 use crate::frame::{Frame, PixelFormat};
 use crate::geometry::GeoPoint;
 use crate::geometry::ground::to_ned;
-use crate::render::Filter;
 use crate::render::gpu::{GpuError, OutputId, Renderer};
+use crate::render::{Filter, FramePlan};
 use crate::state::State;
 use glam::DVec3;
 use handover::Scan;
@@ -132,12 +132,59 @@ impl Head {
         frame: &Frame,
         framed: &super::views::Framed,
     ) {
-        let (state, lens) = (&framed.state, &framed.lens);
         let size = (frame.layout.width as u64) << 32 | frame.layout.height as u64;
         self.frame_size.store(size, Ordering::Relaxed);
-        if !self.detecting(state) {
+        if !self.detecting(&framed.state) {
             return;
         }
+        let Some((views, crops, plan)) = self.due_scan(scans, framed, frame.captured_us) else {
+            return;
+        };
+        // Drawn as the frame was: a rolling shutter's rows each with their own attitude.
+        let plan = plan.with_shutter(framed.shutter.clone());
+        let output = if crops.is_empty() {
+            &mut scans.scan
+        } else {
+            &mut scans.crops
+        };
+        let output = match *output {
+            Some(id) => id,
+            None => match self.scan_output(renderer) {
+                Ok(id) => *output.insert(id),
+                Err(e) => return warn!("detection: no output for the scan: {e}"),
+            },
+        };
+        let t0 = Instant::now();
+        let out = match renderer.redraw(&[(output, &plan)]) {
+            Ok(mut out) => out.remove(0),
+            Err(e) => return warn!("detection: the scan did not render: {e}"),
+        };
+        if crops.is_empty() {
+            self.stats
+                .scan_us
+                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+        }
+        self.scans.put(Scan {
+            views,
+            plan,
+            stride: out.layout.stride as usize,
+            picture: out.data,
+            position: framed.state.vehicle.position,
+            t: frame.captured_us as f64 * 1e-6,
+            crops,
+        });
+    }
+
+    /// What to draw of a frame captured at `captured_us` for the detection thread, if
+    /// anything is due: the scan views, or the crops of a track step (with their objects'
+    /// ids), and the mosaic that draws them.
+    fn due_scan(
+        &self,
+        scans: &mut ScanRenderer,
+        framed: &super::views::Framed,
+        captured_us: u64,
+    ) -> Option<(Vec<ScanView>, Vec<u32>, FramePlan)> {
+        let (state, lens) = (&framed.state, &framed.lens);
         // How many periods ago each was last offered; None if it has no rate.
         let late = |last: Option<Instant>, hz: f64| {
             (hz > 0.0).then(|| last.map_or(f64::INFINITY, |t| t.elapsed().as_secs_f64() * hz))
@@ -166,49 +213,12 @@ impl Head {
             let shape = model.map_or(MOTION_VIEWS, |m| model_views(m.side));
             let (views, plan) = visible(lens, to_lens, shape);
             (views, vec![], plan)
-        } else if let Some(model) = model.filter(|_| crops_late.is_some()) {
+        } else {
+            let model = model.filter(|_| crops_late.is_some())?;
             scans.last_crops = Some(Instant::now());
-            crop_plan(state, lens, to_lens, model.side, frame.captured_us)
-        } else {
-            return;
+            crop_plan(state, lens, to_lens, model.side, captured_us)
         };
-        if views.is_empty() {
-            return;
-        }
-        // Drawn as the frame was: a rolling shutter's rows each with their own attitude.
-        let plan = plan.with_shutter(framed.shutter.clone());
-        let output = if crops.is_empty() {
-            &mut scans.scan
-        } else {
-            &mut scans.crops
-        };
-        let output = match *output {
-            Some(id) => id,
-            None => match self.scan_output(renderer) {
-                Ok(id) => *output.insert(id),
-                Err(e) => return warn!("detection: no output for the scan: {e}"),
-            },
-        };
-        let t0 = Instant::now();
-        let out = match renderer.redraw(&[(output, &plan)]) {
-            Ok(mut out) => out.remove(0),
-            Err(e) => return warn!("detection: the scan did not render: {e}"),
-        };
-        if crops.is_empty() {
-            self.stats
-                .scan_us
-                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
-        }
-        let scan = Scan {
-            views,
-            plan,
-            stride: out.layout.stride as usize,
-            picture: out.data,
-            position: state.vehicle.position,
-            t: frame.captured_us as f64 * 1e-6,
-            crops,
-        };
-        self.scans.put(scan);
+        (!views.is_empty()).then_some((views, crops, plan))
     }
 
     /// The detection thread: takes each scan, detects, tracks, and publishes the objects.
@@ -217,113 +227,107 @@ impl Head {
             return;
         }
         yield_to_video();
-        let mut detector = MotionDetector::new();
-        let mut tracker = Tracker::new();
-        // The ground under the first position is the world's origin for the detector.
-        let mut origin: Option<GeoPoint> = None;
-        let mut owns_list = false;
-        // The external detector's class names, by the number the tracker knows them by; the
-        // time its last line gave (its lines are placed in time by their arrival).
-        let mut labels: Vec<String> = vec![];
-        let mut last_sent: Option<f64> = None;
+        let mut d = Detecting::default();
         let fault = crate::supervise::Fault::for_service("detection");
-        let mut adopted = objects::Adopted::new();
-        let mut scorer: Option<score::Scorer> = None;
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("detection");
             let state = self.state();
-            if self.detecting(&state) {
-                self.adopt_clicks(&mut tracker, &state, &mut adopted);
-            }
             if !self.detecting(&state) {
-                if owns_list {
+                if d.owns_list {
                     // Turning run_ai off emptied the list in the same change (`Gate::change`).
                     info!("detection: off (run_ai); its objects are dropped");
-                    (detector, tracker, owns_list) = (MotionDetector::new(), Tracker::new(), false);
-                    adopted.clear();
+                    (d.detector, d.tracker, d.owns_list) =
+                        (MotionDetector::new(), Tracker::new(), false);
+                    d.adopted.clear();
                 }
                 std::thread::sleep(Duration::from_millis(100));
                 continue;
             }
-            let (t, found, plan, t0, position) = if let Some(inbox) = self.external.get() {
-                let Some((batch, arrived)) = inbox.take(Duration::from_millis(100)) else {
-                    continue;
-                };
-                if batch
-                    .t
-                    .is_some_and(|t| last_sent.is_some_and(|last| t <= last))
-                {
-                    continue;
-                }
-                last_sent = batch.t.or(last_sent);
-                let t0 = Instant::now();
-                let Some((found, plan)) = self.external_boxes(&state, &batch, &mut labels) else {
-                    continue;
-                };
-                // On the sources' clock, as a scan's frames are.
-                let t = crate::clock::clock_us() as f64 * 1e-6 - arrived.elapsed().as_secs_f64();
-                (t, found, plan, t0, None)
-            } else {
-                let Some(scan) = self.scans.take() else {
-                    continue;
-                };
-                if !scan.crops.is_empty() {
-                    let t0 = Instant::now();
-                    self.track_step(&mut tracker, &state, &scan);
-                    self.show(&mut tracker, &state, &labels, (&mut adopted, scan.t));
-                    owns_list = true;
-                    self.scans.took(true, t0);
-                    continue;
-                }
-                let t0 = Instant::now();
-                let home = *origin.get_or_insert(GeoPoint {
-                    alt: scan.position.home_alt(),
-                    ..scan.position.point()
-                });
-                let eye: DVec3 = to_ned(home, scan.position.point());
-                let found = match self.model.get() {
-                    Some(model) => {
-                        let threshold = state.settings.detection.var_confidence_threshold as f32;
-                        let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
-                        let (v, p) = (&scan.views, &scan.plan);
-                        match model.scan(v, p, &scan.picture, scan.stride, threshold) {
-                            Ok(found) => found,
-                            Err(e) => {
-                                warn!("detection: {e}");
-                                continue;
-                            }
-                        }
-                    }
-                    None => {
-                        let (v, p) = (&scan.views, &scan.plan);
-                        detector.detect(v, p, &scan.picture, scan.stride, eye, scan.t)
-                    }
-                };
-                (scan.t, found, scan.plan, t0, Some(scan.position))
+            self.adopt_clicks(&mut d.tracker, &state, &mut d.adopted);
+            let Some(found) = self.next_found(&mut d, &state) else {
+                continue;
             };
-            let sees = |ray| plan.views.iter().any(|v| plan.view_point(v, ray).is_some());
-            let covered = |b: &AngularBox| sees(b.centre);
-            tracker.scan(&state.settings.detection, t, found, covered);
-            let (list, tiled) = self.show(&mut tracker, &state, &labels, (&mut adopted, t));
-            owns_list = true;
-            if scorer.is_none() {
-                scorer = self.demo_truth().map(score::Scorer::new);
-            }
-            if let (Some(position), Some(scorer)) = (position, scorer.as_mut()) {
-                scorer.scan((t, &position), &list, tiled, sees);
-                let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
-                let rings = shared.take().map(|s| s.rings).unwrap_or_default();
-                *shared = Some(score::Score {
-                    rings,
-                    ..scorer.score().clone()
-                });
-            }
-            self.scans.took(false, t0);
-            self.stats
-                .detect_us
-                .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
-            self.stats.scans.fetch_add(1, Ordering::Relaxed);
+            self.track(&mut d, &state, found);
         }
+    }
+
+    /// The next boxes to track: the external detector's next line, or a scan's detections.
+    /// None when nothing came, or what came was a track step (done here).
+    fn next_found(&self, d: &mut Detecting, state: &State) -> Option<Found> {
+        if let Some(inbox) = self.external.get() {
+            let (batch, arrived) = inbox.take(Duration::from_millis(100))?;
+            if batch
+                .t
+                .is_some_and(|t| d.last_sent.is_some_and(|last| t <= last))
+            {
+                return None;
+            }
+            d.last_sent = batch.t.or(d.last_sent);
+            let t0 = Instant::now();
+            let (found, plan) = self.external_boxes(state, &batch, &mut d.labels)?;
+            // On the sources' clock, as a scan's frames are.
+            let t = crate::clock::clock_us() as f64 * 1e-6 - arrived.elapsed().as_secs_f64();
+            return Some((t, found, plan, t0, None));
+        }
+        let scan = self.scans.take()?;
+        let t0 = Instant::now();
+        if !scan.crops.is_empty() {
+            self.track_step(&mut d.tracker, state, &scan);
+            self.show(&mut d.tracker, state, &d.labels, (&mut d.adopted, scan.t));
+            d.owns_list = true;
+            self.scans.took(true, t0);
+            return None;
+        }
+        let home = *d.origin.get_or_insert(GeoPoint {
+            alt: scan.position.home_alt(),
+            ..scan.position.point()
+        });
+        let eye: DVec3 = to_ned(home, scan.position.point());
+        let (v, p) = (&scan.views, &scan.plan);
+        let found = match self.model.get() {
+            Some(model) => {
+                let threshold = state.settings.detection.var_confidence_threshold as f32;
+                let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
+                match model.scan(v, p, &scan.picture, scan.stride, threshold) {
+                    Ok(found) => found,
+                    Err(e) => {
+                        warn!("detection: {e}");
+                        return None;
+                    }
+                }
+            }
+            None => d
+                .detector
+                .detect(v, p, &scan.picture, scan.stride, eye, scan.t),
+        };
+        Some((scan.t, found, scan.plan, t0, Some(scan.position)))
+    }
+
+    /// Tracks what a scan (or the external detector) found, publishes the objects, and
+    /// scores them against the demo's movers.
+    fn track(&self, d: &mut Detecting, state: &State, (t, found, plan, t0, position): Found) {
+        let sees = |ray| plan.views.iter().any(|v| plan.view_point(v, ray).is_some());
+        let covered = |b: &AngularBox| sees(b.centre);
+        d.tracker.scan(&state.settings.detection, t, found, covered);
+        let (list, tiled) = self.show(&mut d.tracker, state, &d.labels, (&mut d.adopted, t));
+        d.owns_list = true;
+        if d.scorer.is_none() {
+            d.scorer = self.demo_truth().map(score::Scorer::new);
+        }
+        if let (Some(position), Some(scorer)) = (position, d.scorer.as_mut()) {
+            scorer.scan((t, &position), &list, tiled, sees);
+            let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
+            let rings = shared.take().map(|s| s.rings).unwrap_or_default();
+            *shared = Some(score::Score {
+                rings,
+                ..scorer.score().clone()
+            });
+        }
+        self.scans.took(false, t0);
+        self.stats
+            .detect_us
+            .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
+        self.stats.scans.fetch_add(1, Ordering::Relaxed);
     }
 
     /// The track step: the model on each crop, each object found again or missed in its own
@@ -345,6 +349,33 @@ impl Head {
         }
     }
 }
+
+/// What the detection thread keeps from one scan to the next.
+#[derive(Default)]
+struct Detecting {
+    detector: MotionDetector,
+    tracker: Tracker,
+    /// The ground under the first position: the world's origin for the detector.
+    origin: Option<GeoPoint>,
+    /// Whether the objects published are this thread's.
+    owns_list: bool,
+    /// The external detector's class names, by the number the tracker knows them by; the
+    /// time its last line gave (its lines are placed in time by their arrival).
+    labels: Vec<String>,
+    last_sent: Option<f64>,
+    adopted: objects::Adopted,
+    scorer: Option<score::Scorer>,
+}
+
+/// Boxes to track: when they were seen, the boxes, the mosaic they were found in, when
+/// their detection started, and (a scan's) where the vehicle was.
+type Found = (
+    f64,
+    Vec<crate::detect::angular::Detection>,
+    FramePlan,
+    Instant,
+    Option<crate::geometry::GeoPosition>,
+);
 
 /// Lowers this thread's priority to the least: SCHED_IDLE, which runs only when nothing else
 /// wants the CPU and yields at once when a video thread wakes (nice 19 where that is not

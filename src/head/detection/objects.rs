@@ -20,7 +20,7 @@ use tracing::{info, warn};
 /// The track step looks again for this many objects at most, those in the tiles first.
 const MAX_CROPS: usize = 6;
 
-/// Clicks taken on by the detection stage and not yet in the live state: the camera, the
+/// Clicks taken on by the detection stage and not yet in the settings: the camera, the
 /// click's time (`Follow::since_us`) and the object it became.
 pub(super) type Adopted = Vec<(usize, u64, u32)>;
 
@@ -63,10 +63,11 @@ impl Head {
         }
     }
 
-    /// Orders the tracker's objects into the tiles and puts them in the live state, with
-    /// the clicks `adopted` since the last time, as of `now` (seconds on the clock): an
-    /// object not seen for [`IN_SIGHT`] is left out (no tile, no ring, not in DETECTED_ROI)
-    /// until a scan finds it again, unless a camera follows it. Returns the list and how many of it the tiles show.
+    /// Orders the tracker's objects into the tiles and publishes them, with the clicks
+    /// `adopted` since the last time, as of `now` (seconds on the clock): an object not seen
+    /// for [`IN_SIGHT`] is left out (no tile, no ring, not in DETECTED_ROI) until a scan
+    /// finds it again, unless a camera follows it. Returns the list and how many of it the
+    /// tiles show.
     pub(super) fn show(
         &self,
         tracker: &mut Tracker,
