@@ -76,7 +76,7 @@ numbered!(
 
 numbered!(
     /// How the views sit in the output frame (VIDEO_OUTPUT's layout_mode; conventions.md).
-    LayoutMode, "layout mode" {
+    LayoutMode, "output layout" {
         /// One square as tall as the frame.
         One = 0,
         /// Two squares stacked.
@@ -96,7 +96,7 @@ numbered!(
 
 numbered!(
     /// Where the detection tiles go (VIDEO_OUTPUT's detection_overlay_mode).
-    OverlayMode, "detection overlay mode" {
+    OverlayMode, "output overlay" {
         None = 0,
         /// One tile in the top-right corner, over the views.
         OneTile = 1,
@@ -190,7 +190,7 @@ mod tests {
         assert_eq!(LayoutMode::ALL.len(), 7);
         assert_eq!(OverlayMode::ALL.len(), 6);
         let e = LayoutMode::try_from(7).unwrap_err();
-        assert_eq!(e.to_string(), "layout mode 7 is outside 0..=6");
+        assert_eq!(e.to_string(), "output layout 7 is outside 0..=6");
         for v in 0..=255u8 {
             assert_eq!(Crop::from(v).code(), v);
         }

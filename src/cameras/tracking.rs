@@ -37,15 +37,24 @@ fn normalized(v: &[f32]) -> bool {
     v.iter().all(|x| (0.0..=1.0).contains(x))
 }
 
+/// A track command's values that name no spot of the picture.
+#[derive(Debug, thiserror::Error)]
+enum NoClick {
+    #[error("track point ({0}, {1}) radius {2}")]
+    Point(f32, f32, f32),
+    #[error("track rectangle ({0}, {1}) to ({2}, {3})")]
+    Rectangle(f32, f32, f32, f32),
+}
+
 /// What a track command clicked in the camera's picture (0..1 from its top left): its shape,
 /// centre and two corners (a point's at its radius either side), or why it is no click.
-fn clicked(cmd: &Command) -> Result<(Shape, DVec2, [DVec2; 2]), String> {
+fn clicked(cmd: &Command) -> Result<(Shape, DVec2, [DVec2; 2]), NoClick> {
     let p = &cmd.params;
     if cmd.command == MavCmd::MAV_CMD_CAMERA_TRACK_POINT {
         // MAVSDK and others leave the radius NaN when they have none.
         let radius = if p[2].is_nan() { 0.0 } else { p[2] };
         if !normalized(&[p[0], p[1], radius]) {
-            return Err(format!("track point ({}, {}) radius {}", p[0], p[1], p[2]));
+            return Err(NoClick::Point(p[0], p[1], p[2]));
         }
         let r = radius as f64;
         let (x, y) = (p[0] as f64, p[1] as f64);
@@ -53,10 +62,7 @@ fn clicked(cmd: &Command) -> Result<(Shape, DVec2, [DVec2; 2]), String> {
         return Ok((Shape::Point, DVec2::new(x, y), corners));
     }
     if !normalized(&p[..4]) || p[0] >= p[2] || p[1] >= p[3] {
-        return Err(format!(
-            "track rectangle ({}, {}) to ({}, {})",
-            p[0], p[1], p[2], p[3]
-        ));
+        return Err(NoClick::Rectangle(p[0], p[1], p[2], p[3]));
     }
     let (a, b) = (
         DVec2::new(p[0] as f64, p[1] as f64),

@@ -288,7 +288,7 @@ mod tests {
         let e = err("[output]\nwidht = 3\n");
         assert!(e.starts_with("s.toml:2: unknown field `widht`"), "{e}");
         let e = err("[output]\nlayout = 9\n");
-        assert_eq!(e, "s.toml:2: layout mode 9 is outside 0..=6");
+        assert_eq!(e, "s.toml:2: output layout 9 is outside 0..=6");
         let e = err("[[camera]]\nyaw = \"north\"\n");
         assert!(e.starts_with("s.toml:2: "), "{e}");
         let e = err("[[camera]]\nfov = \"200deg\"\n");

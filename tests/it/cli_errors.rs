@@ -423,7 +423,7 @@ fn careless_values_are_refused_with_what_to_change() {
         (
             "--cam",
             "1:pitch=1e300",
-            "camera 1 pitch 1e300 is outside ±2π rad",
+            "camera 1 pitch 1e300 is outside ±π/2 rad",
         ),
     ] {
         let o = bin(&["render", "--input", "f.png", "--out", "o.png", flag, value]);

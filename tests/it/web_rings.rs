@@ -11,10 +11,29 @@ use common::serve::Serve;
 use serde_json::Value;
 use std::time::Duration;
 
-/// A script: the overlay's rings (`dataset.rings`) and the frame's time at each frame of the
-/// picture the page draws, until `arguments[0]` pairs of different frames in a row start with
-/// a moving ring (or 90 frames).
-const FRAMES_WITH_RINGS: &str = "
+/// A script's function: a signature of the picture the page shows (every 4th pixel each
+/// way), which tells a new picture from the last one drawn again.
+const PICTURE: &str = "
+    const signature = () => {
+      const g = document.getElementById('video').getContext('2d');
+      const [w, h] = [g.canvas.width, g.canvas.height];
+      const d = g.getImageData(0, 0, w, h).data;
+      let s = 0;
+      for (let y = 0; y < h; y += 4) {
+        for (let x = 0; x < w; x += 4) {
+          const k = 4 * (y * w + x);
+          s = (Math.imul(s, 31) + d[k] + 7 * d[k + 1] + 13 * d[k + 2]) >>> 0;
+        }
+      }
+      return s;
+    };";
+
+/// A script: the overlay's rings (`dataset.rings`), the frame's time and the picture's
+/// signature at each frame of the picture the page draws, until `arguments[0]` pairs of
+/// different pictures in a row start with a moving ring (or 90 frames).
+fn frames_with_rings() -> String {
+    PICTURE.to_string()
+        + "
     const want = arguments[0];
     const c = document.getElementById('overlay');
     const preview = window.digiview.preview;
@@ -24,13 +43,17 @@ const FRAMES_WITH_RINGS: &str = "
       let pairs = 0;
       preview.addEventListener('frame', function step() {
         const last = seen[seen.length - 1];
-        if (last && last.pts !== c.dataset.pts && moving(last.drawn)) pairs++;
-        seen.push({ drawn: c.dataset.rings, pts: c.dataset.pts });
+        const now = { drawn: c.dataset.rings, pts: c.dataset.pts, picture: signature() };
+        if (last && last.pts !== now.pts && last.picture !== now.picture && moving(last.drawn)) {
+          pairs++;
+        }
+        seen.push(now);
         if (pairs < want && seen.length < 90) return;
         preview.removeEventListener('frame', step);
         done(seen);
       });
-    })";
+    })"
+}
 
 /// Of the frames drawn (each `{drawn, pts}`: the overlay's rings as JSON, the frame's time),
 /// the pairs of different frames in a row whose first has a moving ring, and of those, the
@@ -41,11 +64,19 @@ fn moving_pairs(frames: &Value) -> (usize, usize) {
         .iter()
         .map(|f| f["drawn"].as_str().unwrap_or("[]"))
         .collect();
-    // The same frame drawn again (its presentation time unchanged) rightly keeps its rings.
+    // The same frame drawn again rightly keeps its rings: by the page (its presentation time
+    // unchanged), or by the head (the same picture at a new time: a source slower than the
+    // output, the last frame rendered again because the tracked objects changed, tiles with
+    // it, while the rings' objects did not move).
     let new: Vec<bool> = frames
         .windows(2)
-        .map(|w| w[0]["pts"] != w[1]["pts"])
+        .map(|w| w[0]["pts"] != w[1]["pts"] && w[0]["picture"] != w[1]["picture"])
         .collect();
+    let again = frames
+        .windows(2)
+        .filter(|w| w[0]["pts"] != w[1]["pts"] && w[0]["picture"] == w[1]["picture"])
+        .count();
+    eprintln!("{again} frames the head drew again (a new time, the same picture)");
     let moving = |f: &str| {
         let rings: Value = serde_json::from_str(f).unwrap();
         rings
@@ -61,6 +92,19 @@ fn moving_pairs(frames: &Value) -> (usize, usize) {
         .map(|(w, _)| w)
         .collect();
     let moved = pairs.iter().filter(|w| w[0] != w[1]).count();
+    for w in pairs.iter().filter(|w| w[0] == w[1]) {
+        let at = drawn
+            .windows(2)
+            .position(|d| std::ptr::eq(d, *w))
+            .unwrap_or(0);
+        eprintln!(
+            "rings stood still from frame {at} (pts {}) to {} (pts {}): {}",
+            frames[at]["pts"],
+            at + 1,
+            frames[at + 1]["pts"],
+            w[0]
+        );
+    }
     (pairs.len(), moved)
 }
 
@@ -115,7 +159,7 @@ async fn on_a_phone_the_labels_are_legible_and_apart_and_the_panel_says_what_det
     // The rings move on every frame of the picture the page draws, at the tracker's velocity,
     // not only when an update comes (about every 100 ms): 9 pairs of frames drawn with a
     // moving ring (a ring is still where the tracker has no velocity for it).
-    let frames = b.js(FRAMES_WITH_RINGS, vec![9.into()]).await;
+    let frames = b.js(&frames_with_rings(), vec![9.into()]).await;
     let (pairs, moved) = moving_pairs(&frames);
     eprintln!("rings moved in {moved} of {pairs} pairs of drawn frames with a moving ring");
     assert!(pairs >= 5, "too few frames with moving rings: {frames}");
@@ -158,9 +202,8 @@ async fn flying_in_the_fisheye_layout_the_rings_sit_on_their_movers_in_each_fram
     .await;
     // Each frame as drawn: the rings' centres, and for each whether the picture has at least
     // two pixels of a mover's colour within 20 px of it.
-    let frames = b
-        .js(
-            "const [n, reach] = arguments;
+    let script = PICTURE.to_string()
+        + "const [n, reach] = arguments;
              const mover = (r, g, b) =>
                (g - r > 60 && g - b > 100)                                // lime
                || (r > 200 && r - g > 60 && b - g > 5 && b - g < 60)     // pink
@@ -184,15 +227,14 @@ async fn flying_in_the_fisheye_layout_the_rings_sit_on_their_movers_in_each_fram
                    }
                    return [r.x, r.y, hits >= 2];
                  });
-                 seen.push({ rings, drawn: overlay.dataset.rings, pts: overlay.dataset.pts });
+                 seen.push({ rings, drawn: overlay.dataset.rings, pts: overlay.dataset.pts,
+                             picture: signature() });
                  if (seen.length < n) return;
                  preview.removeEventListener('frame', step);
                  done(seen);
                });
-             })",
-            vec![90.into(), 20.into()],
-        )
-        .await;
+             })";
+    let frames = b.js(&script, vec![90.into(), 20.into()]).await;
     let (pairs, moved) = moving_pairs(&frames);
     let frames = frames.as_array().unwrap();
     let rings = |f: &Value| f["rings"].as_array().unwrap().clone();
