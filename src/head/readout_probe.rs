@@ -73,6 +73,9 @@ struct Collecting {
     /// The lens at the kept frames' size, and the camera's mount.
     lens: Option<Lens>,
     mount: Euler,
+    /// The capture time of the last frame kept: the same frame drawn again (a slower source)
+    /// is kept once.
+    last_us: Option<u64>,
 }
 
 /// Why an estimate was not started.
@@ -113,6 +116,7 @@ impl ReadoutProbe {
             done: vec![],
             lens: None,
             mount: Euler::default(),
+            last_us: None,
         });
         info!("readout estimate: collecting {seconds} s of frames");
         Ok(status.clone())
@@ -145,7 +149,8 @@ impl ReadoutProbe {
         };
         let until = *c.until_us.get_or_insert(frame.captured_us + c.span_us);
         c.full |= frame.captured_us > until;
-        if !c.full {
+        let again = c.last_us.replace(frame.captured_us) == Some(frame.captured_us);
+        if !c.full && !again {
             let (w, h) = (frame.layout.width, frame.layout.height);
             let k = w.div_ceil(MAX_WIDTH).max(1);
             let size = (w / k, h / k);
