@@ -210,7 +210,8 @@ pub fn probe_frames(path: &std::path::Path) -> (u64, String) {
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout).trim().to_string();
-    let mut parts = text.split(',');
+    // An MPEG-TS lists its stream under its program too: the first line is the stream's.
+    let mut parts = text.lines().next().unwrap_or("").split(',');
     let (w, h, n) = (parts.next(), parts.next(), parts.next());
     match (w, h, n.and_then(|n| n.parse().ok())) {
         (Some(w), Some(h), Some(n)) => (n, format!("{w}x{h}")),

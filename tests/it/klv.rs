@@ -419,7 +419,8 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
 
 /// `[capture] container = "ts"`: the composed stream's recording and camera 2's own (started
 /// over MAVLink, as a ground station does) are MPEG-TS whose KLV klvdata reads (whole, with
-/// `klv_objects = false`: no tag 74), each describing its own view: the composed one camera 0 (`klv_camera`), camera 2's itself,
+/// `klv_objects = false`: no tag 74), a packet with every frame over the 4 s recorded, each
+/// describing its own view: the composed one camera 0 (`klv_camera`), camera 2's itself,
 /// their frame centres as far apart as the two cameras look.
 #[test]
 fn ts_recordings_carry_each_views_own_klv() {
@@ -483,12 +484,30 @@ fn ts_recordings_carry_each_views_own_klv() {
         (find(true), "DigiView cam 2"),
     ] {
         let packets = read_ts(path);
-        eprintln!("{}: {} KLV packets", path.display(), packets.len());
-        assert!(
-            packets.len() >= 30,
-            "{}: {} packets",
+        let (frames, _) = common::probe_frames(path);
+        let time = |p: &serde_json::Value| p["values"]["2"].as_u64().unwrap_or(0);
+        let span_s = packets
+            .last()
+            .map_or(0, time)
+            .saturating_sub(packets.first().map_or(0, time)) as f64
+            * 1e-6;
+        eprintln!(
+            "{}: {} KLV packets, {frames} frames, over {span_s:.2} s",
             path.display(),
             packets.len()
+        );
+        // Every frame with its packet (the recording's first and last may part at its ends),
+        // from the start of the 4 s to their end: whatever rate the machine draws the view at.
+        assert!(
+            (packets.len() as i64 - frames as i64).abs() <= 1,
+            "{}: {} packets for {frames} frames",
+            path.display(),
+            packets.len()
+        );
+        assert!(
+            span_s >= 3.5,
+            "{}: packets over {span_s:.2} s",
+            path.display()
         );
         for p in &packets {
             assert_eq!(p["checksum_ok"], true, "{p}");
