@@ -51,7 +51,11 @@ fn requests() -> impl Strategy<Value = Request> {
     ]
 }
 
-const MRAD: f64 = 1e-3;
+/// Milliradians as radians, as the DigiView protocol decodes them (a division: the nearest
+/// number to the quotient, which `mrad * 1e-3` is not always).
+fn rad(mrad: i32) -> f64 {
+    mrad as f64 / 1000.0
+}
 /// MAVLink's gimbal flags: roll, pitch and yaw held in the world, yaw from north.
 const HELD: f64 = (4 | 8 | 16 | 64) as f64;
 
@@ -62,13 +66,13 @@ impl Request {
             Request::Aim { yaw, pitch } => Param::CamEuler(CamEuler {
                 cam_id,
                 is_delta: 0,
-                yaw: yaw as f64 * MRAD,
-                pitch: pitch as f64 * MRAD,
+                yaw: rad(yaw),
+                pitch: rad(pitch),
                 roll: 0.0,
             }),
             Request::Fov(f) => Param::CamFov(CamFov {
                 cam_id,
-                fov: f as f64 * MRAD,
+                fov: rad(f),
             }),
             Request::Step(v) => Param::CamZoom(CamZoom {
                 cam_id,
@@ -87,7 +91,7 @@ impl Request {
 
     /// As a MAVLink command to `camera`: COMMAND_LONG's seven params, or COMMAND_INT's.
     fn command(self, camera: u8, int: bool) -> Value {
-        let deg = |mrad: i32| (mrad as f64 * MRAD).to_degrees();
+        let deg = |mrad: i32| rad(mrad).to_degrees();
         let (command, params, place) = match self {
             // DO_GIMBAL_MANAGER_PITCHYAW: pitch, yaw, no rates, the flags.
             Request::Aim { yaw, pitch } => (
