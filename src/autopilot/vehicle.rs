@@ -1,8 +1,9 @@
 //! What the autopilot's messages say about the vehicle: which component is the autopilot (the
 //! first HEARTBEAT with an autopilot type, or the configured system id), its attitude
-//! (ATTITUDE_QUATERNION when it comes, else ATTITUDE) at the local time it was measured, its
-//! position (GLOBAL_POSITION_INT) and its home altitude (HOME_POSITION, else the position's
-//! relative altitude), and TIMESYNC. Pure: messages in, updates out; the link applies them.
+//! (ATTITUDE_QUATERNION or AUTOPILOT_STATE_FOR_GIMBAL_DEVICE when they come, else ATTITUDE)
+//! at the local time it was measured, its position (GLOBAL_POSITION_INT) and its home
+//! altitude (HOME_POSITION, else the position's relative altitude), and TIMESYNC. Pure:
+//! messages in, updates out; the link applies them.
 
 use super::clock::BootClock;
 use crate::geometry::{Euler, GeoPosition};
@@ -89,15 +90,14 @@ impl Vehicle {
             MavMessage::ATTITUDE_QUATERNION(a) => {
                 let t_us = self.stamp(a.time_boot_ms, now_us)?;
                 self.quaternion_at = Some(now_us);
-                let q = DQuat::from_xyzw(a.q2 as f64, a.q3 as f64, a.q4 as f64, a.q1 as f64);
-                if !q.is_finite() || q.length() < 0.5 {
-                    return None;
-                }
-                let (yaw, pitch, roll) = q.normalize().to_euler(EulerRot::ZYX);
-                Some(Update::Attitude {
-                    t_us,
-                    attitude: Euler::new(yaw, pitch, roll),
-                })
+                quaternion(t_us, [a.q1, a.q2, a.q3, a.q4])
+            }
+            // What an autopilot sends the gimbal devices it manages (ArduPilot at 50 Hz),
+            // as good as ATTITUDE_QUATERNION.
+            MavMessage::AUTOPILOT_STATE_FOR_GIMBAL_DEVICE(a) => {
+                let t_us = self.stamp((a.time_boot_us / 1000) as u32, now_us)?;
+                self.quaternion_at = Some(now_us);
+                quaternion(t_us, a.q)
             }
             MavMessage::ATTITUDE(a) => {
                 let t_us = self.stamp(a.time_boot_ms, now_us)?;
@@ -143,6 +143,19 @@ impl Vehicle {
         self.clock.observe(remote, now_us);
         self.clock.to_local(remote)
     }
+}
+
+/// An attitude sample from a quaternion (w, x, y, z), if it is one.
+fn quaternion(t_us: u64, [w, x, y, z]: [f32; 4]) -> Option<Update> {
+    let q = DQuat::from_xyzw(x as f64, y as f64, z as f64, w as f64);
+    if !q.is_finite() || q.length() < 0.5 {
+        return None;
+    }
+    let (yaw, pitch, roll) = q.normalize().to_euler(EulerRot::ZYX);
+    Some(Update::Attitude {
+        t_us,
+        attitude: Euler::new(yaw, pitch, roll),
+    })
 }
 
 #[cfg(test)]
@@ -251,5 +264,45 @@ mod tests {
             None,
             "NaN is not an attitude"
         );
+    }
+
+    /// ArduPilot sends its gimbal devices AUTOPILOT_STATE_FOR_GIMBAL_DEVICE at 50 Hz once it
+    /// manages them: its quaternion is an attitude sample, stamped by its boot time in µs,
+    /// and ATTITUDE gives way to it; from another component it counts for nothing.
+    #[test]
+    fn the_state_an_autopilot_sends_its_gimbal_devices_is_an_attitude() {
+        let mut v = Vehicle::new(None);
+        let ap = heartbeat(
+            MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            MavType::MAV_TYPE_QUADROTOR,
+        );
+        v.handle(&header(1, 1), &ap, 0);
+        // Pitched up 30°: w = cos 15°, y = sin 15°.
+        let half = 15f32.to_radians();
+        let state = |t_us: u64| {
+            MavMessage::AUTOPILOT_STATE_FOR_GIMBAL_DEVICE(AUTOPILOT_STATE_FOR_GIMBAL_DEVICE_DATA {
+                time_boot_us: t_us,
+                q: [half.cos(), 0.0, half.sin(), 0.0],
+                target_system: 1,
+                target_component: 154,
+                ..Default::default()
+            })
+        };
+        match v.handle(&header(1, 1), &state(2_000_000), 50_000) {
+            Some(Update::Attitude { attitude, .. }) => {
+                assert!(
+                    (attitude.pitch - 30f64.to_radians()).abs() < 1e-6,
+                    "{attitude:?}"
+                );
+                assert!(attitude.yaw.abs() < 1e-6 && attitude.roll.abs() < 1e-6);
+            }
+            other => panic!("{other:?}"),
+        }
+        let att = MavMessage::ATTITUDE(ATTITUDE_DATA {
+            time_boot_ms: 2010,
+            ..Default::default()
+        });
+        assert_eq!(v.handle(&header(1, 1), &att, 60_000), None);
+        assert_eq!(v.handle(&header(1, 2), &state(2_020_000), 70_000), None);
     }
 }

@@ -290,6 +290,15 @@ impl Cameras {
                 Some(index) => self.image_again(i, index),
                 None => Answer::denied(format!("no image index {p2}")),
             },
+            // As gimbal devices, the views' gimbals answer for themselves (`device`).
+            GIMBAL_MANAGER_INFORMATION_DATA::ID
+            | GIMBAL_DEVICE_INFORMATION_DATA::ID
+            | GIMBAL_MANAGER_STATUS_DATA::ID
+            | GIMBAL_DEVICE_ATTITUDE_STATUS_DATA::ID
+                if self.devices() =>
+            {
+                return None;
+            }
             GIMBAL_MANAGER_INFORMATION_DATA::ID => {
                 Answer::accepted(vec![self.manager_information()])
             }

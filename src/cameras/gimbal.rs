@@ -58,7 +58,7 @@ impl Control {
 /// Why a gimbal command is refused (DENIED, and the log says why).
 #[derive(Debug, thiserror::Error)]
 pub enum Refused {
-    #[error("an angle or rate that is infinite")]
+    #[error("an angle or rate that is infinite, or a quaternion that is not a rotation")]
     Infinite,
     #[error("{}/{} is not in control of gimbal {gimbal}", who.0, who.1)]
     NotInControl { who: (u8, u8), gimbal: usize },
@@ -106,25 +106,40 @@ impl Aim {
 
     /// GIMBAL_MANAGER_SET_ATTITUDE: a quaternion (NaN: rates only) and angular velocities.
     pub fn attitude(m: &GIMBAL_MANAGER_SET_ATTITUDE_DATA) -> Aim {
-        let mut bad = m.q.iter().any(|v| v.is_infinite());
-        let [w, x, y, z] = m.q.map(|v| v as f64);
+        Aim::quaternion(m.q, m.angular_velocity_y, m.angular_velocity_z)
+    }
+
+    /// A gimbal message's quaternion (w, x, y, z; any NaN: no angle, rates only) and its
+    /// pitch and yaw rates (NaN: not this one). A quaternion of numbers that is not a
+    /// rotation (its length not 1, as the all-zero one) is refused like an infinity: taken
+    /// as "no angle" it would still set the lock flags.
+    pub fn quaternion(q: [f32; 4], pitch_rate: f32, yaw_rate: f32) -> Aim {
+        let mut bad = q.iter().any(|v| v.is_infinite());
+        let [w, x, y, z] = q.map(|v| v as f64);
         let q = DQuat::from_xyzw(x, y, z, w);
-        let (yaw, pitch, roll) = if q.is_finite() && q.length() > 0.5 {
-            let (yaw, pitch, roll) = q.normalize().to_euler(EulerRot::ZYX);
-            (Some(yaw), Some(pitch), Some(roll))
-        } else {
-            (None, None, None)
+        let rotation = q.is_finite().then(|| q.length());
+        bad |= rotation.is_some_and(|l| (l - 1.0).abs() > UNIT_SLACK);
+        let (yaw, pitch, roll) = match rotation {
+            Some(_) if !bad => {
+                let (yaw, pitch, roll) = q.normalize().to_euler(EulerRot::ZYX);
+                (Some(yaw), Some(pitch), Some(roll))
+            }
+            _ => (None, None, None),
         };
         Aim {
             yaw,
             pitch,
             roll,
-            pitch_rate: given(m.angular_velocity_y, &mut bad),
-            yaw_rate: given(m.angular_velocity_z, &mut bad),
+            pitch_rate: given(pitch_rate, &mut bad),
+            yaw_rate: given(yaw_rate, &mut bad),
             bad,
         }
     }
 }
+
+/// How far a quaternion's length may be from 1 and still be taken as a rotation (senders
+/// that pack it as f32 from their own Euler angles are off by far less).
+const UNIT_SLACK: f64 = 0.01;
 
 /// The lock flags a gimbal command's flags set.
 fn locks_of(flags: GimbalManagerFlags) -> u8 {
@@ -153,8 +168,8 @@ pub fn turn(dyaw: f64, dpitch: f64) -> Op {
 }
 
 impl Cameras {
-    /// Points camera `i` as a gimbal command from `from` says; its rates turn it on every
-    /// tick until the next command.
+    /// Points camera `i` as a gimbal manager command from `from` says, if `from` is in
+    /// control of it.
     pub(super) fn aim(
         &self,
         from: &MavHeader,
@@ -162,14 +177,27 @@ impl Cameras {
         flags: GimbalManagerFlags,
         aim: Aim,
     ) -> Result<(), Refused> {
+        self.in_control(from, i)?;
+        self.point(i, flags, aim)
+    }
+
+    /// Points camera `i` as a gimbal message says (the manager's commands and, as a gimbal
+    /// device, its manager's GIMBAL_DEVICE_SET_ATTITUDE: their flags share their bits); its
+    /// rates turn it on every tick until the next. Yaw is in the earth frame when the flags
+    /// say so, or, saying neither frame, when they lock yaw (as older senders mean it).
+    pub(super) fn point(
+        &self,
+        i: usize,
+        flags: GimbalManagerFlags,
+        aim: Aim,
+    ) -> Result<(), Refused> {
+        use GimbalManagerFlags as F;
         if aim.bad {
             return Err(Refused::Infinite);
         }
-        self.in_control(from, i)?;
-        let earth = flags.intersects(
-            GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME
-                | GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK,
-        );
+        let earth = flags.contains(F::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME)
+            || (flags.contains(F::GIMBAL_MANAGER_FLAGS_YAW_LOCK)
+                && !flags.contains(F::GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME));
         let pointing = Pointing {
             yaw: aim.yaw,
             pitch: aim.pitch,
@@ -331,7 +359,7 @@ impl Cameras {
             vendor_name: "DigiView".into(),
             model_name: format!("virtual gimbal {i}").as_str().into(),
             custom_name: format!("view {i}").as_str().into(),
-            gimbal_device_id: GIMBAL_DEVICE_ID,
+            gimbal_device_id: self.own_device_id(),
             cap_flags2: CAPS,
         })
     }
@@ -367,7 +395,7 @@ impl Cameras {
             target_component: 0,
             delta_yaw: wrap_pi(yaw - state.vehicle.attitude.yaw) as f32,
             delta_yaw_velocity: f32::NAN,
-            gimbal_device_id: GIMBAL_DEVICE_ID,
+            gimbal_device_id: self.own_device_id(),
         })
     }
 

@@ -87,7 +87,7 @@ impl Cameras {
             model_name: text(&format!("virtual camera {i}")),
             lens_id: state.settings.lens,
             cam_definition_uri: uri.as_str().into(),
-            gimbal_device_id: GIMBAL_DEVICE_ID,
+            gimbal_device_id: self.gimbal_device_id(i),
             camera_device_id: 0,
         })
     }

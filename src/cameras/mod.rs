@@ -11,6 +11,7 @@
 //! shooting.
 
 mod commands;
+mod device;
 mod ftp;
 mod gimbal;
 mod host;
@@ -19,6 +20,7 @@ mod info;
 mod settings;
 mod tracking;
 
+pub use device::GimbalRole;
 pub use host::public_host;
 
 use crate::autopilot::{Components, Outbox};
@@ -63,6 +65,8 @@ pub struct CamerasConfig {
     /// The host put in the stream URLs given to ground stations (default: the RTSP
     /// server's address, or this machine's first network address when that is 0.0.0.0).
     pub public_host: Option<String>,
+    /// Each view its own gimbal manager, or a gimbal device the autopilot manages.
+    pub gimbal: GimbalRole,
 }
 
 impl Default for CamerasConfig {
@@ -72,6 +76,7 @@ impl Default for CamerasConfig {
             width: 1280,
             height: 720,
             public_host: None,
+            gimbal: GimbalRole::Manager,
         }
     }
 }
@@ -124,6 +129,8 @@ struct Periodic {
     beat: Option<Instant>,
     /// When a ground station's HEARTBEAT came last.
     ground_station: Option<Instant>,
+    /// When the gimbal devices last sent their attitude.
+    device_status: Option<Instant>,
     /// The last tick: rates and continuous zoom advance by the time since.
     ticked: Option<Instant>,
     cameras: [PerCamera; MAX_CAMERAS],
@@ -327,6 +334,9 @@ fn act_of(msg: &MavMessage) -> Option<(Act, String)> {
         MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(_) => {
             Some((Act::Change, "GIMBAL_MANAGER_SET_ATTITUDE".into()))
         }
+        MavMessage::GIMBAL_DEVICE_SET_ATTITUDE(_) => {
+            Some((Act::Change, "GIMBAL_DEVICE_SET_ATTITUDE".into()))
+        }
         _ => None,
     }
 }
@@ -344,6 +354,9 @@ impl Components for Cameras {
             None => Ok(()),
         };
         let state = self.state();
+        if self.devices() && self.device_message(out, (from, peer, &permitted), msg, &state) {
+            return;
+        }
         let from = (from, permitted);
         match msg {
             MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS => {
@@ -428,18 +441,25 @@ impl Components for Cameras {
             let heard = p.ground_station.is_some_and(|t| now - t < LISTENER_SILENCE);
             (due, heard)
         };
-        // Heartbeats always, so a ground station finds the cameras; the gimbals' status
-        // only while one listens, so an autopilot link carries nothing no one reads.
+        // Heartbeats always, so a ground station finds the cameras; the gimbal managers'
+        // status only while one listens, so an autopilot link carries nothing no one reads.
+        // Gimbal devices report to the autopilot that manages them, always.
+        let managers = !self.devices();
+        if !managers {
+            self.device_tick(out, &state, n, beat);
+        }
         for i in 0..n {
             let component = FIRST_COMPONENT + i as u8;
             if beat {
                 out.send(component, &heartbeat());
             }
             if listened {
-                if beat {
+                if beat && managers {
                     out.send(component, &self.manager_status(&state, i));
                 }
-                self.report_attitude(out, &state, i, now);
+                if managers {
+                    self.report_attitude(out, &state, i, now);
+                }
                 self.report_tracking(out, &state, i, now);
             }
         }

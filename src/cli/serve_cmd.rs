@@ -50,6 +50,13 @@ pub struct ServeArgs {
     /// The ONNX detector's model file (replaces the config's `[detection] model`).
     #[arg(long, value_name = "FILE")]
     model: Option<std::path::PathBuf>,
+    /// What the views are to the autopilot's gimbal protocol: manager (each view's camera
+    /// manages its view as a gimbal; ground stations point it) or device (each view a gimbal
+    /// device, 154 then 171.., that the autopilot manages: its mount set to a MAVLink
+    /// gimbal). Replaces the config's `[cameras] gimbal`; docs/mavlink.md says when to
+    /// choose which.
+    #[arg(long, value_enum, value_name = "ROLE")]
+    mavlink_gimbal: Option<crate::cameras::GimbalRole>,
     /// The demo vehicle hovers at the state's attitude and position instead of flying.
     #[arg(long)]
     demo_hover: bool,
@@ -141,6 +148,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if let Some(p) = &args.detections_socket {
         cfg.detection.socket = p.clone();
+    }
+    if let Some(role) = args.mavlink_gimbal {
+        cfg.cameras.gimbal = role;
     }
     if let Some((w, h)) = args.demo_size {
         (cfg.demo.width, cfg.demo.height) = (w, h);

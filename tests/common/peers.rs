@@ -42,6 +42,61 @@ pub fn run_peer(name: &str, args: &[&str]) -> (String, String) {
     (stdout, stderr)
 }
 
+/// A peer in `tests/peers` that talks a line of JSON each way: its first line says it is
+/// ready (or why not), then each line it is sent is answered with one. Killed when dropped.
+pub struct LinePeer {
+    child: std::process::Child,
+    to: std::process::ChildStdin,
+    from: std::io::BufReader<std::process::ChildStdout>,
+}
+
+impl LinePeer {
+    /// `tests/peers/NAME` started with `args`, and its first line.
+    pub fn start(name: &str, args: &[&str]) -> (LinePeer, serde_json::Value) {
+        let script = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/peers")
+            .join(name);
+        let mut child = Command::new(python())
+            .arg("-u")
+            .arg(&script)
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("{name} starts: {e}"));
+        let (to, from) = (child.stdin.take().unwrap(), child.stdout.take().unwrap());
+        let mut peer = LinePeer {
+            child,
+            to,
+            from: std::io::BufReader::new(from),
+        };
+        let first = peer.line();
+        (peer, first)
+    }
+
+    /// The next line, parsed.
+    pub fn line(&mut self) -> serde_json::Value {
+        use std::io::BufRead;
+        let mut line = String::new();
+        self.from.read_line(&mut line).expect("the peer answers");
+        serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"))
+    }
+
+    /// Sends `ask` and reads the answer.
+    pub fn ask(&mut self, ask: &serde_json::Value) -> serde_json::Value {
+        use std::io::Write;
+        writeln!(self.to, "{ask}").expect("the peer reads");
+        self.line()
+    }
+}
+
+impl Drop for LinePeer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 const PITCHYAW: MavCmd = MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW;
 
 /// What one command was: (target component, command id, param 1).

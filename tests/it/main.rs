@@ -17,6 +17,7 @@ mod dewarp_vs_truth;
 mod doctor;
 mod entry_paths;
 mod fuzz_corpus;
+mod gimbal_device;
 mod gpu_frames;
 mod gpu_render;
 mod h265;

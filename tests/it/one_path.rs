@@ -10,7 +10,7 @@
 use crate::common;
 
 use common::autopilot::free_udp_port;
-use common::peers::python;
+use common::peers::LinePeer;
 use common::serve::Serve;
 use digiview::control::client::Client;
 use digiview::protocol::Param;
@@ -21,8 +21,6 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 use serde_json::{Value, json};
 use std::cell::{Cell, RefCell};
-use std::io::{BufRead, BufReader, Write};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::Duration;
 
 /// What a ground station asks of a view, in the units the DigiView protocol carries exactly
@@ -132,55 +130,18 @@ impl Request {
 }
 
 /// The pymavlink ground station, a line of JSON each way.
-struct Station {
-    child: Child,
-    to: ChildStdin,
-    from: BufReader<ChildStdout>,
-}
+struct Station(LinePeer);
 
 impl Station {
     fn start(port: u16) -> Station {
-        let script = format!(
-            "{}/tests/peers/pymavlink_steer.py",
-            env!("CARGO_MANIFEST_DIR")
-        );
-        let mut child = Command::new(python())
-            .args(["-u", &script, &port.to_string()])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("the pymavlink station starts");
-        let (to, from) = (child.stdin.take().unwrap(), child.stdout.take().unwrap());
-        let mut station = Station {
-            child,
-            to,
-            from: BufReader::new(from),
-        };
-        assert_eq!(
-            station.line()["ready"],
-            true,
-            "the station found DigiView's cameras"
-        );
-        station
-    }
-
-    fn line(&mut self) -> Value {
-        let mut line = String::new();
-        self.from.read_line(&mut line).expect("the station answers");
-        serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"))
+        let (peer, ready) = LinePeer::start("pymavlink_steer.py", &[&port.to_string()]);
+        assert_eq!(ready["ready"], true, "the station found DigiView's cameras");
+        Station(peer)
     }
 
     /// The COMMAND_ACK's result.
     fn ask(&mut self, command: &Value) -> Value {
-        writeln!(self.to, "{command}").expect("the station reads");
-        self.line()["result"].clone()
-    }
-}
-
-impl Drop for Station {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.0.ask(command)["result"].clone()
     }
 }
 
