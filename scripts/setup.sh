@@ -18,6 +18,8 @@ packages=(
   systemd
   # ffprobe and ffplay: a second RTSP client in the tests, and FFmpeg's v360 for comparison.
   ffmpeg
+  # exiftool: reads the stills' EXIF and XMP in the tests, as mapping pipelines check them.
+  libimage-exiftool-perl
   # Chromium driven over WebDriver: the tuning page's end-to-end tests.
   chromium chromium-driver
   # pip fetches the onnxruntime wheel, whose ONNX Runtime library the ONNX detector loads;

@@ -6,6 +6,7 @@
 use super::info::view_quaternion;
 use super::{Cameras, FIRST_COMPONENT, IMAGES_KEPT, Shot, Taken, boot_ms, utc_us};
 use crate::autopilot::Outbox;
+use crate::state::capture::Geotag;
 use mavlink::dialects::common::{CAMERA_IMAGE_CAPTURED_DATA, MavBool, MavMessage};
 use std::time::Instant;
 use tracing::warn;
@@ -71,15 +72,21 @@ impl Cameras {
             let i = shot.camera;
             let t = shot.taken;
             let (url, ok) = match (&shot.file, self.streams().captures) {
-                (Ok(path), Some(captures)) => {
+                (Ok((path, _)), Some(captures)) => {
                     let name = path.file_name().unwrap_or_default().to_string_lossy();
                     (format!("{captures}{name}"), true)
                 }
-                (Ok(path), None) => (format!("file://{}", path.display()), true),
+                (Ok((path, _)), None) => (format!("file://{}", path.display()), true),
                 (Err(e), _) => {
                     warn!("camera {i}: image not written: {e}");
                     (String::new(), false)
                 }
+            };
+            // Where the frame the still was drawn from was taken, when it was written; else
+            // when it was asked for.
+            let t = match &shot.file {
+                Ok((_, tag)) => of_frame(tag),
+                Err(_) => t,
             };
             let msg = {
                 let mut p = self.periodic();
@@ -109,5 +116,23 @@ impl Cameras {
             };
             out.send(FIRST_COMPONENT + i as u8, &msg);
         }
+    }
+}
+
+/// What CAMERA_IMAGE_CAPTURED reports of a still drawn from a frame: the frame's time (on
+/// this machine's boot clock too), the vehicle's position and the view's orientation then.
+fn of_frame(tag: &Geotag) -> Taken {
+    let age_ms = utc_us().saturating_sub(tag.unix_us) / 1000;
+    let q = glam::DQuat::from_euler(
+        glam::EulerRot::ZYX,
+        tag.view.yaw,
+        tag.view.pitch,
+        tag.view.roll,
+    );
+    Taken {
+        time_utc_us: tag.unix_us,
+        time_boot_ms: boot_ms().saturating_sub(age_ms as u32),
+        state_q: [q.w as f32, q.x as f32, q.y as f32, q.z as f32],
+        position: tag.position,
     }
 }

@@ -27,7 +27,7 @@ use crate::autopilot::{Components, Outbox};
 use crate::clock::clock_us;
 use crate::layout::Slot;
 use crate::policy::{Act, Forbidden, Peer};
-use crate::state::capture::{CaptureError, ViewShooter};
+use crate::state::capture::{CaptureError, ViewShooter, Written};
 use crate::state::view::{Op, Zoom};
 use crate::state::{Gate, MAX_CAMERAS, State};
 use mavlink::dialects::common::{
@@ -36,7 +36,6 @@ use mavlink::dialects::common::{
 };
 use mavlink::{MavHeader, Message};
 use serde::{Deserialize, Serialize};
-use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -111,7 +110,7 @@ pub struct Cameras {
 struct Shot {
     camera: usize,
     taken: Taken,
-    file: Result<PathBuf, CaptureError>,
+    file: Result<Written, CaptureError>,
 }
 
 /// The view and vehicle when a still was asked for (what CAMERA_IMAGE_CAPTURED reports).

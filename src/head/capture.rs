@@ -7,7 +7,9 @@
 
 use crate::frame::PlaneLayout;
 use crate::state::MAX_CAMERAS;
-use crate::state::capture::{CaptureError, CaptureStatus, Capturer, StillDone, ViewShooter};
+use crate::state::capture::{
+    CaptureError, CaptureStatus, Capturer, Geotag, StillDone, ViewShooter,
+};
 use crate::stream::Recorder;
 use crate::stream::encoder::AccessUnit;
 use crate::stream::record::Container;
@@ -72,6 +74,13 @@ enum StillError {
     Decode(#[from] crate::frame::FrameError),
     #[error(transparent)]
     Encode(#[from] image::ImageError),
+    #[error(transparent)]
+    Tags(#[from] super::geotag::GeotagError),
+    #[error("{}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 /// A view's still asked for: the view, when it was asked for, and whom to tell.
@@ -168,18 +177,19 @@ impl Capture {
         stills.extend(newer);
     }
 
-    /// Writes a view's still on a thread of its own and says where (or why not) to `done`.
+    /// Writes a view's still, tagged with where it was taken, on a thread of its own and
+    /// says where (or why not) to `done`.
     pub fn save_view_still(
         self: &Arc<Self>,
-        data: Vec<u8>,
-        layout: PlaneLayout,
-        view: usize,
+        (data, layout): (Vec<u8>, PlaneLayout),
+        tag: Geotag,
         done: StillDone,
     ) {
+        let view = tag.camera;
         let path = self.name(&format!("-cam{view}.{}", self.cfg.still_format.extension()));
         let this = self.clone();
         std::thread::spawn(move || {
-            let written = this.write_image(&path, &data, &layout);
+            let written = this.write_image(&path, &data, &layout, Some(&tag));
             match &written {
                 Ok(()) => {
                     info!("still of camera {view}: {}", path.display());
@@ -188,25 +198,36 @@ impl Capture {
                 Err(e) => error!("still {}: {e}", path.display()),
             }
             done(match written {
-                Ok(()) => Ok(std::fs::canonicalize(&path).unwrap_or(path)),
+                Ok(()) => Ok((std::fs::canonicalize(&path).unwrap_or(path), tag)),
                 Err(e) => Err(CaptureError::Still(Box::new(e))),
             });
         });
     }
 
-    /// Encodes one picture to `path` in the configured format.
+    /// Encodes one picture to `path` in the configured format, with the EXIF and XMP of
+    /// `tag` where given.
     fn write_image(
         &self,
         path: &std::path::Path,
         data: &[u8],
         layout: &PlaneLayout,
+        tag: Option<&Geotag>,
     ) -> Result<(), StillError> {
         let img = crate::frame::yuv::decode(data, layout)?;
         let format = match self.cfg.still_format {
             StillFormat::Jpeg => image::ImageFormat::Jpeg,
             StillFormat::Png => image::ImageFormat::Png,
         };
-        Ok(img.save_with_format(path, format)?)
+        let mut encoded = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut encoded, format)?;
+        let mut bytes = encoded.into_inner();
+        if let Some(tag) = tag {
+            bytes = super::geotag::tagged(bytes, format == image::ImageFormat::Png, tag)?;
+        }
+        std::fs::write(path, bytes).map_err(|source| StillError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
     }
 
     /// Whether the encoder should send a key frame now (clears the ask).
@@ -227,7 +248,7 @@ impl Capture {
                 files.push((PathBuf::from(name), raw));
             }
             for (path, (data, layout)) in files {
-                match this.write_image(&path, &data, &layout) {
+                match this.write_image(&path, &data, &layout, None) {
                     Ok(()) => info!("still: {}", path.display()),
                     Err(e) => {
                         error!("still {}: {e}", path.display());

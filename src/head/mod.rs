@@ -20,6 +20,7 @@ mod detection;
 mod exposure;
 mod external;
 mod frame_loop;
+mod geotag;
 pub mod health;
 pub mod latency;
 mod no_signal;

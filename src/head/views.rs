@@ -14,7 +14,7 @@ use crate::lens::Lens;
 use crate::render::gpu::{GpuError, OutputId, Renderer};
 use crate::render::{Filter, FramePlan};
 use crate::state::State;
-use crate::state::capture::CaptureError;
+use crate::state::capture::{CaptureError, Geotag};
 use crate::stream::Encoder;
 use crate::stream::encoder::Side;
 use crate::stream::klv::ViewMetadata;
@@ -144,11 +144,14 @@ impl Head {
             let asked: Vec<_>;
             (asked, stills) = stills.into_iter().partition(|s| s.0 == i);
             for (_, _, done) in asked {
-                match &picture {
-                    Ok((data, layout)) => {
-                        self.capture.save_view_still(data.clone(), *layout, i, done)
+                match (&picture, rendered) {
+                    (Ok((data, layout)), Some(f)) => {
+                        let tag = Geotag::of_view(&f.state, f.unix_us, i, self.cfg.view_size);
+                        self.capture
+                            .save_view_still((data.clone(), *layout), tag, done)
                     }
-                    Err(e) => done(Err(CaptureError::Still(Box::new(e.clone())))),
+                    (Err(e), _) => done(Err(CaptureError::Still(Box::new(e.clone())))),
+                    (Ok(_), None) => done(Err(CaptureError::Still(Box::new(NoPicture::NoSignal)))),
                 }
             }
             if due[i] {

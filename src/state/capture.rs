@@ -43,8 +43,55 @@ pub enum CaptureError {
     Still(Box<dyn std::error::Error + Send + Sync>),
 }
 
-/// Called with the file a view's still was written to, or why it was not.
-pub type StillDone = Box<dyn FnOnce(Result<PathBuf, CaptureError>) + Send>;
+/// Where and how a view's still was taken, from the frame it was drawn from: what its
+/// EXIF and XMP say and what CAMERA_IMAGE_CAPTURED reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Geotag {
+    /// The frame's capture time, µs since 1970 (UTC).
+    pub unix_us: u64,
+    /// The vehicle's position at the frame.
+    pub position: crate::geometry::GeoPosition,
+    /// The view's orientation in the world (NED): yaw from north, pitch up from the horizon,
+    /// roll, radians.
+    pub view: crate::geometry::Euler,
+    /// The vehicle's attitude at the frame.
+    pub vehicle: crate::geometry::Euler,
+    /// The view's horizontal fov, radians, when it is drawn as a pinhole (rectilinear, no
+    /// distortion); None for a panorama or a fisheye crop.
+    pub pinhole_fov: Option<f64>,
+    /// The still's size, pixels.
+    pub size: (u32, u32),
+    /// Which camera took it.
+    pub camera: usize,
+}
+
+impl Geotag {
+    /// Camera `camera`'s still of `size` drawn with `state` (the vehicle as at the frame)
+    /// from the frame captured at `unix_us`.
+    pub fn of_view(state: &super::State, unix_us: u64, camera: usize, size: (u32, u32)) -> Geotag {
+        use crate::modes::Crop;
+        let v = &state.vehicle;
+        let vehicle = v.attitude.euler();
+        let cam = &state.settings.cameras[camera];
+        let world = cam.steering().world_from_view(vehicle, &v.position);
+        let pinhole = matches!(cam.crop(), Crop::Rectilinear | Crop::RectifiedCrop);
+        Geotag {
+            unix_us,
+            position: v.position,
+            view: crate::geometry::Euler::from_matrix(&world),
+            vehicle,
+            pinhole_fov: pinhole.then_some(cam.fov()),
+            size,
+            camera,
+        }
+    }
+}
+
+/// A written still: its file and where it was taken.
+pub type Written = (PathBuf, Geotag);
+
+/// Called with the still a view's still was written to, or why it was not.
+pub type StillDone = Box<dyn FnOnce(Result<Written, CaptureError>) + Send>;
 
 /// Stills and video of one view alone: what the MAVLink cameras take.
 pub trait ViewShooter: Send + Sync {

@@ -255,6 +255,43 @@ pub fn cameras(gcs: &Gcs) -> (u8, BTreeSet<u8>) {
     (system, seen)
 }
 
+/// IMAGE_START_CAPTURE of `count` images `interval` s apart on camera `component`, and the
+/// CAMERA_IMAGE_CAPTURED of each, in the order they came (within 15 s).
+pub fn image_capture(
+    gcs: &Gcs,
+    (system, component): (u8, u8),
+    count: usize,
+    interval: f32,
+) -> Vec<CAMERA_IMAGE_CAPTURED_DATA> {
+    let start = MavCmd::MAV_CMD_IMAGE_START_CAPTURE;
+    let then = accepted(
+        gcs.command(
+            system,
+            component,
+            start,
+            params(&[0.0, interval, count as f32]),
+        ),
+        "image capture",
+    );
+    let mut images: Vec<_> = then
+        .into_iter()
+        .filter_map(|m| match m {
+            MavMessage::CAMERA_IMAGE_CAPTURED(c) => Some(c),
+            _ => None,
+        })
+        .collect();
+    gcs.wait_for(Duration::from_secs(15), |h, m| {
+        if let MavMessage::CAMERA_IMAGE_CAPTURED(c) = m
+            && h.component_id == component
+        {
+            images.push(c.clone());
+        }
+        (images.len() == count).then_some(())
+    });
+    assert_eq!(images.len(), count, "CAMERA_IMAGE_CAPTURED of every image");
+    images
+}
+
 pub fn params(p: &[f32]) -> [f32; 7] {
     let mut all = [0.0; 7];
     all[..p.len()].copy_from_slice(p);

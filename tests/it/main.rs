@@ -42,6 +42,7 @@ mod render_video;
 mod rolling_shutter;
 mod rules_table;
 mod services;
+mod stills_geotag;
 mod trust_mavlink;
 mod trust_web;
 mod view_filters;

@@ -7,7 +7,7 @@
 use crate::common;
 
 use common::autopilot::free_udp_port;
-use common::gcs::{Gcs, REQUEST, accepted, cameras, euler, fov, http_get, params};
+use common::gcs::{Gcs, REQUEST, accepted, cameras, euler, fov, http_get, image_capture, params};
 use common::serve::Serve;
 use common::viewer::Viewer;
 use digiview::control::client::Client;
@@ -235,31 +235,7 @@ fn a_cameras_stream_is_its_view_and_follows_zoom_gimbal_and_capture() {
 
     // Image capture of camera 2's view: two images, each a file of the view's size,
     // announced with its index.
-    let then = accepted(
-        gcs.command(
-            system,
-            102,
-            MavCmd::MAV_CMD_IMAGE_START_CAPTURE,
-            params(&[0.0, 0.5, 2.0]),
-        ),
-        "image capture",
-    );
-    let mut images: Vec<_> = then
-        .into_iter()
-        .filter_map(|m| match m {
-            MavMessage::CAMERA_IMAGE_CAPTURED(c) => Some(c),
-            _ => None,
-        })
-        .collect();
-    gcs.wait_for(Duration::from_secs(10), |h, m| {
-        if let MavMessage::CAMERA_IMAGE_CAPTURED(c) = m
-            && h.component_id == 102
-        {
-            images.push(c.clone());
-        }
-        (images.len() == 2).then_some(())
-    });
-    assert_eq!(images.len(), 2, "two CAMERA_IMAGE_CAPTURED");
+    let images = image_capture(&gcs, (system, 102), 2, 0.5);
     for (i, c) in images.iter().enumerate() {
         assert_eq!(c.image_index, i as i32);
         assert_eq!(c.capture_result, MavBool::MAV_BOOL_TRUE);

@@ -111,7 +111,8 @@ fn moving_pairs(frames: &Value) -> (usize, usize) {
 /// On a phone (390x844), with the demo's movers tracked: the status panel gives the
 /// detection's scans a second and the objects tracked, and every label over the picture
 /// ("cam N", "#n") is at least 11 CSS pixels tall and clear of every other (read from where
-/// the page drew them). A screenshot goes to target/web-phone-390x844.png (docs/web.md's).
+/// the page drew them). A screenshot goes to web-phone-390x844.png in cargo's directory for
+/// the tests' files (target/tmp).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn on_a_phone_the_labels_are_legible_and_apart_and_the_panel_says_what_detection_does() {
     let serve = Serve::start_video(&["--size", "1280x720", "--demo-hover", "--detector", "motion"]);
@@ -168,11 +169,10 @@ async fn on_a_phone_the_labels_are_legible_and_apart_and_the_panel_says_what_det
         "the rings stood still between frames: {frames}"
     );
     let shot = b.client.screenshot().await.unwrap();
-    std::fs::write(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/target/web-phone-390x844.png"),
-        shot,
-    )
-    .unwrap();
+    // Kept for a look, where cargo keeps the tests' files (the target directory, wherever
+    // CARGO_TARGET_DIR puts it).
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-phone-390x844.png");
+    std::fs::write(&path, shot).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     b.close().await;
 }
 

@@ -1,0 +1,182 @@
+//! A view's stills as metric photos, read with exiftool (an independent reader, the one
+//! mapping pipelines check their inputs with): each JPEG a MAVLink camera takes carries the
+//! position of the frame it was drawn from (EXIF GPS), the frame's capture time
+//! (DateTimeOriginal with its sub-seconds, the same µs CAMERA_IMAGE_CAPTURED reports), the
+//! view's orientation in the world (XMP, DJI's gimbal angles as OpenSfM reads them) and, for
+//! a view drawn as a pinhole, a focal length that gives its field of view; a panorama claims
+//! none.
+
+use crate::common;
+
+use common::autopilot::free_udp_port;
+use common::gcs::{Gcs, cameras, http_get, image_capture};
+use common::serve::Serve;
+use mavlink::dialects::common::*;
+use serde_json::Value;
+use std::process::Command;
+
+/// Where the vehicle hovers: south and east of the equator and meridian, so each sign counts.
+const LAT: f64 = -33.856_784_1;
+const LON: f64 = 151.215_297_3;
+const ALT: f64 = 123.4;
+
+/// exiftool's reading of `jpeg`: every tag, numbers as numbers, keyed by group and name.
+fn exiftool(jpeg: &[u8]) -> Value {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("still.jpg");
+    std::fs::write(&path, jpeg).unwrap();
+    let out = Command::new("exiftool")
+        .args(["-j", "-n", "-G1"])
+        .arg(&path)
+        .output()
+        .expect("exiftool runs (scripts/setup.sh installs libimage-exiftool-perl)");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let all: Value = serde_json::from_slice(&out.stdout).unwrap();
+    all[0].clone()
+}
+
+/// Camera `component`'s stills, 0.5 s apart: each CAMERA_IMAGE_CAPTURED with its JPEG.
+fn stills(
+    gcs: &Gcs,
+    system: u8,
+    component: u8,
+    count: usize,
+) -> Vec<(CAMERA_IMAGE_CAPTURED_DATA, Vec<u8>)> {
+    image_capture(gcs, (system, component), count, 0.5)
+        .into_iter()
+        .map(|c| {
+            assert_eq!(c.capture_result, MavBool::MAV_BOOL_TRUE);
+            let (status, jpeg) = http_get(c.file_url.to_str().unwrap());
+            assert_eq!(status, 200);
+            (c, jpeg)
+        })
+        .collect()
+}
+
+/// A tag's number: exiftool gives XMP's signed texts ("+30.0000", as DJI writes them) as
+/// text.
+fn number(tags: &Value, key: &str) -> f64 {
+    let v = &tags[key];
+    v.as_f64()
+        .or_else(|| v.as_str().and_then(|s| s.parse().ok()))
+        .unwrap_or_else(|| panic!("no {key} in {tags:#}"))
+}
+
+#[test]
+fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let captures = dir.path().join("captures");
+    let config = dir.path().join("digiview.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n\
+             [capture]\ndir = {:?}\nmin_free_mb = 1\n",
+            captures.to_str().unwrap()
+        ),
+    )
+    .unwrap();
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let position = format!("lat={LAT},lon={LON},alt={ALT},rel=100");
+    let _serve = Serve::start_video(&[
+        "--config",
+        config.to_str().unwrap(),
+        "--mavlink",
+        &link,
+        "--demo-hover",
+        "--demo-size",
+        "960x540",
+        "--size",
+        "640x480",
+        "--position",
+        &position,
+        "--attitude",
+        "yaw=10deg",
+        // Held in the world: 30° east of north, 45° down; camera 1 a panorama.
+        "--cam",
+        "0:yaw=30deg,pitch=-45deg,fov=90deg,crop=1,lock=7",
+        "--cam",
+        "1:yaw=0deg,pitch=-20deg,fov=180deg,crop=2,lock=7",
+    ]);
+    let gcs = Gcs::connect(port);
+    let (system, _) = cameras(&gcs);
+
+    for (captured, jpeg) in stills(&gcs, system, 100, 2) {
+        let tags = exiftool(&jpeg);
+        let lat = number(&tags, "Composite:GPSLatitude");
+        let lon = number(&tags, "Composite:GPSLongitude");
+        let alt = number(&tags, "Composite:GPSAltitude");
+        assert!(
+            (lat - LAT).abs() < 1e-6 && (lon - LON).abs() < 1e-6,
+            "{lat} {lon}"
+        );
+        assert!((alt - ALT).abs() < 0.1, "altitude {alt}");
+        // CAMERA_IMAGE_CAPTURED says the same place, to its 1e-7 degree.
+        assert_eq!(captured.lat, (lat * 1e7).round() as i32);
+        assert_eq!(captured.lon, (lon * 1e7).round() as i32);
+        // ... and the same orientation of the view.
+        let [w, x, y, z] = captured.q.map(|v| v as f64);
+        let q = glam::DQuat::from_xyzw(x, y, z, w);
+        let (yaw, pitch, _) = q.to_euler(glam::EulerRot::ZYX);
+        let (yaw, pitch) = (yaw.to_degrees(), pitch.to_degrees());
+        assert!(
+            (yaw - 30.0).abs() < 0.1 && (pitch + 45.0).abs() < 0.1,
+            "{yaw} {pitch}"
+        );
+        // The view in the world: where camera 0 is held.
+        let angle = |k: &str| number(&tags, &format!("XMP-drone-dji:Gimbal{k}Degree"));
+        assert!((angle("Yaw") - 30.0).abs() < 0.1, "{tags:#}");
+        assert!((angle("Pitch") + 45.0).abs() < 0.1, "{tags:#}");
+        assert!(angle("Roll").abs() < 0.1, "{tags:#}");
+        // 90° across on a 36 mm wide frame is 18 mm, and that is its 35 mm equivalent.
+        assert!(
+            (number(&tags, "ExifIFD:FocalLength") - 18.0).abs() < 0.001,
+            "{tags:#}"
+        );
+        assert_eq!(number(&tags, "ExifIFD:FocalLengthIn35mmFormat"), 18.0);
+        // exiftool's own field of view from them.
+        assert!(
+            (number(&tags, "Composite:FOV") - 90.0).abs() < 0.01,
+            "{tags:#}"
+        );
+        assert_eq!(tags["IFD0:Make"], "DigiView");
+        assert_eq!(
+            (
+                number(&tags, "File:ImageWidth"),
+                number(&tags, "File:ImageHeight")
+            ),
+            (640.0, 480.0)
+        );
+        // The frame's capture time, to the µs CAMERA_IMAGE_CAPTURED reports.
+        let when = tags["Composite:SubSecDateTimeOriginal"]
+            .as_str()
+            .unwrap()
+            .to_string();
+        let unix_us = captured.time_utc;
+        let secs = unix_us / 1_000_000;
+        let expect = format!("{:06}+00:00", unix_us % 1_000_000);
+        assert!(when.ends_with(&expect), "{when} against {unix_us}");
+        let gps_time = tags["Composite:GPSDateTime"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string();
+        assert!(!gps_time.is_empty(), "{tags:#}");
+        let date = Command::new("date")
+            .args(["-u", "-d", &format!("@{secs}"), "+%Y:%m:%d %H:%M:%S"])
+            .output()
+            .unwrap();
+        let date = String::from_utf8_lossy(&date.stdout).trim().to_string();
+        assert!(when.starts_with(&date), "{when} against {date}");
+    }
+    // A panorama is no pinhole: it claims no focal length, and says where it was.
+    let (_, jpeg) = stills(&gcs, system, 101, 1).remove(0);
+    let tags = exiftool(&jpeg);
+    assert!(tags.get("ExifIFD:FocalLength").is_none(), "{tags:#}");
+    assert!((number(&tags, "Composite:GPSLatitude") - LAT).abs() < 1e-6);
+    assert!((number(&tags, "XMP-drone-dji:GimbalPitchDegree") + 20.0).abs() < 0.1);
+}
