@@ -168,7 +168,10 @@ impl Head {
         let taken = Instant::now();
         let replaced_now = self.slot.stats().dropped;
         let replaced = std::mem::replace(&mut l.replaced_then, replaced_now) != replaced_now;
-        let signal = self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
+        // A frame just taken is signal, however long ago it was put: a source that waits
+        // while its last frame is not taken (the demo) puts nothing while this loop is
+        // late, and a loop a second late drew "no signal" over a live camera's frame.
+        let signal = fresh.is_some() || self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
         if fresh.is_some() && self.source_error().is_some() {
             self.set_source_error(None);
             info!("source: frames again");

@@ -22,6 +22,7 @@ mod rolling_video;
 mod serve_video;
 mod services;
 mod tracking;
+mod web_rings;
 
 /// Held by every test here for its length: they run one at a time.
 fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {

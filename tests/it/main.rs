@@ -49,4 +49,3 @@ mod view_filters;
 mod vmti;
 mod web;
 mod web_api;
-mod web_rings;
