@@ -36,8 +36,10 @@ pub const MAX_SECONDS: f64 = 60.0;
 pub struct ProbeStatus {
     /// idle, collecting, fitting, done or failed.
     pub state: &'static str,
-    /// Frames collected, the seconds they span, and the seconds asked for.
+    /// Frames collected (of the frames the head drew within the span, `offered`: each
+    /// once), the seconds they span, and the seconds asked for.
     pub frames: usize,
+    pub offered: usize,
     pub collected_s: f64,
     pub seconds: f64,
     /// The search's steps done and to do.
@@ -51,6 +53,7 @@ impl Default for ProbeStatus {
         ProbeStatus {
             state: "idle",
             frames: 0,
+            offered: 0,
             collected_s: 0.0,
             seconds: 0.0,
             steps: (0, 0),
@@ -76,6 +79,8 @@ struct Collecting {
     /// The capture time of the last frame kept: the same frame drawn again (a slower source)
     /// is kept once.
     last_us: Option<u64>,
+    /// The distinct frames offered within the span.
+    offered: usize,
 }
 
 /// Why an estimate was not started.
@@ -117,6 +122,7 @@ impl ReadoutProbe {
             lens: None,
             mount: Euler::default(),
             last_us: None,
+            offered: 0,
         });
         info!("readout estimate: collecting {seconds} s of frames");
         Ok(status.clone())
@@ -151,6 +157,7 @@ impl ReadoutProbe {
         c.full |= frame.captured_us > until;
         let again = c.last_us.replace(frame.captured_us) == Some(frame.captured_us);
         if !c.full && !again {
+            c.offered += 1;
             let (w, h) = (frame.layout.width, frame.layout.height);
             let k = w.div_ceil(MAX_WIDTH).max(1);
             let size = (w / k, h / k);
@@ -173,6 +180,7 @@ impl ReadoutProbe {
         }
         let mut status = self.status.lock().unwrap_or_else(|e| e.into_inner());
         status.frames = c.done.len();
+        status.offered = c.offered;
         let first = until - c.span_us;
         status.collected_s = (frame.captured_us.min(until).saturating_sub(first)) as f64 / 1e6;
         if !c.full || !c.pending.is_empty() {
