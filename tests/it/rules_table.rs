@@ -296,9 +296,16 @@ proptest! {
         };
         let even = |v: f64| if matches!(key, "output.width" | "output.height") { v - v % 2.0 } else { v };
         let taken = protocol.as_ref().ok().map(|s| value(s, key));
-        // A wrapped angle is the same one turn either way; more, a file refuses.
-        let unchanged = taken.is_some_and(|got| same(got, even(sent)))
-            && (rule.outside != Outside::Wrap || sent.abs() <= std::f64::consts::TAU + slack);
+        // A wrapped angle is the same one turn either way; more, a file refuses. Any other
+        // is taken unchanged only within the table's range, and a milliradian past its ends
+        // on an angle (the wire's unit: -1.571 for -π/2): the slack for the wire's rounding
+        // must not hide a clamp (a pitch of 1.572 held at π/2 is 1.2e-3 off).
+        let mrad = if rule.unit == "rad" { 1e-3 } else { 0.0 };
+        let within = match rule.outside {
+            Outside::Wrap => sent.abs() <= std::f64::consts::TAU + slack,
+            _ => (rule.lo - mrad..=rule.hi + mrad).contains(&even(sent)),
+        };
+        let unchanged = taken.is_some_and(|got| same(got, even(sent))) && within;
         prop_assert_eq!(
             files[0].1.is_ok(), unchanged,
             "{} {} = {}: {}: {:?}; protocol {:?} (was {})\n{}",
