@@ -57,18 +57,6 @@ fn device_of(component: u8, state: &State) -> Option<usize> {
     (i < Cameras::count(state)).then_some(i)
 }
 
-/// A heartbeat of a gimbal device.
-fn heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GIMBAL,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
-    })
-}
-
 impl Cameras {
     /// Whether the views are gimbal devices.
     pub(super) fn devices(&self) -> bool {
@@ -210,7 +198,10 @@ impl Cameras {
         };
         for i in 0..n {
             if beat {
-                out.send(device_component(i), &heartbeat());
+                out.send(
+                    device_component(i),
+                    &super::heartbeat(MavType::MAV_TYPE_GIMBAL),
+                );
             }
             if due {
                 out.send(device_component(i), &self.device_attitude(state, i));

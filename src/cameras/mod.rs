@@ -450,7 +450,7 @@ impl Components for Cameras {
         for i in 0..n {
             let component = FIRST_COMPONENT + i as u8;
             if beat {
-                out.send(component, &heartbeat());
+                out.send(component, &heartbeat(MavType::MAV_TYPE_CAMERA));
             }
             if listened {
                 if beat && managers {
@@ -465,11 +465,12 @@ impl Components for Cameras {
     }
 }
 
-/// A camera's HEARTBEAT (MAV_TYPE_CAMERA).
-fn heartbeat() -> MavMessage {
+/// The HEARTBEAT of one of the views' components: a camera (MAV_TYPE_CAMERA) or a gimbal
+/// device (MAV_TYPE_GIMBAL).
+fn heartbeat(mavtype: MavType) -> MavMessage {
     MavMessage::HEARTBEAT(HEARTBEAT_DATA {
         custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_CAMERA,
+        mavtype,
         autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
         base_mode: MavModeFlag::empty(),
         system_status: MavState::MAV_STATE_ACTIVE,
