@@ -1,11 +1,11 @@
-//! The vehicle as the frame path sees it, shared below the services: attitude samples over
-//! time and the latest position, so each frame is rendered with the attitude at its own
-//! capture time. The MAVLink link (or the demo's simulated flight) writes it, the frame loop
+//! The vehicle as the frame path sees it, shared below the services: attitude and position
+//! samples over time, so each frame is rendered (and its stills and KLV placed) with the
+//! attitude and position at its own capture time. The MAVLink link (or the demo's simulated flight) writes it, the frame loop
 //! reads it; neither knows the other.
 
 use crate::clock::clock_us;
 use crate::geometry::attitude::AttitudeTrack;
-use crate::geometry::{Euler, GeoPosition};
+use crate::geometry::{Euler, GeoPosition, PositionSample, PositionTrack};
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -30,7 +30,7 @@ pub enum AttitudeSample {
 pub struct Telemetry {
     sample: AttitudeSample,
     track: Mutex<AttitudeTrack>,
-    position: Mutex<Option<GeoPosition>>,
+    position: Mutex<PositionTrack>,
     /// Local time of the autopilot's newest attitude (0: none).
     external_us: AtomicU64,
 }
@@ -46,7 +46,7 @@ impl Telemetry {
         Telemetry {
             sample,
             track: Mutex::new(AttitudeTrack::new(SAMPLES)),
-            position: Mutex::new(None),
+            position: Mutex::default(),
             external_us: AtomicU64::new(0),
         }
     }
@@ -73,14 +73,22 @@ impl Telemetry {
             return;
         }
         self.attitude(t_us, attitude);
-        self.position(position);
+        self.position(PositionSample {
+            t_us,
+            position,
+            velocity: glam::DVec3::ZERO,
+        });
     }
 
-    pub fn position(&self, position: GeoPosition) {
-        *self.position.lock().unwrap_or_else(|e| e.into_inner()) = Some(position);
+    /// A position sample (from the autopilot, or the demo's at rest with the frame's time).
+    pub fn position(&self, sample: PositionSample) {
+        self.position
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(sample);
     }
 
-    /// The attitude at `t_us` (None before any sample) and the latest position.
+    /// The attitude and the position at `t_us` (None before any sample).
     pub fn at(&self, t_us: u64) -> (Option<Euler>, Option<GeoPosition>) {
         let track = self.track.lock().unwrap_or_else(|e| e.into_inner());
         let attitude = match self.sample {
@@ -88,7 +96,11 @@ impl Telemetry {
             AttitudeSample::Latest => track.latest(),
         };
         drop(track);
-        let position = *self.position.lock().unwrap_or_else(|e| e.into_inner());
+        let position = self
+            .position
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .at(t_us);
         (attitude, position)
     }
 }

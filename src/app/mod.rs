@@ -12,7 +12,7 @@ mod wiring;
 
 pub use config::{Config, ConfigError};
 
-use crate::autopilot::{Components, EndpointError, Link};
+use crate::autopilot::{Components, EndpointError, Link, LinkStatus};
 use crate::cameras::{self, Cameras};
 use crate::control::Controller;
 use crate::control::server::{self, Shutdown};
@@ -169,9 +169,10 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     // The link stops when this is dropped, as `serve` returns.
     let Services {
         cameras,
-        link: _link,
+        link,
         controller,
     } = services(&core, &cfg, no_video)?;
+    let link_status = link.as_ref().map(|l| l.status.clone());
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .thread_name("control")
@@ -187,7 +188,10 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     let mut announce = vec![format!("control listening on {}", tcp.local_addr()?)];
     let head = match no_video {
         true => None,
-        false => Some(run_head(&cfg, &core, &cameras, &shutdown, &mut announce)?),
+        false => {
+            let services = (&cameras, link_status);
+            Some(run_head(&cfg, &core, services, &shutdown, &mut announce)?)
+        }
     };
     let http = match http_address {
         Some(addr) => Some(bind_http(&runtime, addr, &cfg, &cameras, &mut announce)?),
@@ -232,11 +236,11 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
 fn run_head(
     cfg: &Config,
     core: &Core,
-    cameras: &Option<Arc<Cameras>>,
+    services: (&Option<Arc<Cameras>>, Option<Arc<LinkStatus>>),
     shutdown: &Shutdown,
     announce: &mut Vec<String>,
 ) -> Result<(Arc<Head>, HeadThread), ServeError> {
-    let (head, line) = start_head(cfg, core, cameras)?;
+    let (head, line) = start_head(cfg, core, services)?;
     announce.push(line);
     let (running, stop_all) = (head.clone(), shutdown.clone());
     let thread = std::thread::Builder::new()
@@ -364,7 +368,7 @@ async fn watch(report: Arc<Report>, policy: Arc<Policy>, shutdown: Shutdown) {
 fn start_head(
     cfg: &Config,
     core: &Core,
-    cameras: &Option<Arc<Cameras>>,
+    (cameras, link): (&Option<Arc<Cameras>>, Option<Arc<LinkStatus>>),
 ) -> Result<(Arc<Head>, String), ServeError> {
     let key_wanted = Arc::new(AtomicBool::new(false));
     let wanted = key_wanted.clone();
@@ -412,7 +416,7 @@ fn start_head(
         view_key_wanted,
         telemetry: core.telemetry.clone(),
         key_wanted,
-        demo_autopilot: wiring::demo_autopilot(&cfg.mavlink),
+        demo_autopilot: link.and_then(|l| wiring::demo_autopilot(&cfg.mavlink, l)),
     };
     let head = Head::new(cfg.head()?, parts);
     head.load_detector()?;

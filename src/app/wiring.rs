@@ -60,13 +60,21 @@ pub(super) fn camera_definition(cameras: Arc<Cameras>) -> Arc<dyn Fn() -> String
     Arc::new(move || cameras.definition().0)
 }
 
-/// Where the link listens on this machine, the demo's flight is sent to it as an autopilot's
-/// would be (at 100 Hz at least), so everything downstream of the link runs on the demo too.
-pub(super) fn demo_autopilot(cfg: &MavlinkConfig) -> Option<DemoAutopilot> {
-    let to = cfg.endpoint.parse::<Endpoint>().ok()?.loopback_peer()?;
+/// Where the link listens on a UDP port of this machine, the demo's flight is sent to it as an
+/// autopilot's would be (at 100 Hz at least), so everything downstream of the link runs on the
+/// demo too, until a real autopilot is heard there. (A TCP link serves one peer, which the
+/// demo would hold: there the demo's flight goes to the telemetry, which gives way to an
+/// autopilot's.)
+pub(super) fn demo_autopilot(cfg: &MavlinkConfig, link: Arc<LinkStatus>) -> Option<DemoAutopilot> {
+    let port = cfg.endpoint.parse::<Endpoint>().ok()?.loopback_udp_port()?;
     let rate = cfg.attitude_hz.max(100.0);
     Some(Box::new(move |flight, start| {
-        info!("source: the demo's flight is a simulated autopilot sending to {to}");
-        Box::new(SimAutopilot::start(&to, flight.clone(), start, rate))
+        info!("source: the demo's flight is a simulated autopilot sending to udp port {port}");
+        Box::new(SimAutopilot::demo(
+            port,
+            flight.clone(),
+            (start, rate),
+            link.clone(),
+        ))
     }))
 }

@@ -96,19 +96,14 @@ impl std::str::FromStr for Endpoint {
 }
 
 impl Endpoint {
-    /// Where a peer on this machine sends to be heard by this endpoint: its own port on
-    /// loopback when it listens (udpin, tcpin); None when it is off or goes elsewhere.
-    pub fn loopback_peer(&self) -> Option<String> {
+    /// The UDP port a peer on this machine sends to to be heard by this endpoint, when it
+    /// listens on UDP (udpin); None when it is off, on TCP or a serial line, or goes elsewhere.
+    pub fn loopback_udp_port(&self) -> Option<u16> {
         let Endpoint::Address(a) = self else {
             return None;
         };
-        let (kind, rest) = a.split_once(':')?;
-        let (_, port) = rest.rsplit_once(':')?;
-        match kind {
-            "udpin" => Some(format!("udpout:127.0.0.1:{port}")),
-            "tcpin" => Some(format!("tcpout:127.0.0.1:{port}")),
-            _ => None,
-        }
+        let (_, port) = a.strip_prefix("udpin:")?.rsplit_once(':')?;
+        port.parse().ok()
     }
 }
 
@@ -149,14 +144,12 @@ mod tests {
             assert_eq!(ok.parse(), Ok(Endpoint::Address(ok.into())), "{ok}");
         }
         assert_eq!("off".parse(), Ok(Endpoint::Off));
-        let peer = |e: &str| e.parse::<Endpoint>().unwrap().loopback_peer();
+        let peer = |e: &str| e.parse::<Endpoint>().unwrap().loopback_udp_port();
+        assert_eq!(peer("udpin:0.0.0.0:14550"), Some(14550));
         assert_eq!(
-            peer("udpin:0.0.0.0:14550").as_deref(),
-            Some("udpout:127.0.0.1:14550")
-        );
-        assert_eq!(
-            peer("tcpin:0.0.0.0:5760").as_deref(),
-            Some("tcpout:127.0.0.1:5760")
+            peer("tcpin:0.0.0.0:5760"),
+            None,
+            "one peer: the demo would hold it"
         );
         assert_eq!(peer("udpout:10.0.0.2:14550"), None);
         assert_eq!(peer("off"), None);

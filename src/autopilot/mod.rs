@@ -13,6 +13,7 @@
 
 pub mod clock;
 mod config;
+pub mod driver;
 mod outgoing;
 mod port;
 pub mod probe;
@@ -59,6 +60,8 @@ pub struct LinkStatus {
     /// Attitude samples over the last second, millihertz.
     pub attitude_mhz: AtomicU64,
     pub autopilot: Mutex<Option<(u8, u8)>>,
+    /// Who drives the views, the demo's flight, and other senders of attitude.
+    pub drivers: driver::Drivers,
     pub clock: Mutex<clock::ClockState>,
     pub connected: AtomicBool,
 }
@@ -80,6 +83,8 @@ impl LinkStatus {
             .unwrap_or_else(|e| e.into_inner())
             .unwrap_or_default();
         let c = *self.clock.lock().unwrap_or_else(|e| e.into_inner());
+        let others = self.drivers.others();
+        let (other_system, other_component) = others.first().copied().unwrap_or_default();
         Autopilot {
             link,
             system_id,
@@ -98,6 +103,10 @@ impl LinkStatus {
             link_delay_us: c.link_delay_us.map_or(0, |d| d.round() as u32),
             messages: self.messages.load(Ordering::Relaxed) as u32,
             unsigned: self.unsigned.load(Ordering::Relaxed) as u32,
+            simulated: self.drivers.driver().is_some_and(|d| d.simulated).into(),
+            others: others.len().min(255) as u8,
+            other_system,
+            other_component,
         }
     }
 }
@@ -321,6 +330,7 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
         match connection.recv_raw() {
             Ok(raw) => {
                 if let Some((header, msg)) = accept(shared, &raw) {
+                    let simulated = shared.status.drivers.is_demo(connection.sender_addr());
                     let peer = Peer::Mavlink {
                         system: u8::try_from(header.system_id).unwrap_or(u8::MAX),
                         component: header.component_id,
@@ -328,7 +338,9 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
                         // With signing on, only signed messages are accepted.
                         signed: shared.signing.is_some(),
                     };
-                    apply(shared, vehicle, &header, peer, &msg);
+                    if let Some(news) = apply(shared, vehicle, (&header, simulated), peer, &msg) {
+                        out.send(OWN_COMPONENT, &outgoing::status_text(&news));
+                    }
                     outgoing::refuse_own_command(&out, &header, &msg);
                     if let Some(c) = &shared.components {
                         c.handle(&out, &header, peer, &msg);
@@ -371,17 +383,29 @@ fn accept(shared: &Shared, raw: &MAVLinkMessageRaw) -> Option<(MavHeader, MavMes
 }
 
 /// One message: into the telemetry and what is sensed (a sample outside the vehicle's rules
-/// is refused there, noted, and the last one kept).
-fn apply(shared: &Shared, vehicle: &mut Vehicle, header: &MavHeader, peer: Peer, msg: &MavMessage) {
+/// is refused there, noted, and the last one kept). What the operator must hear of it, as
+/// a warning for ground stations too.
+fn apply(
+    shared: &Shared,
+    vehicle: &mut Vehicle,
+    (header, simulated): (&MavHeader, bool),
+    peer: Peer,
+    msg: &MavMessage,
+) -> Option<String> {
     let status = &shared.status;
     status.messages.fetch_add(1, Ordering::Relaxed);
-    let Some(update) = vehicle.handle(header, msg, clock_us()) else {
-        return;
-    };
-    match update {
-        Update::Found(system, component) => {
-            info!("mavlink: the autopilot is system {system}, component {component}");
-            *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) = Some((system, component));
+    match vehicle.handle(header, msg, clock_us(), simulated)? {
+        Update::Found(driver) => return found(status, driver, peer),
+        Update::OtherAttitude(system, component) => {
+            if status.drivers.other(system, component) {
+                warn!(
+                    "mavlink: two senders of attitude: {peer} is ignored, the views follow {}",
+                    driver_name(status.drivers.driver())
+                );
+                return Some(format!(
+                    "DigiView: attitude from {system}/{component} ignored"
+                ));
+            }
         }
         Update::Attitude { t_us, attitude } => {
             shared.telemetry.external_attitude(t_us, attitude);
@@ -405,9 +429,42 @@ fn apply(shared: &Shared, vehicle: &mut Vehicle, header: &MavHeader, peer: Peer,
         Update::TimeSyncRequest { ts1 } => outgoing::answer_timesync(shared, header, ts1),
         Update::Position(p) => {
             shared.telemetry.position(p);
-            if let Err(e) = shared.sensed.set_position(p) {
+            if let Err(e) = shared.sensed.set_position(p.position) {
                 shared.policy.refusals.note(peer, "a position", &e.0);
             }
         }
+    }
+    None
+}
+
+/// The autopilot found, or a real one in the demo's place: said in the log, and to ground
+/// stations when the demo's flight steps aside.
+fn found(status: &LinkStatus, driver: driver::Driver, peer: Peer) -> Option<String> {
+    let was_demo = status.drivers.driver().is_some_and(|d| d.simulated);
+    status.drivers.set(driver);
+    *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) =
+        Some((driver.system, driver.component));
+    let (system, component) = (driver.system, driver.component);
+    if driver.simulated {
+        info!(
+            "mavlink: the demo's simulated flight drives the views as system {system}, component {component}"
+        );
+        return None;
+    }
+    info!("mavlink: the autopilot is system {system}, component {component} ({peer})");
+    was_demo.then(|| {
+        info!("mavlink: the autopilot drives the views; the demo's simulated flight steps aside");
+        format!("DigiView: autopilot {system}/{component} replaces demo flight")
+    })
+}
+
+/// Who drives the views, in words.
+pub fn driver_name(driver: Option<driver::Driver>) -> String {
+    match driver {
+        None => "no autopilot yet".into(),
+        Some(d) if d.simulated => {
+            format!("the demo's simulated flight ({}/{})", d.system, d.component)
+        }
+        Some(d) => format!("the autopilot {}/{}", d.system, d.component),
     }
 }

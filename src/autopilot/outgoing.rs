@@ -3,13 +3,14 @@
 //! (the clock mapping's round trips), and the attitude's staleness, reported once each way.
 //! Everything sent is signed when signing is on.
 
+use super::driver::Driver;
 use super::{
     Connection, FIRST_REPORT, LinkStatus, OWN_COMPONENT, Outbox, REPORT_EVERY, STALE, Shared,
 };
 use crate::clock::clock_us;
 use mavlink::dialects::common::{
     COMMAND_ACK_DATA, COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage,
-    MavModeFlag, MavResult, MavState, MavType, TIMESYNC_DATA,
+    MavModeFlag, MavResult, MavSeverity, MavState, MavType, STATUSTEXT_DATA, TIMESYNC_DATA,
 };
 use mavlink::{MAVLinkMessageRaw, MAVLinkV2MessageRaw, MavHeader};
 use std::sync::atomic::Ordering;
@@ -37,8 +38,8 @@ pub(super) fn send_one(
 /// What the sending thread keeps from one round to the next.
 struct Sending {
     beat: Instant,
-    /// When the rates were last asked for.
-    asked: Option<Instant>,
+    /// When the rates were last asked for, and of whom.
+    asked: Option<(Instant, Option<Driver>)>,
     /// Attitudes counted since when, for the rate they come at (each 5 s, and each second).
     counted: (Instant, u64),
     second: (Instant, u64),
@@ -83,8 +84,8 @@ pub(super) fn send(shared: &Shared) {
 }
 
 /// What DigiView says on an open link: its HEARTBEAT each second, TIMESYNC requests, and the
-/// rates it needs, asked for when the autopilot is found and again every 10 s while the
-/// attitude comes at less than half the rate asked.
+/// rates it needs, asked for when the autopilot is found (or replaces the demo's flight) and
+/// again every 10 s while the attitude comes at less than half the rate asked.
 fn speak(shared: &Shared, c: &Connection, s: &mut Sending) {
     let autopilot = *shared
         .status
@@ -111,11 +112,14 @@ fn speak(shared: &Shared, c: &Connection, s: &mut Sending) {
     if s.counted.0.elapsed() >= Duration::from_secs(5) {
         s.counted = (Instant::now(), n);
     }
-    let due = s.asked.is_none_or(|t| {
-        t.elapsed() >= Duration::from_secs(10) && rate < shared.cfg.attitude_hz / 2.0
+    // A real autopilot in the demo's place is asked at once.
+    let driver = shared.status.drivers.driver();
+    let due = s.asked.is_none_or(|(t, of)| {
+        of != driver
+            || t.elapsed() >= Duration::from_secs(10) && rate < shared.cfg.attitude_hz / 2.0
     });
     if due {
-        s.asked = Some(Instant::now());
+        s.asked = Some((Instant::now(), driver));
         for (id, hz) in [(30, shared.cfg.attitude_hz), (33, shared.cfg.position_hz)] {
             send_one(
                 shared,
@@ -198,6 +202,15 @@ fn report(
         ),
     }
     (Instant::now(), n, c.resets)
+}
+
+/// A warning for ground stations (STATUSTEXT, at most 50 characters: one chunk).
+pub(super) fn status_text(text: &str) -> MavMessage {
+    MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+        severity: MavSeverity::MAV_SEVERITY_WARNING,
+        text: text.into(),
+        ..Default::default()
+    })
 }
 
 pub(super) fn heartbeat() -> MavMessage {

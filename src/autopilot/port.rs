@@ -36,6 +36,12 @@ pub enum Port {
         socket: UdpSocket,
         peers: Peers,
     },
+    /// A UDP socket of ours sending to one address (the demo's simulated flight: the link
+    /// it sends to tells it from a real autopilot by the address it sends from).
+    Sending {
+        reader: Mutex<MavlinkReader<PeerRead>>,
+        socket: UdpSocket,
+    },
     /// A byte stream: a serial port, or a TCP connection (and its peer's address).
     Serial {
         reader: Mutex<MavlinkReader<Box<dyn Read + Send>>>,
@@ -89,6 +95,30 @@ impl Port {
         })
     }
 
+    /// A UDP socket on loopback sending to `to` (host:port), its own address known.
+    pub fn udp_to(to: &str) -> io::Result<Port> {
+        let socket = UdpSocket::bind("127.0.0.1:0")?;
+        socket.connect(to)?;
+        socket.set_read_timeout(Some(SERIAL_WAIT))?;
+        Ok(Port::Sending {
+            reader: Mutex::new(MavlinkReader::new(PeerRead {
+                socket: socket.try_clone()?,
+                last_from: None,
+            })),
+            socket,
+        })
+    }
+
+    /// The address this end sends from, where it is one of ours.
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        match self {
+            Port::Sending { socket, .. } | Port::Listening { socket, .. } => {
+                socket.local_addr().ok()
+            }
+            _ => None,
+        }
+    }
+
     /// A TCP connection, with Nagle's algorithm off: both ends send small frames both ways,
     /// and with it on each end's next frame waits for the other's delayed ACK (the attitude
     /// arrived up to 40 ms late once DigiView's cameras spoke on the link).
@@ -109,6 +139,10 @@ impl Port {
     pub fn recv_raw(&self) -> Result<MAVLinkMessageRaw, MessageReadError> {
         match self {
             Port::Net(c, _) => c.recv_raw(),
+            Port::Sending { reader, .. } => reader
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .read_any_raw_message::<MavMessage>(),
             Port::Listening { reader, peers, .. } => {
                 // A sender becomes a peer with its first whole frame: noise from any port
                 // cannot crowd the autopilot or a ground station out.
@@ -131,12 +165,21 @@ impl Port {
     pub fn sender(&self) -> Option<IpAddr> {
         match self {
             Port::Net(_, remote) | Port::Serial { remote, .. } => *remote,
-            Port::Listening { reader, .. } => reader
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .get_ref()
-                .last_from
-                .map(|a| a.ip()),
+            Port::Listening { .. } | Port::Sending { .. } => self.sender_addr().map(|a| a.ip()),
+        }
+    }
+
+    /// The address and port the last frame came from, on a UDP socket of ours.
+    pub fn sender_addr(&self) -> Option<SocketAddr> {
+        match self {
+            Port::Listening { reader, .. } | Port::Sending { reader, .. } => {
+                reader
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .get_ref()
+                    .last_from
+            }
+            _ => None,
         }
     }
 
@@ -148,6 +191,7 @@ impl Port {
         match self {
             Port::Net(c, _) => c.send_raw(raw).map(drop),
             Port::Listening { socket, peers, .. } => Ok(peers.send(socket, bytes)?),
+            Port::Sending { socket, .. } => Ok(socket.send(bytes).map(drop)?),
             Port::Serial { writer, .. } => {
                 let mut w = writer.lock().unwrap_or_else(|e| e.into_inner());
                 Ok(w.write_all(bytes)?)
@@ -162,6 +206,11 @@ impl Port {
                 let mut bytes = Vec::with_capacity(280);
                 mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, msg)?;
                 Ok(peers.send(socket, &bytes)?)
+            }
+            Port::Sending { socket, .. } => {
+                let mut bytes = Vec::with_capacity(280);
+                mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, msg)?;
+                Ok(socket.send(&bytes).map(drop)?)
             }
             Port::Serial { writer, .. } => {
                 let mut w = writer.lock().unwrap_or_else(|e| e.into_inner());

@@ -3,8 +3,11 @@
 //! each second, stamped with its own boot clock, TIMESYNC answered on that clock), so that
 //! everything downstream of the link, the parser and the clock mapping included, runs
 //! without a drone, and a ground station pointed at it sees a vehicle flying the demo's
-//! circle. `digiview sim-autopilot` runs it.
+//! circle. `digiview sim-autopilot` runs it. As the demo's flight it sends from a socket of
+//! its own, so the link tells it from a real autopilot (both system 1, component 1), and it
+//! stops for good once the link has heard one (`super::driver`).
 
+use super::LinkStatus;
 use super::port::Port;
 use crate::geometry::rotation::wrap_pi;
 use crate::source::demo::Flight;
@@ -19,7 +22,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
-use tracing::warn;
+use tracing::{info, warn};
 
 /// The simulated vehicle's system id.
 pub const SYSTEM: u8 = 1;
@@ -33,12 +36,33 @@ impl SimAutopilot {
     /// Sends `flight`, its time counted from `start`, to `to` (a MAVLink endpoint), ATTITUDE at
     /// `rate_hz`. A link that cannot be opened (or fails) is retried every second.
     pub fn start(to: &str, flight: Flight, start: Instant, rate_hz: f64) -> SimAutopilot {
+        Self::spawn(to, flight, (start, rate_hz), None)
+    }
+
+    /// The demo's flight, sent to the link of `status` listening on UDP `port` of this
+    /// machine, until a real autopilot is heard there.
+    pub fn demo(
+        port: u16,
+        flight: Flight,
+        (start, rate_hz): (Instant, f64),
+        status: Arc<LinkStatus>,
+    ) -> SimAutopilot {
+        let to = format!("udpout:127.0.0.1:{port}");
+        Self::spawn(&to, flight, (start, rate_hz), Some(status))
+    }
+
+    fn spawn(
+        to: &str,
+        flight: Flight,
+        (start, rate_hz): (Instant, f64),
+        demo: Option<Arc<LinkStatus>>,
+    ) -> SimAutopilot {
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let (to, stop) = (to.to_string(), stop.clone());
             std::thread::Builder::new()
                 .name("sim-autopilot".into())
-                .spawn(move || run(&to, &flight, start, rate_hz, &stop))
+                .spawn(move || run(&to, &flight, (start, rate_hz), &stop, demo.as_deref()))
                 .ok()
         };
         SimAutopilot { stop, thread }
@@ -54,7 +78,33 @@ impl Drop for SimAutopilot {
     }
 }
 
-fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBool) {
+/// Opens `to`: as the demo's flight from a socket of its own, said to the link (None when
+/// it is to step aside).
+fn open(to: &str, demo: Option<&LinkStatus>) -> Option<std::io::Result<Port>> {
+    let Some(status) = demo else {
+        return Some(Port::open(to));
+    };
+    let port = Port::udp_to(to.strip_prefix("udpout:").unwrap_or(to));
+    let from = port.as_ref().ok().and_then(|p| p.local_addr());
+    status.drivers.demo_sends_from(from).then_some(port)
+}
+
+/// Whether the demo's flight is to stop: a real autopilot drives.
+fn aside(demo: Option<&LinkStatus>) -> bool {
+    let aside = demo.is_some_and(|s| s.drivers.demo_aside());
+    if aside {
+        info!("sim-autopilot: a real autopilot is on the link; the demo's flight stops");
+    }
+    aside
+}
+
+fn run(
+    to: &str,
+    flight: &Flight,
+    (start, rate_hz): (Instant, f64),
+    stop: &AtomicBool,
+    demo: Option<&LinkStatus>,
+) {
     let period = crate::units::seconds(1.0 / rate_hz.clamp(1.0, 1000.0), 0.001..=1.0)
         .unwrap_or(Duration::from_millis(10));
     let header = MavHeader {
@@ -62,10 +112,11 @@ fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBoo
         component_id: 1,
         sequence: 0,
     };
-    while !stop.load(Ordering::Relaxed) {
-        let link = match Port::open(to) {
-            Ok(l) => Arc::new(l),
-            Err(e) => {
+    while !stop.load(Ordering::Relaxed) && !aside(demo) {
+        let link = match open(to, demo) {
+            None => return,
+            Some(Ok(l)) => Arc::new(l),
+            Some(Err(e)) => {
                 warn!("sim-autopilot {to}: {e}; retrying in 1 s");
                 std::thread::sleep(Duration::from_secs(1));
                 continue;
@@ -74,6 +125,9 @@ fn run(to: &str, flight: &Flight, start: Instant, rate_hz: f64, stop: &AtomicBoo
         answer_timesync(link.clone(), header, start);
         let (mut next, mut position_at, mut beat_at) = (Instant::now(), start, start);
         while !stop.load(Ordering::Relaxed) {
+            if aside(demo) {
+                return;
+            }
             let now = Instant::now();
             if now < next {
                 std::thread::sleep(next - now);
@@ -110,7 +164,17 @@ fn answer_timesync(link: Arc<Port>, header: MavHeader, start: Instant) {
             loop {
                 let msg = match link.recv_raw() {
                     Ok(raw) => MavMessage::parse(raw.version(), raw.message_id(), raw.payload()),
-                    Err(MessageReadError::Io(e)) if e.kind() == ErrorKind::TimedOut => continue,
+                    // A refused send shows on a connected socket's next read: nobody yet.
+                    Err(MessageReadError::Io(e))
+                        if matches!(
+                            e.kind(),
+                            ErrorKind::TimedOut
+                                | ErrorKind::WouldBlock
+                                | ErrorKind::ConnectionRefused
+                        ) =>
+                    {
+                        continue;
+                    }
                     Err(MessageReadError::Io(_)) => break,
                     Err(_) => continue,
                 };

@@ -1,12 +1,14 @@
 //! What the autopilot's messages say about the vehicle: which component is the autopilot (the
-//! first HEARTBEAT with an autopilot type, or the configured system id), its attitude
+//! first HEARTBEAT with an autopilot type, or the configured system id; a real autopilot
+//! replaces the demo's simulated flight), who else sends attitude, its attitude
 //! (ATTITUDE_QUATERNION or AUTOPILOT_STATE_FOR_GIMBAL_DEVICE when they come, else ATTITUDE)
 //! at the local time it was measured, its position (GLOBAL_POSITION_INT) and its home
 //! altitude (HOME_POSITION, else the position's relative altitude), and TIMESYNC. Pure:
 //! messages in, updates out; the link applies them.
 
 use super::clock::BootClock;
-use crate::geometry::{Euler, GeoPosition};
+use super::driver::Driver;
+use crate::geometry::{Euler, GeoPosition, PositionSample};
 use glam::{DQuat, EulerRot};
 use mavlink::MavHeader;
 use mavlink::dialects::common::{MavAutopilot, MavMessage, MavType};
@@ -18,24 +20,19 @@ const PREFER_QUATERNION_US: u64 = 1_000_000;
 /// What one message changes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Update {
-    /// The autopilot was found: system and component id.
-    Found(u8, u8),
+    /// The autopilot was found (or a real one replaced the demo's simulated flight).
+    Found(Driver),
+    /// Another component sent attitude: ignored (system, component).
+    OtherAttitude(u8, u8),
     /// The attitude measured at local time `t_us`.
-    Attitude {
-        t_us: u64,
-        attitude: Euler,
-    },
-    Position(GeoPosition),
+    Attitude { t_us: u64, attitude: Euler },
+    /// The position measured at local time `t_us`, moving north, east and down (m/s).
+    Position(PositionSample),
     /// The autopilot answered our TIMESYNC request stamped `ours_us` (local) at its time
     /// `remote_us`.
-    TimeSync {
-        remote_us: u64,
-        ours_us: u64,
-    },
+    TimeSync { remote_us: u64, ours_us: u64 },
     /// The autopilot asks for our time (TIMESYNC with tc1 0), to be answered with `ts1`.
-    TimeSyncRequest {
-        ts1: i64,
-    },
+    TimeSyncRequest { ts1: i64 },
 }
 
 #[derive(Debug, Default)]
@@ -43,6 +40,8 @@ pub struct Vehicle {
     /// The system id to take the autopilot from (None: the first that says it is one).
     want_system: Option<u8>,
     autopilot: Option<(u8, u8)>,
+    /// The autopilot found is the demo's simulated flight.
+    simulated: bool,
     pub clock: BootClock,
     quaternion_at: Option<u64>,
     home_alt: Option<f64>,
@@ -61,30 +60,34 @@ impl Vehicle {
         self.autopilot
     }
 
-    /// One message from `header`'s component, received at local time `now_us`.
-    pub fn handle(&mut self, header: &MavHeader, msg: &MavMessage, now_us: u64) -> Option<Update> {
+    /// One message from `header`'s component, received at local time `now_us`; `simulated`:
+    /// it came from the demo's simulated flight.
+    pub fn handle(
+        &mut self,
+        header: &MavHeader,
+        msg: &MavMessage,
+        now_us: u64,
+        simulated: bool,
+    ) -> Option<Update> {
         // System ids above 255 (an extension some routers use) are no autopilot of ours.
         let Ok(system) = u8::try_from(header.system_id) else {
             return None;
         };
         let from = (system, header.component_id);
         if let MavMessage::HEARTBEAT(h) = msg {
-            let is_autopilot = h.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
-                && !matches!(
-                    h.mavtype,
-                    MavType::MAV_TYPE_GCS | MavType::MAV_TYPE_ONBOARD_CONTROLLER
-                );
-            if self.autopilot.is_none()
-                && is_autopilot
-                && self.want_system.is_none_or(|s| s == from.0)
-            {
-                self.autopilot = Some(from);
-                return Some(Update::Found(from.0, from.1));
-            }
-            return None;
+            return self.heartbeat(from, h, simulated);
         }
-        if self.autopilot != Some(from) {
-            return None;
+        if self.autopilot != Some(from) || self.simulated != simulated {
+            let attitude = matches!(
+                msg,
+                MavMessage::ATTITUDE(_)
+                    | MavMessage::ATTITUDE_QUATERNION(_)
+                    | MavMessage::AUTOPILOT_STATE_FOR_GIMBAL_DEVICE(_)
+            );
+            // The demo's flight stepping aside is no second sender, and while it drives a
+            // real autopilot's attitude may come before its first HEARTBEAT.
+            let other = attitude && self.autopilot.is_some() && !simulated && !self.simulated;
+            return other.then_some(Update::OtherAttitude(from.0, from.1));
         }
         match msg {
             MavMessage::ATTITUDE_QUATERNION(a) => {
@@ -114,14 +117,19 @@ impl Vehicle {
                     .then_some(Update::Attitude { t_us, attitude: e })
             }
             MavMessage::GLOBAL_POSITION_INT(p) => {
-                self.stamp(p.time_boot_ms, now_us);
+                let t_us = self.stamp(p.time_boot_ms, now_us).unwrap_or(now_us);
                 let alt = p.alt as f64 / 1000.0;
                 let relative = p.relative_alt as f64 / 1000.0;
-                Some(Update::Position(GeoPosition {
-                    lat: p.lat as f64 * 1e-7,
-                    lon: p.lon as f64 * 1e-7,
-                    alt,
-                    relative_alt: self.home_alt.map_or(relative, |h| alt - h),
+                let cm_s = |v: i16| v as f64 / 100.0;
+                Some(Update::Position(PositionSample {
+                    t_us,
+                    position: GeoPosition {
+                        lat: p.lat as f64 * 1e-7,
+                        lon: p.lon as f64 * 1e-7,
+                        alt,
+                        relative_alt: self.home_alt.map_or(relative, |h| alt - h),
+                    },
+                    velocity: glam::DVec3::new(cm_s(p.vx), cm_s(p.vy), cm_s(p.vz)),
                 }))
             }
             MavMessage::TIMESYNC(t) if t.tc1 == 0 => Some(Update::TimeSyncRequest { ts1: t.ts1 }),
@@ -135,6 +143,36 @@ impl Vehicle {
             }
             _ => None,
         }
+    }
+
+    /// The first autopilot's HEARTBEAT (of the configured system, if one is); a real
+    /// autopilot's replaces the demo's simulated flight, its clock and home forgotten.
+    fn heartbeat(
+        &mut self,
+        (system, component): (u8, u8),
+        h: &mavlink::dialects::common::HEARTBEAT_DATA,
+        simulated: bool,
+    ) -> Option<Update> {
+        let is_autopilot = h.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
+            && !matches!(
+                h.mavtype,
+                MavType::MAV_TYPE_GCS | MavType::MAV_TYPE_ONBOARD_CONTROLLER
+            );
+        let wanted = is_autopilot && self.want_system.is_none_or(|s| s == system);
+        let replaces_demo = self.autopilot.is_some() && self.simulated && !simulated;
+        if !wanted || (self.autopilot.is_some() && !replaces_demo) {
+            return None;
+        }
+        if replaces_demo {
+            *self = Vehicle::new(self.want_system);
+        }
+        self.autopilot = Some((system, component));
+        self.simulated = simulated;
+        Some(Update::Found(Driver {
+            system,
+            component,
+            simulated,
+        }))
     }
 
     /// The local time of the autopilot's `time_boot_ms`, after observing it.
@@ -171,6 +209,14 @@ mod tests {
         }
     }
 
+    fn found(system: u8, component: u8) -> Driver {
+        Driver {
+            system,
+            component,
+            simulated: false,
+        }
+    }
+
     fn heartbeat(autopilot: MavAutopilot, mavtype: MavType) -> MavMessage {
         MavMessage::HEARTBEAT(HEARTBEAT_DATA {
             autopilot,
@@ -188,31 +234,31 @@ mod tests {
             ..Default::default()
         });
         assert_eq!(
-            v.handle(&header(1, 1), &att, 5_000_000),
+            v.handle(&header(1, 1), &att, 5_000_000, false),
             None,
             "not yet found"
         );
         let gcs = heartbeat(MavAutopilot::MAV_AUTOPILOT_INVALID, MavType::MAV_TYPE_GCS);
-        assert_eq!(v.handle(&header(255, 190), &gcs, 5_000_000), None);
+        assert_eq!(v.handle(&header(255, 190), &gcs, 5_000_000, false), None);
         let ap = heartbeat(
             MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
             MavType::MAV_TYPE_QUADROTOR,
         );
         assert_eq!(
-            v.handle(&header(1, 1), &ap, 5_000_000),
-            Some(Update::Found(1, 1))
+            v.handle(&header(1, 1), &ap, 5_000_000, false),
+            Some(Update::Found(found(1, 1)))
         );
         assert_eq!(
-            v.handle(&header(2, 1), &ap, 5_000_000),
+            v.handle(&header(2, 1), &ap, 5_000_000, false),
             None,
             "a second one"
         );
         assert_eq!(
-            v.handle(&header(2, 1), &att, 5_000_000),
-            None,
-            "from another system"
+            v.handle(&header(2, 1), &att, 5_000_000, false),
+            Some(Update::OtherAttitude(2, 1)),
+            "from another system: ignored, and said"
         );
-        match v.handle(&header(1, 1), &att, 5_010_000) {
+        match v.handle(&header(1, 1), &att, 5_010_000, false) {
             Some(Update::Attitude { t_us, attitude }) => {
                 assert_eq!(t_us, 5_010_000, "the first message maps to its arrival");
                 assert_eq!(attitude.yaw, 0.5);
@@ -228,8 +274,11 @@ mod tests {
             MavAutopilot::MAV_AUTOPILOT_PX4,
             MavType::MAV_TYPE_FIXED_WING,
         );
-        assert_eq!(v.handle(&header(1, 1), &ap, 0), None);
-        assert_eq!(v.handle(&header(7, 1), &ap, 0), Some(Update::Found(7, 1)));
+        assert_eq!(v.handle(&header(1, 1), &ap, 0, false), None);
+        assert_eq!(
+            v.handle(&header(7, 1), &ap, 0, false),
+            Some(Update::Found(found(7, 1)))
+        );
         // A quarter turn about the vertical (yaw 90°): w = cos 45°, z = sin 45°.
         let s = std::f32::consts::FRAC_1_SQRT_2;
         let q = MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
@@ -238,7 +287,7 @@ mod tests {
             q4: s,
             ..Default::default()
         });
-        match v.handle(&header(7, 1), &q, 100_000) {
+        match v.handle(&header(7, 1), &q, 100_000, false) {
             Some(Update::Attitude { attitude, .. }) => {
                 assert!((attitude.yaw - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
                 assert!(attitude.pitch.abs() < 1e-6 && attitude.roll.abs() < 1e-6);
@@ -250,7 +299,7 @@ mod tests {
             ..Default::default()
         });
         assert_eq!(
-            v.handle(&header(7, 1), &att, 110_000),
+            v.handle(&header(7, 1), &att, 110_000, false),
             None,
             "ATTITUDE after a quaternion"
         );
@@ -260,7 +309,7 @@ mod tests {
             ..Default::default()
         });
         assert_eq!(
-            v.handle(&header(7, 1), &bad, 120_000),
+            v.handle(&header(7, 1), &bad, 120_000, false),
             None,
             "NaN is not an attitude"
         );
@@ -276,7 +325,7 @@ mod tests {
             MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
             MavType::MAV_TYPE_QUADROTOR,
         );
-        v.handle(&header(1, 1), &ap, 0);
+        v.handle(&header(1, 1), &ap, 0, false);
         // Pitched up 30°: w = cos 15°, y = sin 15°.
         let half = 15f32.to_radians();
         let state = |t_us: u64| {
@@ -288,7 +337,7 @@ mod tests {
                 ..Default::default()
             })
         };
-        match v.handle(&header(1, 1), &state(2_000_000), 50_000) {
+        match v.handle(&header(1, 1), &state(2_000_000), 50_000, false) {
             Some(Update::Attitude { attitude, .. }) => {
                 assert!(
                     (attitude.pitch - 30f64.to_radians()).abs() < 1e-6,
@@ -302,7 +351,62 @@ mod tests {
             time_boot_ms: 2010,
             ..Default::default()
         });
-        assert_eq!(v.handle(&header(1, 1), &att, 60_000), None);
-        assert_eq!(v.handle(&header(1, 2), &state(2_020_000), 70_000), None);
+        assert_eq!(v.handle(&header(1, 1), &att, 60_000, false), None);
+        assert_eq!(
+            v.handle(&header(1, 2), &state(2_020_000), 70_000, false),
+            Some(Update::OtherAttitude(1, 2))
+        );
+    }
+
+    /// The demo's flight and ArduPilot are both system 1, component 1: the demo drives until
+    /// the autopilot's HEARTBEAT, which replaces it with a clock of its own; what the demo
+    /// still sends then is neither taken nor another sender.
+    #[test]
+    fn a_real_autopilot_replaces_the_demos_flight_and_its_clock() {
+        let mut v = Vehicle::new(None);
+        let ap = heartbeat(
+            MavAutopilot::MAV_AUTOPILOT_GENERIC,
+            MavType::MAV_TYPE_QUADROTOR,
+        );
+        let demo = Driver {
+            simulated: true,
+            ..found(1, 1)
+        };
+        assert_eq!(
+            v.handle(&header(1, 1), &ap, 0, true),
+            Some(Update::Found(demo))
+        );
+        let att = |ms: u32, yaw: f32| {
+            MavMessage::ATTITUDE(ATTITUDE_DATA {
+                time_boot_ms: ms,
+                yaw,
+                ..Default::default()
+            })
+        };
+        assert!(matches!(
+            v.handle(&header(1, 1), &att(1000, 0.1), 1_000_000, true),
+            Some(Update::Attitude { .. })
+        ));
+        let real = heartbeat(
+            MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+            MavType::MAV_TYPE_QUADROTOR,
+        );
+        assert_eq!(
+            v.handle(&header(1, 1), &real, 2_000_000, false),
+            Some(Update::Found(found(1, 1)))
+        );
+        assert_eq!(
+            v.handle(&header(1, 1), &att(1100, 0.1), 2_000_000, true),
+            None
+        );
+        assert_eq!(v.handle(&header(1, 1), &ap, 2_000_000, true), None);
+        // The autopilot booted 500 s ago: its stamps map from its own first message.
+        match v.handle(&header(1, 1), &att(500_000, 0.7), 2_010_000, false) {
+            Some(Update::Attitude { t_us, attitude }) => {
+                assert_eq!(t_us, 2_010_000);
+                assert!((attitude.yaw - 0.7).abs() < 1e-6);
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }

@@ -6,6 +6,7 @@
 
 pub mod attitude;
 pub mod ground;
+pub mod position_track;
 pub mod projection;
 pub mod rotation;
 pub mod shutter;
@@ -13,6 +14,7 @@ pub mod view;
 
 pub use attitude::AttitudeTrack;
 pub use ground::{GeoPoint, GeoPosition};
+pub use position_track::{PositionSample, PositionTrack};
 pub use projection::Projection;
 pub use rotation::{Euler, wrap_pi};
 pub use view::{LockFlags, lens_from_world, view_orientation};

@@ -262,6 +262,8 @@ wire_struct!(
     /// The extension (GET only): the autopilot link and its clock mapping. `link`: 0 off, 1
     /// opening, 2 open with no attitude yet, 3 attitude coming, 4 attitude stale. `clock`: 0
     /// no mapping yet, 1 from the stamps, 2 from the stamps with the drift fitted.
+    /// `simulated`: 1 while the views follow the demo's simulated flight; `others`: how many
+    /// other components sent attitude in the last 5 s (ignored), the newest of them named.
     Autopilot {
         link: U8,
         system_id: U8,
@@ -276,6 +278,10 @@ wire_struct!(
         link_delay_us: U32,
         messages: U32,
         unsigned: U32,
+        simulated: U8,
+        others: U8,
+        other_system: U8,
+        other_component: U8,
     }
 );
 

@@ -17,6 +17,7 @@ mod detect_flying;
 mod detect_motion;
 mod detect_onnx;
 mod exposure;
+mod gimbal_video;
 mod klv_flight;
 mod rolling_video;
 mod serve_video;

@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use common::serve::Serve;
+use common::serve::{CaptureConfig, Serve};
 use common::viewer::Viewer;
 use common::{four_view_state, landmark_matches, lens_cal, probe_frames, probe_rtsp};
 use digiview::control::client::Client;
@@ -370,21 +370,13 @@ fn a_recording_survives_kill_9_up_to_its_last_fragment_and_sigterm_finishes_it()
 fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
     let _alone = crate::one_at_a_time();
     // Any GStreamer source description stands in for a camera (here a live test pattern).
-    let dir = tempfile::tempdir().unwrap();
-    let captures = dir.path().join("captures");
-    let config = dir.path().join("digiview.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "source = \"gst:videotestsrc is-live=true ! video/x-raw,width=640,height=360,framerate=15/1\"\n\
-             health_interval_s = 0\n\
-             [rtsp]\nuser = \"pilot\"\npassword = \"s3cret\"\n\
-             [capture]\ndir = \"{}\"\nmin_free_mb = 1000000000\n",
-            captures.display()
-        ),
-    )
-    .unwrap();
-    let serve = Serve::start_video(&["--config", config.to_str().unwrap(), "--size", "640x480"]);
+    let config = CaptureConfig::new(
+        "source = \"gst:videotestsrc is-live=true ! video/x-raw,width=640,height=360,framerate=15/1\"\n\
+         health_interval_s = 0\n\
+         [rtsp]\nuser = \"pilot\"\npassword = \"s3cret\"\n",
+        "min_free_mb = 1000000000\n",
+    );
+    let serve = Serve::start_video(&["--config", config.path(), "--size", "640x480"]);
     let url = serve.rtsp.clone().unwrap();
     let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
     wait_status(&mut ctl, (1, 0), Duration::from_secs(20));
@@ -425,7 +417,7 @@ fn a_gstreamer_camera_with_rtsp_authentication_and_a_full_disk() {
         assert!(e.to_lowercase().contains("data"), "{e}");
     }
     assert_eq!(capture(&mut ctl).flags & 2, 0, "not recording");
-    assert!(files(&captures, "mp4").is_empty() && files(&captures, "jpg").is_empty());
+    assert!(files(&config.captures, "mp4").is_empty() && files(&config.captures, "jpg").is_empty());
 }
 
 /// A stage that keeps failing is never a silent zombie: with a fault injected into the frame

@@ -5,6 +5,7 @@
 pub mod autopilot;
 pub mod browser;
 pub mod direct;
+pub mod exif;
 pub mod frames;
 pub mod gcs;
 pub mod gpu;

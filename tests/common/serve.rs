@@ -227,3 +227,32 @@ pub fn udp_exchange(addr: SocketAddr, datagram: &[u8]) -> Vec<u8> {
     let (n, _) = s.recv_from(&mut buf).unwrap();
     buf[..n].to_vec()
 }
+
+/// A configuration file for `serve` in a directory of its own, its captures written to
+/// `captures/` there.
+pub struct CaptureConfig {
+    pub config: std::path::PathBuf,
+    pub captures: std::path::PathBuf,
+    pub dir: tempfile::TempDir,
+}
+
+impl CaptureConfig {
+    /// `before` (top-level keys, then sections), then `[capture]` with its `dir` and `capture`'s
+    /// keys.
+    pub fn new(before: &str, capture: &str) -> CaptureConfig {
+        let dir = tempfile::tempdir().unwrap();
+        let captures = dir.path().join("captures");
+        let config = dir.path().join("digiview.toml");
+        let text = format!("{before}[capture]\ndir = {:?}\n{capture}", captures);
+        std::fs::write(&config, text).unwrap();
+        CaptureConfig {
+            config,
+            captures,
+            dir,
+        }
+    }
+
+    pub fn path(&self) -> &str {
+        self.config.to_str().unwrap()
+    }
+}

@@ -6,18 +6,24 @@
 //! turns where the driver asked (its CAM_EULER and lock flags over the DigiView protocol, and
 //! the attitude the device reports), the vehicle's heading coming from the driver's
 //! AUTOPILOT_STATE_FOR_GIMBAL_DEVICE; the device's attitude never pauses over 0.5 s; and
-//! `--allow-set none` holds on this path too.
+//! `--allow-set none` holds on this path too. A ground station behind a router (MAVProxy)
+//! sees each view's camera and gimbal device.
 
 use crate::common;
 
 use common::autopilot::free_udp_port;
 use common::gcs::euler;
-use common::peers::LinePeer;
+use common::gcs::{Gcs, REQUEST, accepted, params, text};
+use common::peers::{LinePeer, python};
 use common::serve::Serve;
 use digiview::control::client::Client;
 use digiview::protocol::Param;
 use digiview::protocol::params::CamLockFlags;
+use mavlink::MessageData;
+use mavlink::dialects::common::*;
 use serde_json::{Value, json};
+use std::collections::BTreeSet;
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
 /// The vehicle's heading the driver reports, degrees.
@@ -236,4 +242,91 @@ fn with_allow_set_none_the_gimbal_driver_moves_no_view() {
         off(yaw, 0.0).abs() < 1.0 && (pitch + 30.0).abs() < 1.0,
         "{a}"
     );
+}
+
+/// A ground station that reaches DigiView only through a router on the companion computer
+/// (MAVProxy, forwarding between its master and its outputs as mavlink-router does) sees
+/// each view's camera and its gimbal device, and gets the device's information and the
+/// camera's pairing with it through the router.
+#[test]
+fn a_ground_station_behind_a_router_sees_each_views_camera_and_gimbal_device() {
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let flags = [
+        "--mavlink",
+        &link,
+        "--mavlink-gimbal",
+        "device",
+        "--layout",
+        "4",
+    ];
+    let _serve = Serve::start(&flags);
+    let dir = tempfile::tempdir().unwrap();
+    let gcs_port = free_udp_port();
+    let router = Command::new(python())
+        .arg(python().with_file_name("mavproxy.py"))
+        .arg(format!("--master=udpout:127.0.0.1:{port}"))
+        .arg(format!("--out=udpin:127.0.0.1:{gcs_port}"))
+        .args([
+            "--daemon",
+            "--non-interactive",
+            "--default-modules=",
+            "--state-basedir",
+        ])
+        .arg(dir.path())
+        .current_dir(dir.path())
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("MAVProxy starts (scripts/setup.sh installs it)");
+    let _router = Killed(router);
+    let gcs = Gcs::connect(gcs_port);
+    let heard = gcs.collect(Duration::from_secs(8));
+    let kinds = |t: MavType| -> BTreeSet<u8> {
+        heard
+            .iter()
+            .filter(|(_, m)| matches!(m, MavMessage::HEARTBEAT(h) if h.mavtype == t))
+            .map(|(h, _)| h.component_id)
+            .collect()
+    };
+    assert_eq!(
+        kinds(MavType::MAV_TYPE_CAMERA),
+        BTreeSet::from([100, 101, 102, 103])
+    );
+    assert_eq!(
+        kinds(MavType::MAV_TYPE_GIMBAL),
+        BTreeSet::from([154, 171, 172, 173])
+    );
+    let system = heard[0].0.system_id as u8;
+    let info = |component: u8, id: u32| {
+        let answer = gcs.command(system, component, REQUEST, params(&[id as f32]));
+        accepted(answer, "through the router")
+    };
+    let device = info(154, GIMBAL_DEVICE_INFORMATION_DATA::ID);
+    assert!(
+        device
+            .iter()
+            .any(|m| matches!(m, MavMessage::GIMBAL_DEVICE_INFORMATION(d)
+            if text(d.vendor_name.as_ref()) == "DigiView")),
+        "{device:?}"
+    );
+    let camera = info(100, CAMERA_INFORMATION_DATA::ID);
+    assert!(
+        camera
+            .iter()
+            .any(|m| matches!(m, MavMessage::CAMERA_INFORMATION(c)
+            if c.gimbal_device_id == 154)),
+        "{camera:?}"
+    );
+}
+
+/// A child process killed when dropped.
+struct Killed(std::process::Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
 }

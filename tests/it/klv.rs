@@ -425,23 +425,16 @@ fn serve_publishes_mpegts_over_udp_whose_klv_ffmpeg_and_klvdata_read() {
 #[test]
 fn ts_recordings_carry_each_views_own_klv() {
     use common::gcs::{Gcs, accepted, cameras, params};
+    use common::serve::CaptureConfig;
     use mavlink::dialects::common::MavCmd;
-    let dir = tempfile::tempdir().unwrap();
-    let captures = dir.path().join("captures");
-    let config = dir.path().join("digiview.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "klv_objects = false\n[cameras]\nwidth = 640\nheight = 480\n[capture]\n\
-             dir = {:?}\nmin_free_mb = 1\ncontainer = \"ts\"\n",
-            captures.to_str().unwrap()
-        ),
-    )
-    .unwrap();
+    let config = CaptureConfig::new(
+        "klv_objects = false\n[cameras]\nwidth = 640\nheight = 480\n",
+        "min_free_mb = 1\ncontainer = \"ts\"\n",
+    );
     let port = common::autopilot::free_udp_port();
     let serve = common::serve::Serve::start_video(&[
         "--config",
-        config.to_str().unwrap(),
+        config.path(),
         "--mavlink",
         &format!("udpin:127.0.0.1:{port}"),
         "--size",
@@ -467,7 +460,7 @@ fn ts_recordings_carry_each_views_own_klv() {
         "camera 2 stops",
     );
     std::thread::sleep(std::time::Duration::from_millis(500));
-    let files: Vec<_> = std::fs::read_dir(&captures)
+    let files: Vec<_> = std::fs::read_dir(&config.captures)
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "ts"))

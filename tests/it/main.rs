@@ -8,6 +8,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod autopilot_drives;
 mod cli;
 mod cli_errors;
 mod control_server;

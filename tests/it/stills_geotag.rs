@@ -9,35 +9,16 @@
 use crate::common;
 
 use common::autopilot::free_udp_port;
+use common::exif::{number, read_jpeg as exiftool};
 use common::gcs::{Gcs, cameras, http_get, image_capture};
-use common::serve::Serve;
+use common::serve::{CaptureConfig, Serve};
 use mavlink::dialects::common::*;
-use serde_json::Value;
 use std::process::Command;
 
 /// Where the vehicle hovers: south and east of the equator and meridian, so each sign counts.
 const LAT: f64 = -33.856_784_1;
 const LON: f64 = 151.215_297_3;
 const ALT: f64 = 123.4;
-
-/// exiftool's reading of `jpeg`: every tag, numbers as numbers, keyed by group and name.
-fn exiftool(jpeg: &[u8]) -> Value {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("still.jpg");
-    std::fs::write(&path, jpeg).unwrap();
-    let out = Command::new("exiftool")
-        .args(["-j", "-n", "-G1"])
-        .arg(&path)
-        .output()
-        .expect("exiftool runs (scripts/setup.sh installs libimage-exiftool-perl)");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let all: Value = serde_json::from_slice(&out.stdout).unwrap();
-    all[0].clone()
-}
 
 /// Camera `component`'s stills, 0.5 s apart: each CAMERA_IMAGE_CAPTURED with its JPEG.
 fn stills(
@@ -57,35 +38,18 @@ fn stills(
         .collect()
 }
 
-/// A tag's number: exiftool gives XMP's signed texts ("+30.0000", as DJI writes them) as
-/// text.
-fn number(tags: &Value, key: &str) -> f64 {
-    let v = &tags[key];
-    v.as_f64()
-        .or_else(|| v.as_str().and_then(|s| s.parse().ok()))
-        .unwrap_or_else(|| panic!("no {key} in {tags:#}"))
-}
-
 #[test]
 fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let captures = dir.path().join("captures");
-    let config = dir.path().join("digiview.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n\
-             [capture]\ndir = {:?}\nmin_free_mb = 1\n",
-            captures.to_str().unwrap()
-        ),
-    )
-    .unwrap();
+    let config = CaptureConfig::new(
+        "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n",
+        "min_free_mb = 1\n",
+    );
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
     let position = format!("lat={LAT},lon={LON},alt={ALT},rel=100");
     let _serve = Serve::start_video(&[
         "--config",
-        config.to_str().unwrap(),
+        config.path(),
         "--mavlink",
         &link,
         "--demo-hover",

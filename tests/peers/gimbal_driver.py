@@ -33,6 +33,9 @@ pitch and roll in degrees in the earth frame, its flags and the device's time `t
 seconds), and the statuses' count and longest pause so far.
 
 Usage: gimbal_driver.py PORT ardupilot|px4 YAW (DigiView's MAVLink port, udpin on 127.0.0.1).
+YAW is the vehicle's heading in degrees, or `spin`: the vehicle is the spinning demo's (yawing
+90°/s and rolling ±20° at 1 Hz by the monotonic clock, `[demo] spin`), so the attitude the
+driver reports is the one the demo's frames are taken with.
 """
 
 import json
@@ -73,7 +76,9 @@ class Driver:
     def __init__(self, port, flavour, heading):
         self.link = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=1,
                                                source_component=1, dialect="common")
-        self.flavour, self.heading = flavour, math.radians(heading)
+        self.flavour = flavour
+        self.spin = heading == "spin"
+        self.heading = 0.0 if self.spin else math.radians(float(heading))
         self.lock = threading.Lock()
         self.system, self.device = None, 0
         self.gimbals = set()
@@ -115,8 +120,12 @@ class Driver:
         while True:
             if n % 50 == 0:
                 self.beat()
+            now = time.monotonic()
             q = quaternion(0.0, 0.0, self.heading)
-            boot_us = int(time.monotonic() * 1e6)
+            if self.spin:
+                roll = math.radians(20.0) * math.sin(2 * math.pi * (now % 1.0))
+                q = quaternion(roll, 0.0, math.radians((90.0 * now) % 360.0))
+            boot_us = int(now * 1e6)
             self.link.mav.autopilot_state_for_gimbal_device_send(
                 self.system or 0, self.device, boot_us, q, 0, 0.0, 0.0, 0.0, 0, NAN, 0, 0)
             with self.lock:
@@ -181,7 +190,7 @@ class Driver:
 
 
 def main():
-    driver = Driver(int(sys.argv[1]), sys.argv[2], float(sys.argv[3]))
+    driver = Driver(int(sys.argv[1]), sys.argv[2], sys.argv[3])
     threading.Thread(target=driver.receive, daemon=True).start()
     threading.Thread(target=driver.tick, daemon=True).start()
     found = driver.find()

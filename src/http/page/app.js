@@ -65,16 +65,29 @@ function showStatus(s) {
     if (v.exposure) rows.push(['exposure', v.exposure]);
     if (v.source_down) rows.push(['source down', v.source_down]);
   }
-  const a = s.autopilot;
-  rows.push(['MAVLink', a ? `${LINK[a.link] || a.link}${a.link >= 2 ? `, system ${a.system_id}` : ''}` : 'not available (off)']);
+  rows.push(...linkRows(s.autopilot));
   rows.push(['version', s.version]);
-  $('figures').replaceChildren(...rows.flatMap(([k, val]) => {
+  $('figures').replaceChildren(...rows.flatMap(([k, val, bad]) => {
     const dt = document.createElement('dt');
     dt.textContent = k;
     const dd = document.createElement('dd');
     dd.textContent = val;
+    dd.classList.toggle('bad', !!bad);
     return [dt, dd];
   }));
+}
+
+// The MAVLink link: its state, who drives the views, and other senders of attitude (a warning).
+function linkRows(a) {
+  if (!a) return [['MAVLink', 'not available (off)']];
+  const who = a.simulated ? "the demo's simulated flight" : 'autopilot';
+  const driver = a.system_id ? `, ${who} ${a.system_id}/${a.component_id}` : '';
+  const rows = [['MAVLink', `${LINK[a.link] || a.link}${driver}`]];
+  if (a.others > 0) {
+    const more = a.others > 1 ? ` and ${a.others - 1} more` : '';
+    rows.push(['attitude also from', `${a.other_system}/${a.other_component}${more}: ignored`, true]);
+  }
+  return rows;
 }
 
 const deg = (r) => ((r * 180) / Math.PI).toFixed(1);
