@@ -22,6 +22,19 @@ pub enum UnitError {
     NotATime(String),
     #[error("{0}")]
     TimeOutOfRange(String),
+    #[error("give a whole number from {1} to {2}, not `{0}`")]
+    NotWhole(String, i64, i64),
+}
+
+/// A whole number within `range` (a flag's value): `nan`, `2.5` or `0` for 1..=240 are said
+/// so, in those words.
+pub fn whole<T: TryFrom<i64>>(text: &str, range: RangeInclusive<i64>) -> Result<T, UnitError> {
+    let bad = || UnitError::NotWhole(text.to_string(), *range.start(), *range.end());
+    let n: i64 = text.trim().parse().map_err(|_| bad())?;
+    if !range.contains(&n) {
+        return Err(bad());
+    }
+    T::try_from(n).map_err(|_| bad())
 }
 
 /// Parses `0.5`, `0.5rad` or `30deg` (spaces allowed before the unit) into radians.
@@ -169,6 +182,18 @@ mod tests {
         assert!((parse_angle("-30 deg").unwrap() + 30f64.to_radians()).abs() < 1e-15);
         assert!(parse_angle("ninety").is_err());
         assert!(parse_angle("nan").is_err());
+    }
+
+    #[test]
+    fn a_whole_number_in_its_range_or_what_was_wrong_in_words() {
+        assert_eq!(whole::<u32>(" 30 ", 1..=240), Ok(30));
+        for bad in ["nan", "2.5", "0", "241", "-1", ""] {
+            let e = whole::<u32>(bad, 1..=240).unwrap_err();
+            assert_eq!(
+                e.to_string(),
+                format!("give a whole number from 1 to 240, not `{bad}`")
+            );
+        }
     }
 
     #[test]

@@ -18,6 +18,8 @@ use mavlink::{MavHeader, MessageData};
 use std::time::{Duration, Instant};
 use tracing::info;
 
+/// A single image asked for again with its sequence number within this long is a resend.
+const RESEND_WITHIN: Duration = Duration::from_secs(5);
 /// The longest interval between images IMAGE_START_CAPTURE takes: a day.
 const MAX_IMAGE_INTERVAL_S: f64 = 86_400.0;
 
@@ -228,7 +230,10 @@ impl Cameras {
                 None => Answer::denied(format!("camera mode {}", p[1])),
             },
             MAV_CMD_SET_CAMERA_ZOOM => self.zoom(i, p[0], p[1]),
-            MAV_CMD_IMAGE_START_CAPTURE => self.start_images(i, p[1], p[2]),
+            MAV_CMD_IMAGE_START_CAPTURE => {
+                let asker = (from.system_id as u8, from.component_id);
+                self.start_images(i, (p[1], p[2]), (asker, p[3]))
+            }
             MAV_CMD_IMAGE_STOP_CAPTURE => {
                 self.periodic().cameras[i].shooting = None;
                 Answer::accepted(vec![self.capture_status(i)])
@@ -344,7 +349,16 @@ impl Cameras {
 
     /// IMAGE_START_CAPTURE: `count` images (0: until stopped), `interval` s apart (0.1 s
     /// to a day; a single image takes any interval in 0..=a day, and ignores it).
-    fn start_images(&self, i: usize, interval: f32, count: f32) -> Answer {
+    /// IMAGE_START_CAPTURE: `count` images `interval` s apart (0: until stopped). A single
+    /// image asked for again with the same sequence number by the same component (a command
+    /// sent again for want of an ACK, as PX4's command sender does after 0.5 s) is accepted
+    /// and taken once.
+    fn start_images(
+        &self,
+        i: usize,
+        (interval, count): (f32, f32),
+        (asker, sequence): ((u8, u8), f32),
+    ) -> Answer {
         let count_ok = count.is_finite() && count >= 0.0 && count.fract() == 0.0;
         if !count_ok {
             return Answer::denied(format!("image capture of {count} every {interval} s"));
@@ -354,6 +368,15 @@ impl Cameras {
             Ok(d) => d,
             Err(e) => return Answer::denied(format!("an image interval of {e}")),
         };
+        let numbered = (count == 1.0 && sequence >= 1.0 && sequence.fract() == 0.0)
+            .then_some((asker, sequence as u32));
+        let resent = self.periodic().cameras[i]
+            .last_single
+            .is_some_and(|(last, at)| Some(last) == numbered && at.elapsed() < RESEND_WITHIN);
+        if resent {
+            info!("camera {i}: image {sequence} asked for again by {asker:?}: taken once");
+            return Answer::accepted(vec![]);
+        }
         let Some(shooter) = &self.shooter else {
             return Answer::failed("there is no video pipeline to take images from");
         };
@@ -363,11 +386,16 @@ impl Cameras {
         {
             return Answer::failed(format!("{} is full", shooter.dir().display()));
         }
-        self.periodic().cameras[i].shooting = Some(Shooting {
+        let mut p = self.periodic();
+        p.cameras[i].shooting = Some(Shooting {
             interval,
             left: (count > 0.0).then_some(count as u32),
             next: Instant::now(),
         });
+        if let Some(n) = numbered {
+            p.cameras[i].last_single = Some((n, Instant::now()));
+        }
+        drop(p);
         info!(
             "camera {i}: taking {count} images every {} s (0: until stopped)",
             interval.as_secs_f64()

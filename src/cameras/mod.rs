@@ -149,6 +149,10 @@ struct PerCamera {
     /// When the attitude was last reported, and the view's steering then (bits).
     reported: Option<(Instant, Vec<u64>)>,
     shooting: Option<Shooting>,
+    /// The last single image asked for with a sequence number (IMAGE_START_CAPTURE's param
+    /// 4): who asked (system, component), the number and when. The same again soon after is
+    /// a resend.
+    last_single: Option<(Numbered, Instant)>,
     /// CAMERA_IMAGE_CAPTURED of every image taken, by index.
     images: Vec<CAMERA_IMAGE_CAPTURED_DATA>,
     /// Images asked for and not written yet.
@@ -158,6 +162,9 @@ struct PerCamera {
     tracking_sent: Option<Instant>,
     was_following: bool,
 }
+
+/// A single image asked for by a component (system, component) with its sequence number.
+type Numbered = ((u8, u8), u32);
 
 /// Interval shooting: every `interval`, `left` more (None: until stopped).
 struct Shooting {

@@ -52,7 +52,7 @@ pub struct BenchArgs {
     /// Also draw this many views alone (0 to 4, as the per-view streams do) after each
     /// staged frame: from the frame's upload, and, interleaved, each on a renderer of its
     /// own (uploading the frame again), to time both.
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=4))]
+    #[arg(long, default_value_t = 0, value_parser = |t: &str| crate::units::whole::<u8>(t, 0..=4))]
     views: u8,
     /// The views' size (`[cameras]` width and height).
     #[arg(long, default_value = "1280x720", value_parser = crate::units::parse_size)]

@@ -33,7 +33,7 @@ pub struct CalibrateArgs {
     model: FitModel,
     /// The most frames the fit uses: more frames with the board are thinned to a subset
     /// spread over the image.
-    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u32).range(3..=500))]
+    #[arg(long, default_value_t = 40, value_parser = |t: &str| crate::units::whole::<u32>(t, 3..=500))]
     max_frames: u32,
     #[command(flatten)]
     entry: EntryArgs,

@@ -65,10 +65,10 @@ enum Action {
     /// checked, with one more client stalled mid-frame; prints requests/s and reply times.
     Load {
         /// Clients at once, 1 to 1000.
-        #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u16).range(1..=1000))]
+        #[arg(long, default_value_t = 50, value_parser = |t: &str| crate::units::whole::<u16>(t, 1..=1000))]
         clients: u16,
         /// Requests per client, 1 to 1,000,000.
-        #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+        #[arg(long, default_value_t = 2000, value_parser = |t: &str| crate::units::whole::<u32>(t, 1..=1_000_000))]
         requests: u32,
         /// Do not keep a client stalled mid-frame during the run.
         #[arg(long)]

@@ -27,7 +27,7 @@ pub struct RenderArgs {
     #[arg(long)]
     out: PathBuf,
     /// Frame rate of an image sequence input, 1 to 240.
-    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=240))]
+    #[arg(long, default_value_t = 30, value_parser = |t: &str| crate::units::whole::<u32>(t, 1..=240))]
     input_fps: u32,
     /// H.264 bitrate of an MP4 output, 100..=100000 kbit/s.
     #[arg(long, default_value_t = 8000, value_parser = bitrate)]

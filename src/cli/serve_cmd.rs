@@ -104,6 +104,14 @@ impl SetupArgs {
     /// The configuration file (or the defaults) with these flags applied, not yet checked.
     pub fn config(&self) -> Result<(Config, super::locate::Origin)> {
         let (mut cfg, origin) = super::locate::config(self.config.as_deref())?;
+        // The file's own listen address is checked even where a flag replaces it: a mistake
+        // in the file would otherwise come back the day the flag is dropped.
+        if let Err(e) = cfg.control.listen.parse::<std::net::SocketAddr>() {
+            let listen = &cfg.control.listen;
+            return Err(anyhow!(
+                "control.listen {listen:?} in {origin}: {e}; use ADDR:PORT, e.g. \"0.0.0.0:5000\""
+            ));
+        }
         if let Some(s) = &self.source {
             cfg.source = s.clone();
         }

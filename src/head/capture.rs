@@ -17,6 +17,7 @@ use gstreamer::glib;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
+use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tracing::{error, info, warn};
@@ -100,7 +101,13 @@ pub struct Capture {
     images: AtomicU16,
     videos: AtomicU16,
     index: AtomicU32,
+    /// The stills' writer: one thread, so stills are written and announced in the order
+    /// they were taken (two written side by side finished the other way round under load).
+    writer: Mutex<Option<Sender<Job>>>,
 }
+
+/// A still's writing, run on the writer's thread.
+type Job = Box<dyn FnOnce() + Send>;
 
 /// One still to write: the output frame and, when asked for, the fisheye frame.
 pub struct Still {
@@ -121,7 +128,33 @@ impl Capture {
             images: AtomicU16::new(0),
             videos: AtomicU16::new(0),
             index: AtomicU32::new(0),
+            writer: Mutex::new(None),
         }
+    }
+
+    /// Runs `job` on the stills' writer, after those before it (the thread is started on
+    /// the first, and again should it have ended, a panic in a job included), so the frame
+    /// loop never waits on the disk.
+    fn in_order(&self, job: Job) {
+        let mut writer = self.writer.lock().unwrap_or_else(|e| e.into_inner());
+        let job = match writer.as_ref() {
+            Some(w) => match w.send(job) {
+                Ok(()) => return,
+                Err(e) => e.0,
+            },
+            None => job,
+        };
+        let (tx, rx) = std::sync::mpsc::channel::<Job>();
+        let started = std::thread::Builder::new()
+            .name("stills".into())
+            .spawn(move || rx.into_iter().for_each(|job| job()));
+        if started.is_err() {
+            error!("stills: no thread to write on; writing on the frame loop");
+            return job();
+        }
+        // The thread reads until `tx` is dropped: this send cannot fail.
+        let _ = tx.send(job);
+        *writer = Some(tx);
     }
 
     pub fn wants_raw(&self) -> bool {
@@ -188,7 +221,7 @@ impl Capture {
         let view = tag.camera;
         let path = self.name(&format!("-cam{view}.{}", self.cfg.still_format.extension()));
         let this = self.clone();
-        std::thread::spawn(move || {
+        self.in_order(Box::new(move || {
             let written = this.write_image(&path, &data, &layout, Some(&tag));
             match &written {
                 Ok(()) => {
@@ -201,7 +234,7 @@ impl Capture {
                 Ok(()) => Ok((std::fs::canonicalize(&path).unwrap_or(path), tag)),
                 Err(e) => Err(CaptureError::Still(Box::new(e))),
             });
-        });
+        }));
     }
 
     /// Encodes one picture to `path` in the configured format, with the EXIF and XMP of
@@ -235,11 +268,11 @@ impl Capture {
         self.key_wanted.swap(false, Ordering::Relaxed)
     }
 
-    /// Writes a still on a thread of its own, so the frame loop never waits on the disk.
+    /// Writes a still on the stills' writer, so the frame loop never waits on the disk.
     pub fn save_still(self: &Arc<Self>, still: Still) {
         let base = self.name("");
         let this = self.clone();
-        std::thread::spawn(move || {
+        self.in_order(Box::new(move || {
             let this = &*this;
             let ext = this.cfg.still_format.extension();
             let mut files = vec![(base.with_extension(ext), still.output)];
@@ -257,7 +290,7 @@ impl Capture {
                 }
             }
             this.images.fetch_add(1, Ordering::Relaxed);
-        });
+        }));
     }
 
     /// Feeds the recording, if one runs (called for every access unit).

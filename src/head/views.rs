@@ -6,6 +6,7 @@
 //! uploaded once, and every view wanted is drawn in one submission after the composed frame
 //! is handed to its encoder.
 
+use super::capture::ViewStill;
 use super::view_pacing::ViewPacing;
 use super::{Head, no_signal};
 use crate::frame::{PixelFormat, PlaneLayout};
@@ -74,10 +75,39 @@ pub(super) struct Framed {
     pub shutter: Option<ShutterTable>,
 }
 
+/// When a still asked for at `asked` was asked, as UNIX µs (a frame's `unix_us`).
+fn asked_unix_us(asked: Instant) -> u64 {
+    let ago = asked.elapsed().as_micros() as u64;
+    crate::clock::unix_us(crate::clock::clock_us().saturating_sub(ago))
+}
+
 /// The frame last rendered; None while the source is down.
 pub(super) type Rendered<'a> = Option<&'a Framed>;
 
 impl Head {
+    /// The stills to take with this frame: of each view the oldest asked for before the frame
+    /// was taken (a trigger's picture shows that moment or later, and two triggers never share
+    /// a frame, however late the frames come), or that has waited [`STILL_PATIENCE`]; the rest
+    /// wait for later frames. With no picture (the source fell silent a moment) a still waits
+    /// as long for one before it is refused.
+    fn stills_now(&self, rendered: Rendered) -> Vec<ViewStill> {
+        let patience_over = |s: &ViewStill| s.1.elapsed() >= STILL_PATIENCE;
+        let (mut now, mut later) = (vec![], vec![]);
+        for s in self.capture.take_view_stills() {
+            let ready = match rendered {
+                Some(f) => asked_unix_us(s.1) <= f.unix_us || patience_over(&s),
+                None => patience_over(&s),
+            };
+            let taken = now.iter().any(|n: &ViewStill| n.0 == s.0);
+            match ready && (!taken || rendered.is_none()) {
+                true => now.push(s),
+                false => later.push(s),
+            }
+        }
+        self.capture.put_back_view_stills(later);
+        now
+    }
+
     /// Feeds the watched views' streams that are due (`ViewPacing`) and takes the stills
     /// asked for, drawn from the frame `renderer` rendered last.
     pub(super) fn render_views(
@@ -88,16 +118,7 @@ impl Head {
         pts: Duration,
         fps: u32,
     ) {
-        let mut stills = self.capture.take_view_stills();
-        if rendered.is_none() {
-            // No picture now (the source fell silent a moment): a still waits for the next
-            // frame that has one, up to STILL_PATIENCE, before it is refused.
-            let (waiting, late) = stills
-                .into_iter()
-                .partition(|s| s.1.elapsed() < STILL_PATIENCE);
-            self.capture.put_back_view_stills(waiting);
-            stills = late;
-        }
+        let mut stills = self.stills_now(rendered);
         // Watched, recorded by its camera or published: its stream is encoded.
         let watched: [bool; VIEW_MOUNTS] = std::array::from_fn(|i| {
             self.rtsp.view_watched(i)

@@ -9,7 +9,19 @@ use std::process::{Command, Output};
 
 #[test]
 fn bad_flags_and_missing_files_get_clear_errors() {
-    let cases: [(&[&str], &str); 11] = [
+    let cases: [(&[&str], &str); 12] = [
+        (
+            &[
+                "render",
+                "--input",
+                "a.png",
+                "--out",
+                "b.png",
+                "--input-fps",
+                "nan",
+            ],
+            "give a whole number from 1 to 240, not `nan`",
+        ),
         (
             &[
                 "render",
@@ -252,6 +264,29 @@ fn serve_fails_at_once_and_says_nothing_on_stdout_when_a_service_cannot_start() 
     }
 }
 
+/// A listen address in the config file is checked even where its flag replaces it (the
+/// control one was silently dropped then): the mistake would come back with the flag gone.
+#[test]
+fn a_bad_listen_address_in_the_config_is_refused_even_with_its_flag_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("control", "control.listen \"nowhere\""),
+        ("http", "http listen \"nowhere\""),
+    ];
+    for (section, want) in cases {
+        let config = dir.path().join(format!("{section}.toml"));
+        std::fs::write(&config, format!("[{section}]\nlisten = \"nowhere\"\n")).unwrap();
+        let args = ["--config", config.to_str().unwrap(), "--rtsp-port", "0"];
+        let (o, ended) = serve_briefly(&args, std::time::Duration::from_secs(20));
+        let err = stderr(&o);
+        assert!(ended && !o.status.success(), "{section}: {err}");
+        assert!(
+            err.contains(want) && err.contains("ADDR:PORT"),
+            "{section}: {err}"
+        );
+    }
+}
+
 #[test]
 fn bench_reports_every_stage_and_the_frame_rate_as_json() {
     let o = digiview(
@@ -373,7 +408,7 @@ fn careless_values_are_refused_with_what_to_change() {
                 "--input-fps",
                 "0",
             ],
-            "0 is not in 1..=240",
+            "give a whole number from 1 to 240, not `0`",
         ),
         (
             vec!["bench", "--input-size", "100000x100000", "--frames", "1"],
@@ -381,9 +416,12 @@ fn careless_values_are_refused_with_what_to_change() {
         ),
         (
             vec!["ctl", "load", "--clients", "100000"],
-            "not in 1..=1000",
+            "give a whole number from 1 to 1000",
         ),
-        (vec!["ctl", "load", "--clients", "0"], "not in 1..=1000"),
+        (
+            vec!["ctl", "load", "--clients", "0"],
+            "give a whole number from 1 to 1000",
+        ),
         (vec!["--lens-cal", d, "lens", "list"], "is a directory"),
         (vec!["serve", "--config", d], "is a directory"),
         (vec!["serve", "--config", config], "is not a directory"),

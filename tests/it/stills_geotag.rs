@@ -10,7 +10,7 @@ use crate::common;
 
 use common::autopilot::free_udp_port;
 use common::exif::{number, read_jpeg as exiftool};
-use common::gcs::{Gcs, cameras, http_get, image_capture};
+use common::gcs::{Gcs, accepted, cameras, http_get, image_capture, params};
 use common::serve::{CaptureConfig, Serve};
 use mavlink::dialects::common::*;
 use std::process::Command;
@@ -38,16 +38,16 @@ fn stills(
         .collect()
 }
 
-#[test]
-fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it() {
+/// `serve` on the hovering demo with its cameras' stills written to a directory of the
+/// test's, its link on a free port, `extra` flags beside; and a ground station on the link.
+fn serve_with_stills(extra: &[&str]) -> (CaptureConfig, Serve, Gcs) {
     let config = CaptureConfig::new(
         "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n",
         "min_free_mb = 1\n",
     );
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
-    let position = format!("lat={LAT},lon={LON},alt={ALT},rel=100");
-    let _serve = Serve::start_video(&[
+    let mut flags = vec![
         "--config",
         config.path(),
         "--mavlink",
@@ -57,6 +57,16 @@ fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it()
         "960x540",
         "--size",
         "640x480",
+    ];
+    flags.extend_from_slice(extra);
+    let serve = Serve::start_video(&flags);
+    (config, serve, Gcs::connect(port))
+}
+
+#[test]
+fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it() {
+    let position = format!("lat={LAT},lon={LON},alt={ALT},rel=100");
+    let (_config, _serve, gcs) = serve_with_stills(&[
         "--position",
         &position,
         "--attitude",
@@ -67,7 +77,6 @@ fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it()
         "--cam",
         "1:yaw=0deg,pitch=-20deg,fov=180deg,crop=2,lock=7",
     ]);
-    let gcs = Gcs::connect(port);
     let (system, _) = cameras(&gcs);
 
     for (captured, jpeg) in stills(&gcs, system, 100, 2) {
@@ -143,4 +152,37 @@ fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it()
     assert!(tags.get("ExifIFD:FocalLength").is_none(), "{tags:#}");
     assert!((number(&tags, "Composite:GPSLatitude") - LAT).abs() < 1e-6);
     assert!((number(&tags, "XMP-drone-dji:GimbalPitchDegree") + 20.0).abs() < 0.1);
+}
+
+/// IMAGE_START_CAPTURE for one image carries a sequence number (param 4) so that a command sent
+/// again for want of an ACK (PX4's command sender resends after 0.5 s) is not a second
+/// picture: the same number again is accepted and taken once; the next number is a new one.
+#[test]
+fn one_image_asked_for_again_with_its_sequence_number_is_taken_once() {
+    let (config, _serve, gcs) = serve_with_stills(&[]);
+    let (system, _) = cameras(&gcs);
+    let is_captured = |m: &MavMessage| matches!(m, MavMessage::CAMERA_IMAGE_CAPTURED(_));
+    // The CAMERA_IMAGE_CAPTURED that came with the ACK (within 0.5 s of it).
+    let shoot = |sequence: f32| {
+        let start = MavCmd::MAV_CMD_IMAGE_START_CAPTURE;
+        let answer = gcs.command(system, 100, start, params(&[0.0, 0.0, 1.0, sequence]));
+        accepted(answer, "one image")
+            .iter()
+            .filter(|m| is_captured(m))
+            .count()
+    };
+    let captured = |limit: u64| {
+        gcs.collect(std::time::Duration::from_secs(limit))
+            .into_iter()
+            .filter(|(h, m)| h.component_id == 100 && is_captured(m))
+            .count()
+    };
+    assert_eq!(
+        shoot(7.0) + shoot(7.0) + captured(3),
+        1,
+        "image 7 sent twice"
+    );
+    assert_eq!(shoot(8.0) + captured(3), 1, "image 8");
+    let stills = std::fs::read_dir(&config.captures).unwrap().count();
+    assert_eq!(stills, 2);
 }

@@ -13,10 +13,17 @@ What it sends is read from ArduPilot (libraries/GCS_MAVLink, AP_Camera):
   (CAM1_TRIGG_DIST, DO_SET_CAM_TRIGG_DIST) AP_Camera_Backend::update, at 50 Hz, takes a
   picture once the vehicle is that far from where it took the last.
 
+With `px4` after the arguments it is PX4 instead (MAV_AUTOPILOT_PX4), whose camera trigger in
+MAVLink mode (src/modules/mavlink/streams/CAMERA_TRIGGER.hpp) sends for each picture
+CAMERA_TRIGGER, MAV_CMD_IMAGE_START_CAPTURE (param1 0, param2 0, param3 1, param4 its sequence
+from 1, the rest NaN) to camera 100 through its command sender, which sends it again after
+0.5 s without an ACK (three times at most), and a COMMAND_LONG MAV_CMD_DO_DIGICAM_CONTROL
+(param5 1, the rest NaN) to system 0, camera 100.
+
 The vehicle flies a straight line (heading, ground speed, climb) from a starting point; its
 position at any time is the line's, so a test can say where it was when a frame was taken.
 
-Usage: autopilot.py PORT SYSTEM LAT LON ALT HEADING_DEG. The first line out says it is ready
+Usage: autopilot.py PORT SYSTEM LAT LON ALT HEADING_DEG [px4]. The first line out says it is ready
 (DigiView heard, its camera found) with what it was asked; then each line in is a JSON request
 answered with one line:
   {"fly": {"speed": m/s, "climb": m/s, "for": s, "trigg_dist": m}}  fly the line (from where
@@ -80,11 +87,15 @@ def distance(a, b):
 
 
 class Autopilot:
-    def __init__(self, port, system, line):
+    def __init__(self, port, system, line, px4=False):
+        self.px4 = px4
         self.link = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=system,
                                                source_component=1, dialect="common")
         self.line = line
         self.boot = time.monotonic()
+        # UTC as the monotonic clock's reading plus this, so that a position and the boot
+        # time it is stamped with are the same instant.
+        self.offset = time.time() - self.boot
         self.lock = threading.Lock()
         self.rates = {ML.MAVLINK_MSG_ID_ATTITUDE: 4.0, ML.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 4.0}
         self.asked = []  # (message id, Hz, target system, target component)
@@ -93,6 +104,9 @@ class Autopilot:
         self.camera_flags = None
         self.captured = []
         self.acks = []
+
+    def utc(self):
+        return time.monotonic() + self.offset
 
     def boot_ms(self):
         return int((time.monotonic() - self.boot) * 1000)
@@ -122,7 +136,7 @@ class Autopilot:
         elif kind == "CAMERA_INFORMATION" and component == CAMERA:
             self.camera_flags = msg.flags
         elif kind == "CAMERA_IMAGE_CAPTURED" and component == CAMERA:
-            self.captured.append((time.time(), msg))
+            self.captured.append((self.utc(), msg))
         elif kind == "COMMAND_ACK" and msg.command == ML.MAV_CMD_IMAGE_START_CAPTURE:
             self.acks.append(msg.result)
         elif kind == "STATUSTEXT":
@@ -137,7 +151,8 @@ class Autopilot:
             if now >= beat:
                 beat = now + 1.0
                 self.link.mav.heartbeat_send(
-                    ML.MAV_TYPE_QUADROTOR, ML.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                    ML.MAV_TYPE_QUADROTOR,
+                    ML.MAV_AUTOPILOT_PX4 if self.px4 else ML.MAV_AUTOPILOT_ARDUPILOTMEGA,
                     ML.MAV_MODE_FLAG_SAFETY_ARMED | ML.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 3,
                     ML.MAV_STATE_ACTIVE)
             with self.lock:
@@ -152,12 +167,14 @@ class Autopilot:
         if msg_id == ML.MAVLINK_MSG_ID_ATTITUDE:
             self.link.mav.attitude_send(self.boot_ms(), 0.0, 0.0, self.line.heading, 0.0, 0.0, 0.0)
             return
+        boot_ms = self.boot_ms()
         with self.lock:
-            lat, lon, alt = self.line.at(time.time())
+            # Where the line has the vehicle at the very millisecond it is stamped with.
+            lat, lon, alt = self.line.at(self.boot + boot_ms / 1000 + self.offset)
             vn, ve, vd = self.line.velocity()
         hdg = int(round(math.degrees(self.line.heading) % 360 * 100))
         self.link.mav.global_position_int_send(
-            self.boot_ms(), round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+            boot_ms, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
             round((alt - 20.0) * 1000), round(vn * 100), round(ve * 100), round(vd * 100), hdg)
 
     def find_camera(self, limit):
@@ -176,30 +193,57 @@ class Autopilot:
         return False
 
     def trigger(self, index):
-        """trigger_pic: one image, numbered from 1."""
+        """One picture, numbered from 1: ArduPilot's trigger_pic, or PX4's CAMERA_TRIGGER stream."""
+        if not self.px4:
+            self.link.mav.command_long_send(self.digiview, CAMERA, ML.MAV_CMD_IMAGE_START_CAPTURE,
+                                            0, 0, 0, 1, index + 1, 0, 0, 0)
+            return
+        nan = math.nan
+        self.link.mav.camera_trigger_send(int(self.utc() * 1e6), index + 1)
+        self.start_capture(index)
+        self.link.mav.command_long_send(0, CAMERA, ML.MAV_CMD_DO_DIGICAM_CONTROL, 0,
+                                        nan, nan, nan, nan, 1, nan, nan)
+
+    def start_capture(self, index):
+        nan = math.nan
         self.link.mav.command_long_send(self.digiview, CAMERA, ML.MAV_CMD_IMAGE_START_CAPTURE, 0,
-                                        0, 0, 1, index + 1, 0, 0, 0)
+                                        0, 0, 1, index + 1, nan, nan, nan)
+
+    def resend_unanswered(self, triggers, acks_before):
+        """PX4's command sender: again after 0.5 s without an ACK, three times at most."""
+        with self.lock:
+            acked = len(self.acks) - acks_before
+        for i, t in enumerate(triggers):
+            if i >= acked and t["sent"] < 3 and self.utc() - t["last"] >= 0.5:
+                self.start_capture(i)
+                t["sent"] += 1
+                t["last"] = self.utc()
 
     def fly(self, speed, climb, seconds, trigg_dist):
         """Flies the line, at 50 Hz checking the distance from the last picture's place."""
         with self.lock:
-            self.line.fly(speed, climb, time.time())
-            first = len(self.captured)
+            self.line.fly(speed, climb, self.utc())
+            first, acks_before = len(self.captured), len(self.acks)
         triggers, last = [], None
         end = time.monotonic() + seconds
         while time.monotonic() < end:
-            here = self.line.at(time.time())
+            here = self.line.at(self.utc())
             if last is None:
                 last = here
             elif trigg_dist > 0 and distance(last, here) >= trigg_dist:
                 self.trigger(len(triggers))
-                triggers.append({"t": time.time(), "lat": here[0], "lon": here[1]})
+                now = self.utc()
+                triggers.append({"t": now, "lat": here[0], "lon": here[1], "sent": 1, "last": now})
                 last = here
+            if self.px4:
+                self.resend_unanswered(triggers, acks_before)
             time.sleep(0.02)
         with self.lock:
-            self.line.fly(0.0, 0.0, time.time())
+            self.line.fly(0.0, 0.0, self.utc())
         time.sleep(3.0)  # the last stills written and announced
-        return {"triggers": triggers, "captured": self.captured_since(first), "acks": self.acks}
+        with self.lock:
+            acks = self.acks[acks_before:]
+        return {"triggers": triggers, "captured": self.captured_since(first), "acks": acks}
 
     def captured_since(self, first):
         with self.lock:
@@ -230,7 +274,7 @@ class Autopilot:
 def main():
     port, system = int(sys.argv[1]), int(sys.argv[2])
     lat, lon, alt, heading = (float(v) for v in sys.argv[3:7])
-    ap = Autopilot(port, system, Line(lat, lon, alt, heading))
+    ap = Autopilot(port, system, Line(lat, lon, alt, heading), sys.argv[7:8] == ["px4"])
     threading.Thread(target=ap.receive, daemon=True).start()
     threading.Thread(target=ap.send, daemon=True).start()
     found = ap.find_camera(20.0)
