@@ -1,7 +1,7 @@
 //! The vehicle as the frame path sees it, shared below the services: attitude and position
 //! samples over time, so each frame is rendered (and its stills and KLV placed) with the
-//! attitude and position at its own capture time. The MAVLink link (or the demo's simulated flight) writes it, the frame loop
-//! reads it; neither knows the other.
+//! attitude and position at its own capture time. The MAVLink link (or the demo's simulated
+//! flight) writes it, the frame loop reads it; neither knows the other.
 
 use crate::clock::clock_us;
 use crate::geometry::attitude::AttitudeTrack;

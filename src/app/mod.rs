@@ -50,7 +50,7 @@ pub enum ServeError {
     Config(#[from] ConfigError),
     #[error(transparent)]
     Http(#[from] crate::http::ListenError),
-    #[error("control.listen {0:?}: {1}")]
+    #[error("control.listen {0:?}: {1}; use ADDR:PORT, e.g. \"0.0.0.0:5000\"")]
     ControlListen(String, std::net::AddrParseError),
     #[error(transparent)]
     State(#[from] Invalid),

@@ -59,14 +59,19 @@ pub struct LinkStatus {
     pub attitudes: AtomicU64,
     /// Attitude samples over the last second, millihertz.
     pub attitude_mhz: AtomicU64,
-    pub autopilot: Mutex<Option<(u8, u8)>>,
-    /// Who drives the views, the demo's flight, and other senders of attitude.
+    /// Who drives the views (the autopilot, or the demo's flight) and other senders of
+    /// attitude.
     pub drivers: driver::Drivers,
     pub clock: Mutex<clock::ClockState>,
     pub connected: AtomicBool,
 }
 
 impl LinkStatus {
+    /// The system and component whose attitude the views follow, once one is found.
+    pub fn autopilot(&self) -> Option<(u8, u8)> {
+        self.drivers.driver().map(|d| (d.system, d.component))
+    }
+
     /// The link's state as the control protocol's AUTOPILOT reports it.
     pub fn param(&self) -> Autopilot {
         let newest = self.attitude_us.load(Ordering::Relaxed);
@@ -77,11 +82,7 @@ impl LinkStatus {
             _ if age > STALE.as_micros() as u64 => 4,
             _ => 3,
         };
-        let (system_id, component_id) = self
-            .autopilot
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .unwrap_or_default();
+        let (system_id, component_id) = self.autopilot().unwrap_or_default();
         let c = *self.clock.lock().unwrap_or_else(|e| e.into_inner());
         let others = self.drivers.others();
         let (other_system, other_component) = others.first().copied().unwrap_or_default();
@@ -137,12 +138,7 @@ impl Outbox {
     /// The system DigiView's components belong to: the autopilot's, once it is known (1
     /// until then).
     pub fn system_id(&self) -> u8 {
-        self.0
-            .status
-            .autopilot
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .map_or(1, |a| a.0)
+        self.0.status.autopilot().map_or(1, |a| a.0)
     }
 
     /// Sends `msg` from `component` (signed when signing is on); false while the link is
@@ -442,8 +438,6 @@ fn apply(
 fn found(status: &LinkStatus, driver: driver::Driver, peer: Peer) -> Option<String> {
     let was_demo = status.drivers.driver().is_some_and(|d| d.simulated);
     status.drivers.set(driver);
-    *status.autopilot.lock().unwrap_or_else(|e| e.into_inner()) =
-        Some((driver.system, driver.component));
     let (system, component) = (driver.system, driver.component);
     if driver.simulated {
         info!(
@@ -459,7 +453,7 @@ fn found(status: &LinkStatus, driver: driver::Driver, peer: Peer) -> Option<Stri
 }
 
 /// Who drives the views, in words.
-pub fn driver_name(driver: Option<driver::Driver>) -> String {
+fn driver_name(driver: Option<driver::Driver>) -> String {
     match driver {
         None => "no autopilot yet".into(),
         Some(d) if d.simulated => {

@@ -87,11 +87,7 @@ pub(super) fn send(shared: &Shared) {
 /// rates it needs, asked for when the autopilot is found (or replaces the demo's flight) and
 /// again every 10 s while the attitude comes at less than half the rate asked.
 fn speak(shared: &Shared, c: &Connection, s: &mut Sending) {
-    let autopilot = *shared
-        .status
-        .autopilot
-        .lock()
-        .unwrap_or_else(|e| e.into_inner());
+    let autopilot = shared.status.autopilot();
     let header = MavHeader {
         system_id: autopilot.map_or(1, |a| a.0).into(),
         component_id: OWN_COMPONENT,
@@ -164,7 +160,7 @@ fn report(
     let n = status.attitudes.load(Ordering::Relaxed);
     let hz = (n - before) as f64 / since.elapsed().as_secs_f64();
     let c = *status.clock.lock().unwrap_or_else(|e| e.into_inner());
-    let autopilot = *status.autopilot.lock().unwrap_or_else(|e| e.into_inner());
+    let autopilot = status.autopilot();
     let went_back = c.resets.saturating_sub(resets);
     if went_back > CLOCKS_TAKING_TURNS
         && let Some((system, _)) = autopilot

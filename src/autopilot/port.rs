@@ -109,12 +109,10 @@ impl Port {
         })
     }
 
-    /// The address this end sends from, where it is one of ours.
+    /// The address this end sends from, on a UDP socket of ours sending to one address.
     pub fn local_addr(&self) -> Option<SocketAddr> {
         match self {
-            Port::Sending { socket, .. } | Port::Listening { socket, .. } => {
-                socket.local_addr().ok()
-            }
+            Port::Sending { socket, .. } => socket.local_addr().ok(),
             _ => None,
         }
     }

@@ -348,8 +348,7 @@ impl Cameras {
     }
 
     /// IMAGE_START_CAPTURE: `count` images (0: until stopped), `interval` s apart (0.1 s
-    /// to a day; a single image takes any interval in 0..=a day, and ignores it).
-    /// IMAGE_START_CAPTURE: `count` images `interval` s apart (0: until stopped). A single
+    /// to a day; a single image takes any interval in 0..=a day, and ignores it). A single
     /// image asked for again with the same sequence number by the same component (a command
     /// sent again for want of an ACK, as PX4's command sender does after 0.5 s) is accepted
     /// and taken once.

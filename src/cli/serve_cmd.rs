@@ -106,11 +106,9 @@ impl SetupArgs {
         let (mut cfg, origin) = super::locate::config(self.config.as_deref())?;
         // The file's own listen address is checked even where a flag replaces it: a mistake
         // in the file would otherwise come back the day the flag is dropped.
-        if let Err(e) = cfg.control.listen.parse::<std::net::SocketAddr>() {
-            let listen = &cfg.control.listen;
-            return Err(anyhow!(
-                "control.listen {listen:?} in {origin}: {e}; use ADDR:PORT, e.g. \"0.0.0.0:5000\""
-            ));
+        if let Err(e) = cfg.control.listen.parse::<SocketAddr>() {
+            let bad = app::ServeError::ControlListen(cfg.control.listen.clone(), e);
+            return Err(anyhow::Error::new(bad).context(format!("{origin}")));
         }
         if let Some(s) = &self.source {
             cfg.source = s.clone();

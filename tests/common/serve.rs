@@ -256,3 +256,28 @@ impl CaptureConfig {
         self.config.to_str().unwrap()
     }
 }
+
+/// `serve` with video, its cameras' stills (640x480) written to a directory of the test's,
+/// the demo drawn at 960x540, its MAVLink link on a free UDP port (returned), `extra` flags
+/// beside, logging at `log` into a pipe ([`Serve::log`]) when given.
+pub fn with_stills(extra: &[&str], log: Option<&str>) -> (CaptureConfig, Serve, u16) {
+    let config = CaptureConfig::new(
+        "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n",
+        "min_free_mb = 1\n",
+    );
+    let port = super::autopilot::free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let mut flags = vec![
+        "--config",
+        config.path(),
+        "--mavlink",
+        &link,
+        "--demo-size",
+        "960x540",
+        "--size",
+        "640x480",
+    ];
+    flags.extend_from_slice(extra);
+    let serve = Serve::launch(&["--rtsp-port", "0"], &flags, log, None);
+    (config, serve, port)
+}

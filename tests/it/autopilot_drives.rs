@@ -8,11 +8,10 @@
 
 use crate::common;
 
-use common::autopilot::free_udp_port;
 use common::exif::{number, read};
 use common::gcs::http_get;
 use common::peers::LinePeer;
-use common::serve::{CaptureConfig, Serve};
+use common::serve::{CaptureConfig, Serve, with_stills};
 use digiview::control::client::Client;
 use digiview::protocol::Param;
 use digiview::protocol::params::Autopilot;
@@ -37,26 +36,8 @@ struct Head {
 /// `serve` on the demo, its link on a free UDP port, view 0 held to the airframe 30° right
 /// of the nose and 45° down with a 90° pinhole, stills written to a directory of the test's.
 fn head(extra: &[&str]) -> Head {
-    let config = CaptureConfig::new(
-        "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n",
-        "min_free_mb = 1\n",
-    );
-    let port = free_udp_port();
-    let link = format!("udpin:127.0.0.1:{port}");
-    let mut flags = vec![
-        "--config",
-        config.path(),
-        "--mavlink",
-        &link,
-        "--demo-size",
-        "960x540",
-        "--size",
-        "640x480",
-        "--cam",
-        "0:yaw=30deg,pitch=-45deg,fov=90deg,crop=1,lock=0",
-    ];
-    flags.extend_from_slice(extra);
-    let serve = Serve::start_video_logging("info", &flags);
+    let view_0 = ["--cam", "0:yaw=30deg,pitch=-45deg,fov=90deg,crop=1,lock=0"];
+    let (config, serve, port) = with_stills(&[&view_0, extra].concat(), Some("info"));
     let ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(3)).unwrap();
     Head {
         serve,

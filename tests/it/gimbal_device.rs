@@ -29,9 +29,9 @@ use std::time::Duration;
 /// The vehicle's heading the driver reports, degrees.
 const HEADING: f64 = 40.0;
 
-/// `serve` with its views as gimbal devices on a free link port, `extra` flags beside, and
-/// the driver `flavour` managing them once it has found its device.
-fn managed(flavour: &str, extra: &[&str]) -> (Serve, Client, LinePeer, Value) {
+/// `serve` (no video) with its four views as gimbal devices on a free link port (returned),
+/// `extra` flags beside.
+fn devices(extra: &[&str]) -> (Serve, u16) {
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
     let mut flags = vec![
@@ -43,7 +43,12 @@ fn managed(flavour: &str, extra: &[&str]) -> (Serve, Client, LinePeer, Value) {
         "4",
     ];
     flags.extend_from_slice(extra);
-    let serve = Serve::start(&flags);
+    (Serve::start(&flags), port)
+}
+
+/// As [`devices`], with the driver `flavour` managing them once it has found its device.
+fn managed(flavour: &str, extra: &[&str]) -> (Serve, Client, LinePeer, Value) {
+    let (serve, port) = devices(extra);
     let ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(3)).unwrap();
     let (driver, ready) = LinePeer::start(
         "gimbal_driver.py",
@@ -250,17 +255,7 @@ fn with_allow_set_none_the_gimbal_driver_moves_no_view() {
 /// camera's pairing with it through the router.
 #[test]
 fn a_ground_station_behind_a_router_sees_each_views_camera_and_gimbal_device() {
-    let port = free_udp_port();
-    let link = format!("udpin:127.0.0.1:{port}");
-    let flags = [
-        "--mavlink",
-        &link,
-        "--mavlink-gimbal",
-        "device",
-        "--layout",
-        "4",
-    ];
-    let _serve = Serve::start(&flags);
+    let (_serve, port) = devices(&[]);
     let dir = tempfile::tempdir().unwrap();
     let gcs_port = free_udp_port();
     let router = Command::new(python())

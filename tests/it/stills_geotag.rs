@@ -8,10 +8,9 @@
 
 use crate::common;
 
-use common::autopilot::free_udp_port;
 use common::exif::{number, read_jpeg as exiftool};
 use common::gcs::{Gcs, accepted, cameras, http_get, image_capture, params};
-use common::serve::{CaptureConfig, Serve};
+use common::serve::{CaptureConfig, Serve, with_stills};
 use mavlink::dialects::common::*;
 use std::process::Command;
 
@@ -39,27 +38,10 @@ fn stills(
 }
 
 /// `serve` on the hovering demo with its cameras' stills written to a directory of the
-/// test's, its link on a free port, `extra` flags beside; and a ground station on the link.
+/// test's, `extra` flags beside; and a ground station on its link.
 fn serve_with_stills(extra: &[&str]) -> (CaptureConfig, Serve, Gcs) {
-    let config = CaptureConfig::new(
-        "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n",
-        "min_free_mb = 1\n",
-    );
-    let port = free_udp_port();
-    let link = format!("udpin:127.0.0.1:{port}");
-    let mut flags = vec![
-        "--config",
-        config.path(),
-        "--mavlink",
-        &link,
-        "--demo-hover",
-        "--demo-size",
-        "960x540",
-        "--size",
-        "640x480",
-    ];
-    flags.extend_from_slice(extra);
-    let serve = Serve::start_video(&flags);
+    let flags = [&["--demo-hover"], extra].concat();
+    let (config, serve, port) = with_stills(&flags, None);
     (config, serve, Gcs::connect(port))
 }
 
