@@ -52,6 +52,7 @@ pub mod image_ops;
 pub mod layout;
 pub mod lens;
 pub mod modes;
+pub mod payload;
 pub mod policy;
 pub mod protocol;
 pub mod render;

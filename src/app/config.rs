@@ -42,6 +42,8 @@ pub struct Config {
     pub encoder: EncoderConfig,
     pub capture: CaptureConfig,
     pub mavlink: MavlinkConfig,
+    /// The payload SDK's link: one view as a Gremsy-style payload (docs/mavlink.md).
+    pub payload: crate::payload::PayloadConfig,
     /// The views as MAVLink cameras, and their own streams.
     pub cameras: CamerasConfig,
     /// The head's HTTP server (the cameras' definition file).
@@ -82,6 +84,7 @@ impl Default for Config {
             encoder: EncoderConfig::default(),
             capture: CaptureConfig::default(),
             mavlink: MavlinkConfig::default(),
+            payload: Default::default(),
             cameras: CamerasConfig::default(),
             http: HttpConfig::default(),
             detection: DetectionConfig::default(),
@@ -243,6 +246,32 @@ impl Config {
         self.mavlink
             .endpoint
             .parse::<crate::autopilot::Endpoint>()?;
+        let payload = self
+            .payload
+            .endpoint
+            .parse::<crate::autopilot::Endpoint>()?;
+        if payload != crate::autopilot::Endpoint::Off {
+            if !self.cameras.enabled {
+                return out_of_range(
+                    "payload endpoint needs the views as cameras: set [cameras] enabled = true"
+                        .into(),
+                );
+            }
+            if self.payload.view >= crate::state::MAX_CAMERAS {
+                return out_of_range(format!(
+                    "payload view {} is not a camera: give 0 to {}",
+                    self.payload.view,
+                    crate::state::MAX_CAMERAS - 1
+                ));
+            }
+            if self.payload.endpoint == self.mavlink.endpoint {
+                return out_of_range(format!(
+                    "payload endpoint {} is the autopilot link's too: give it a port of its own \
+                     (the SDK's is 14566)",
+                    self.payload.endpoint
+                ));
+            }
+        }
         Ok(())
     }
 

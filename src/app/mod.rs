@@ -114,6 +114,8 @@ impl Core {
 struct Services {
     cameras: Option<Arc<Cameras>>,
     link: Option<Link>,
+    /// The payload SDK's link, while it runs.
+    payload: Option<Link>,
     controller: Arc<Controller>,
 }
 
@@ -138,6 +140,10 @@ fn services(core: &Core, cfg: &Config, no_video: bool) -> Result<Services, Serve
         core.policy.clone(),
         components,
     )?;
+    let payload = match &cameras {
+        Some(c) => payload_link(core, cfg, c, link.as_ref())?,
+        None => None,
+    };
     let capture: Arc<dyn Capturer> = match no_video {
         true => Arc::new(NoVideo),
         false => core.capture.clone(),
@@ -151,8 +157,36 @@ fn services(core: &Core, cfg: &Config, no_video: bool) -> Result<Services, Serve
     Ok(Services {
         cameras,
         link,
+        payload,
         controller,
     })
+}
+
+/// The payload SDK's link (`[payload]`), None when it is off. Signed as the autopilot link
+/// is, its components under the autopilot's system id.
+fn payload_link(
+    core: &Core,
+    cfg: &Config,
+    cameras: &Arc<Cameras>,
+    autopilot: Option<&Link>,
+) -> Result<Option<Link>, ServeError> {
+    let link_cfg = crate::autopilot::MavlinkConfig {
+        endpoint: cfg.payload.endpoint.clone(),
+        ..cfg.mavlink.clone()
+    };
+    let payload = crate::payload::Payload::new(cameras.clone(), core.gate.clone(), &cfg.payload);
+    let kind = crate::autopilot::Kind {
+        profile: crate::autopilot::Profile::Payload,
+        ids: autopilot.map(|l| l.status.clone()),
+    };
+    Ok(Link::start_kind(
+        &link_cfg,
+        kind,
+        (core.gate.sensed().clone(), core.report.clone()),
+        core.telemetry.clone(),
+        core.policy.clone(),
+        Some(Arc::new(payload)),
+    )?)
 }
 
 /// Runs `digiview serve` with `cfg` (checked) from `state` until it is stopped (QUIT, a
@@ -170,6 +204,7 @@ pub fn serve(cal: &LensCal, cfg: Config, state: State, options: Options) -> Resu
     let Services {
         cameras,
         link,
+        payload: _payload,
         controller,
     } = services(&core, &cfg, no_video)?;
     let link_status = link.as_ref().map(|l| l.status.clone());

@@ -9,14 +9,17 @@
 //! and for its time (TIMESYNC), and watches for the attitude going stale. Other components
 //! of DigiView (the views as MAVLink cameras and gimbals) speak on the same link as
 //! [`Components`]: they see every message that arrives and send through an [`Outbox`], on a
-//! thread of theirs.
+//! thread of theirs. A second link of the [`Profile::Payload`] kind carries only such
+//! components (the payload SDK's, `crate::payload`): nothing of the vehicle is read there and
+//! DigiView's own component says nothing.
 
 pub mod clock;
 mod config;
 pub mod driver;
 mod outgoing;
-mod port;
+pub(crate) mod port;
 pub mod probe;
+mod receive;
 pub mod sim;
 pub mod vehicle;
 
@@ -29,14 +32,13 @@ use crate::state::{Report, Sensed};
 use crate::supervise;
 use crate::telemetry::Telemetry;
 use mavlink::dialects::common::MavMessage;
-use mavlink::{MAVLinkMessageRaw, MavHeader, Message, SigningConfig, SigningData};
+use mavlink::{MavHeader, SigningConfig, SigningData};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
-use tracing::{info, warn};
-use vehicle::{Update, Vehicle};
+use std::time::Duration;
+use tracing::info;
 
 /// No attitude for this long and the views hold the last one, reported.
 pub const STALE: Duration = Duration::from_millis(500);
@@ -47,6 +49,16 @@ const FIRST_REPORT: Duration = Duration::from_secs(3);
 const OWN_COMPONENT: u8 = 191;
 
 type Connection = Arc<port::Port>;
+
+/// What a link is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Profile {
+    /// The autopilot's: attitude, position and time read, rates asked for, DigiView's
+    /// heartbeat sent, and the components beside.
+    Autopilot,
+    /// An app's that drives a payload (the payload SDK's port): only the components speak.
+    Payload,
+}
 
 /// What the link knows now, for the health line and the docs' `ctl`.
 #[derive(Default)]
@@ -132,19 +144,48 @@ pub const TICK: Duration = Duration::from_millis(20);
 
 /// Sends on the link as one of DigiView's components.
 #[derive(Clone)]
-pub struct Outbox(Arc<Shared>);
+pub struct Outbox {
+    shared: Arc<Shared>,
+    /// The component each of DigiView's speaks as here (None: it is silent here).
+    rename: Option<Rename>,
+}
+
+/// Which component speaks as which, on a link that shows some of them under other ids.
+pub type Rename = Arc<dyn Fn(u8) -> Option<u8> + Send + Sync>;
 
 impl Outbox {
+    fn new(shared: Arc<Shared>) -> Outbox {
+        Outbox {
+            shared,
+            rename: None,
+        }
+    }
+
+    /// This outbox with each component sent from as `rename` says (or not at all).
+    pub fn renamed(&self, rename: Rename) -> Outbox {
+        Outbox {
+            shared: self.shared.clone(),
+            rename: Some(rename),
+        }
+    }
+
     /// The system DigiView's components belong to: the autopilot's, once it is known (1
     /// until then).
     pub fn system_id(&self) -> u8 {
-        self.0.status.autopilot().map_or(1, |a| a.0)
+        self.shared.ids.autopilot().map_or(1, |a| a.0)
     }
 
     /// Sends `msg` from `component` (signed when signing is on); false while the link is
-    /// down.
+    /// down or the component is silent here.
     pub fn send(&self, component: u8, msg: &MavMessage) -> bool {
-        let shared = &*self.0;
+        let shared = &*self.shared;
+        let component = match &self.rename {
+            Some(rename) => match rename(component) {
+                Some(c) => c,
+                None => return false,
+            },
+            None => component,
+        };
         let Some(c) = shared.connection() else {
             return false;
         };
@@ -168,6 +209,12 @@ struct Shared {
     report: Arc<Report>,
     telemetry: Arc<Telemetry>,
     status: Arc<LinkStatus>,
+    /// Whose autopilot gives DigiView's components their system id: this link's own, or
+    /// the autopilot link's for a payload link.
+    ids: Arc<LinkStatus>,
+    profile: Profile,
+    /// Commands not in the common set already logged: (system, component, command).
+    unknown: Mutex<std::collections::HashSet<(u8, u8, u16)>>,
     connection: Mutex<Option<Connection>>,
     /// The local times (µs) of the TIMESYNC requests not answered yet, newest last.
     syncs_sent: Mutex<VecDeque<u64>>,
@@ -189,10 +236,33 @@ impl Shared {
     }
 }
 
+/// A link's kind and whose autopilot names its system (None: its own).
+pub struct Kind {
+    pub profile: Profile,
+    pub ids: Option<Arc<LinkStatus>>,
+}
+
 impl Link {
-    /// Starts the link of `cfg` (None when it is off), with `components` speaking on it.
+    /// Starts the autopilot link of `cfg` (None when it is off), with `components` speaking
+    /// on it.
     pub fn start(
         cfg: &MavlinkConfig,
+        sensing: (Arc<Sensed>, Arc<Report>),
+        telemetry: Arc<Telemetry>,
+        policy: Arc<Policy>,
+        components: Option<Arc<dyn Components>>,
+    ) -> Result<Option<Link>, EndpointError> {
+        let kind = Kind {
+            profile: Profile::Autopilot,
+            ids: None,
+        };
+        Link::start_kind(cfg, kind, sensing, telemetry, policy, components)
+    }
+
+    /// Starts a link of `kind` at `cfg`'s endpoint (None when it is off).
+    pub fn start_kind(
+        cfg: &MavlinkConfig,
+        kind: Kind,
         (sensed, report): (Arc<Sensed>, Arc<Report>),
         telemetry: Arc<Telemetry>,
         policy: Arc<Policy>,
@@ -209,7 +279,10 @@ impl Link {
             sensed,
             report,
             telemetry,
+            ids: kind.ids.unwrap_or_else(|| status.clone()),
             status: status.clone(),
+            profile: kind.profile,
+            unknown: Mutex::default(),
             connection: Mutex::new(None),
             syncs_sent: Mutex::new(VecDeque::new()),
             components,
@@ -221,10 +294,11 @@ impl Link {
         });
         // Each thread supervised: a panic is noted and the thread started again.
         let mut threads = vec![];
-        for (name, run) in [
-            ("mavlink-rx", receive as fn(&Arc<Shared>)),
-            ("mavlink-tx", |s: &Arc<Shared>| outgoing::send(s)),
-        ] {
+        let mut loops = vec![("mavlink-rx", receive::receive as fn(&Arc<Shared>))];
+        if kind.profile == Profile::Autopilot {
+            loops.push(("mavlink-tx", |s: &Arc<Shared>| outgoing::send(s)));
+        }
+        for (name, run) in loops {
             let shared = shared.clone();
             let report: Arc<dyn supervise::FailureLog> = shared.report.clone();
             threads.push(supervise::spawn(report, name, stop.clone(), move || {
@@ -232,7 +306,7 @@ impl Link {
             }));
         }
         if let Some(components) = shared.components.clone() {
-            let out = Outbox(shared.clone());
+            let out = Outbox::new(shared.clone());
             let stop = stop.clone();
             let fault = supervise::Fault::for_service("mavlink-components");
             let report: Arc<dyn supervise::FailureLog> = shared.report.clone();
@@ -250,7 +324,7 @@ impl Link {
             ));
         }
         let threads = threads.into_iter().flatten().collect();
-        info!("mavlink: {}", cfg.endpoint);
+        info!("mavlink ({:?}): {}", kind.profile, cfg.endpoint);
         Ok(Some(Link {
             status,
             stop,
@@ -268,197 +342,5 @@ impl Drop for Link {
                 let _ = t.join();
             }
         }
-    }
-}
-
-/// Opens the link, reads it until it fails, again with back-off (1 s doubling to 10 s, back
-/// to 1 s after a link that held 10 s).
-fn receive(shared: &Arc<Shared>) {
-    let mut backoff = Duration::from_secs(1);
-    let mut vehicle = Vehicle::new(shared.cfg.system_id);
-    while !shared.stop.load(Ordering::Relaxed) {
-        let why = match port::Port::open(&shared.address) {
-            Ok(c) => {
-                let opened = Instant::now();
-                let Some(why) = read(shared, Arc::from(c), &mut vehicle) else {
-                    return;
-                };
-                if opened.elapsed() > Duration::from_secs(10) {
-                    backoff = Duration::from_secs(1);
-                }
-                why
-            }
-            Err(e) => e.to_string(),
-        };
-        warn!(
-            "mavlink {}: {why}; retrying in {} s",
-            shared.address,
-            backoff.as_secs()
-        );
-        std::thread::sleep(backoff);
-        backoff = (backoff * 2).min(Duration::from_secs(10));
-    }
-}
-
-/// The link's connection while it is read: let go when the reading ends, a panic included,
-/// so nothing is sent into a port no one reads and the port can be opened again.
-struct Held<'a>(&'a Shared);
-
-impl Drop for Held<'_> {
-    fn drop(&mut self) {
-        *self.0.connection.lock().unwrap_or_else(|e| e.into_inner()) = None;
-        self.0.status.connected.store(false, Ordering::Relaxed);
-    }
-}
-
-/// Reads an open link until it fails (why) or the link stops (None).
-fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> Option<String> {
-    let out = Outbox(shared.clone());
-    let fault = supervise::Fault::for_service("mavlink-rx");
-    *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
-    shared.status.connected.store(true, Ordering::Relaxed);
-    let _held = Held(shared);
-    loop {
-        if shared.stop.load(Ordering::Relaxed) {
-            break None;
-        }
-        fault.check("mavlink-rx");
-        match connection.recv_raw() {
-            Ok(raw) => {
-                if let Some((header, msg)) = accept(shared, &raw) {
-                    let simulated = shared.status.drivers.is_demo(connection.sender_addr());
-                    let peer = Peer::Mavlink {
-                        system: u8::try_from(header.system_id).unwrap_or(u8::MAX),
-                        component: header.component_id,
-                        from: connection.sender(),
-                        // With signing on, only signed messages are accepted.
-                        signed: shared.signing.is_some(),
-                    };
-                    if let Some(news) = apply(shared, vehicle, (&header, simulated), peer, &msg) {
-                        out.send(OWN_COMPONENT, &outgoing::status_text(&news));
-                    }
-                    outgoing::refuse_own_command(&out, &header, &msg);
-                    if let Some(c) = &shared.components {
-                        c.handle(&out, &header, peer, &msg);
-                    }
-                }
-            }
-            Err(mavlink::error::MessageReadError::Io(e))
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::TimedOut
-                        | std::io::ErrorKind::Interrupted
-                ) => {}
-            Err(mavlink::error::MessageReadError::Io(e)) => break Some(e.to_string()),
-            // A frame that does not parse (unknown id, bad field): skipped.
-            Err(_) => {}
-        }
-    }
-}
-
-/// A frame's header and message, if it passes signing (when on) and parses.
-fn accept(shared: &Shared, raw: &MAVLinkMessageRaw) -> Option<(MavHeader, MavMessage)> {
-    if let Some(signing) = &shared.signing {
-        let signed = match raw {
-            MAVLinkMessageRaw::V2(v2) => signing.verify_signature(v2),
-            MAVLinkMessageRaw::V1(_) => false,
-        };
-        if !signed {
-            shared.status.unsigned.fetch_add(1, Ordering::Relaxed);
-            return None;
-        }
-    }
-    let msg = MavMessage::parse(raw.version(), raw.message_id(), raw.payload()).ok()?;
-    let header = MavHeader {
-        system_id: raw.system_id(),
-        component_id: raw.component_id(),
-        sequence: raw.sequence(),
-    };
-    Some((header, msg))
-}
-
-/// One message: into the telemetry and what is sensed (a sample outside the vehicle's rules
-/// is refused there, noted, and the last one kept). What the operator must hear of it, as
-/// a warning for ground stations too.
-fn apply(
-    shared: &Shared,
-    vehicle: &mut Vehicle,
-    (header, simulated): (&MavHeader, bool),
-    peer: Peer,
-    msg: &MavMessage,
-) -> Option<String> {
-    let status = &shared.status;
-    status.messages.fetch_add(1, Ordering::Relaxed);
-    match vehicle.handle(header, msg, clock_us(), simulated)? {
-        Update::Found(driver) => return found(status, driver, peer),
-        Update::OtherAttitude(system, component) => {
-            if status.drivers.other(system, component) {
-                warn!(
-                    "mavlink: two senders of attitude: {peer} is ignored, the views follow {}",
-                    driver_name(status.drivers.driver())
-                );
-                return Some(format!(
-                    "DigiView: attitude from {system}/{component} ignored"
-                ));
-            }
-        }
-        Update::Attitude { t_us, attitude } => {
-            shared.telemetry.external_attitude(t_us, attitude);
-            status.attitude_us.fetch_max(t_us, Ordering::Relaxed);
-            status.attitudes.fetch_add(1, Ordering::Relaxed);
-            *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
-            if let Err(e) = shared.sensed.set_attitude(attitude) {
-                shared.policy.refusals.note(peer, "an attitude", &e.0);
-            }
-        }
-        Update::TimeSync { remote_us, ours_us } => {
-            // Only an answer to a request of ours, each once.
-            let mut sent = shared.syncs_sent.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some(i) = sent.iter().position(|&t| t == ours_us) {
-                sent.remove(i);
-                drop(sent);
-                vehicle.clock.observe_sync(remote_us, ours_us, clock_us());
-                *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
-            }
-        }
-        Update::TimeSyncRequest { ts1 } => outgoing::answer_timesync(shared, header, ts1),
-        Update::Position(p) => {
-            shared.telemetry.position(p);
-            if let Err(e) = shared.sensed.set_position(p.position) {
-                shared.policy.refusals.note(peer, "a position", &e.0);
-            }
-        }
-    }
-    None
-}
-
-/// The autopilot found, or a real one in the demo's place: said in the log, and to ground
-/// stations when the demo's flight steps aside.
-fn found(status: &LinkStatus, driver: driver::Driver, peer: Peer) -> Option<String> {
-    let was_demo = status.drivers.driver().is_some_and(|d| d.simulated);
-    status.drivers.set(driver);
-    let (system, component) = (driver.system, driver.component);
-    if driver.simulated {
-        info!(
-            "mavlink: the demo's simulated flight drives the views as system {system}, component {component}"
-        );
-        return None;
-    }
-    info!("mavlink: the autopilot is system {system}, component {component} ({peer})");
-    was_demo.then(|| {
-        info!("mavlink: the autopilot drives the views; the demo's simulated flight steps aside");
-        format!("DigiView: autopilot {system}/{component} replaces demo flight")
-    })
-}
-
-/// Who drives the views, in words.
-fn driver_name(driver: Option<driver::Driver>) -> String {
-    match driver {
-        None => "no autopilot yet".into(),
-        Some(d) if d.simulated => {
-            format!("the demo's simulated flight ({}/{})", d.system, d.component)
-        }
-        Some(d) => format!("the autopilot {}/{}", d.system, d.component),
     }
 }

@@ -97,7 +97,7 @@ pub struct Answer {
 }
 
 impl Answer {
-    pub(super) fn accepted(then: Vec<MavMessage>) -> Answer {
+    pub fn accepted(then: Vec<MavMessage>) -> Answer {
         Answer {
             result: MavResult::MAV_RESULT_ACCEPTED,
             then,
@@ -111,9 +111,16 @@ impl Answer {
             why: Some(why.to_string()),
         }
     }
-    fn failed(why: impl std::fmt::Display) -> Answer {
+    pub fn failed(why: impl std::fmt::Display) -> Answer {
         Answer {
             result: MavResult::MAV_RESULT_FAILED,
+            then: vec![],
+            why: Some(why.to_string()),
+        }
+    }
+    pub fn unsupported(why: impl std::fmt::Display) -> Answer {
+        Answer {
+            result: MavResult::MAV_RESULT_UNSUPPORTED,
             then: vec![],
             why: Some(why.to_string()),
         }
@@ -162,11 +169,10 @@ impl Cameras {
             Ok(()) => match self.run(from, i, cmd) {
                 Some(a) => a,
                 None if broadcast => return,
-                None => Answer {
-                    result: MavResult::MAV_RESULT_UNSUPPORTED,
-                    then: vec![],
-                    why: None,
-                },
+                None => Answer::unsupported(format!(
+                    "{:?} is not a command DigiView's cameras take",
+                    cmd.command
+                )),
             },
         };
         // The policy's refusal is noted where it was asked; this path notes its own.

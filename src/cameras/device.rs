@@ -159,7 +159,11 @@ impl Cameras {
     /// to the airframe: ahead, level with the vehicle, following it), neutral (ahead and
     /// level, roll and pitch held to the horizon), else the angle its quaternion gives
     /// (none: rates only), its flags' locks and yaw frame, as a gimbal manager's command.
-    fn set_attitude(&self, i: usize, m: &GIMBAL_DEVICE_SET_ATTITUDE_DATA) -> Result<(), Refused> {
+    pub(super) fn set_attitude(
+        &self,
+        i: usize,
+        m: &GIMBAL_DEVICE_SET_ATTITUDE_DATA,
+    ) -> Result<(), Refused> {
         use GimbalDeviceFlags as F;
         let rest = |locks: u8| {
             let pointing = Pointing {

@@ -12,6 +12,7 @@
 
 mod commands;
 mod device;
+mod for_payload;
 mod ftp;
 mod gimbal;
 mod host;
@@ -20,7 +21,9 @@ mod info;
 mod settings;
 mod tracking;
 
-pub use device::GimbalRole;
+pub use commands::Answer;
+pub use device::{GimbalRole, device_component};
+pub use for_payload::{InPicture, PictureBox};
 pub use host::public_host;
 
 use crate::autopilot::{Components, Outbox};
@@ -429,13 +432,7 @@ impl Components for Cameras {
         let state = self.state();
         let n = Cameras::count(&state);
         let now = Instant::now();
-        let dt = {
-            let mut p = self.periodic();
-            let dt = p.ticked.map_or(0.0, |t| (now - t).as_secs_f64().min(0.2));
-            p.ticked = Some(now);
-            dt
-        };
-        self.apply_motion(n, dt);
+        self.keep_moving();
         self.deliver_shots(out);
         self.shoot_due(n, now);
         let (beat, listened) = {
@@ -474,7 +471,7 @@ impl Components for Cameras {
 
 /// The HEARTBEAT of one of the views' components: a camera (MAV_TYPE_CAMERA) or a gimbal
 /// device (MAV_TYPE_GIMBAL).
-fn heartbeat(mavtype: MavType) -> MavMessage {
+pub(crate) fn heartbeat(mavtype: MavType) -> MavMessage {
     MavMessage::HEARTBEAT(HEARTBEAT_DATA {
         custom_mode: 0,
         mavtype,

@@ -129,7 +129,7 @@ impl Cameras {
     }
 
     /// Camera `i`'s own picture as its stream draws it from `s`.
-    fn own_picture(&self, s: &State, i: usize) -> Result<FramePlan, Unseen> {
+    pub(super) fn own_picture(&self, s: &State, i: usize) -> Result<FramePlan, Unseen> {
         let settings = &s.settings;
         let lens = self.gate.settings().lenses().for_frame(
             settings.lens,
@@ -171,7 +171,7 @@ impl Cameras {
 
     /// `s` as of now, and what camera `i` follows in it: its direction and angular size,
     /// and its motion across the sky (world NED per second) where the tracker measured one.
-    fn followed_now(s: &State, i: usize) -> (State, Option<(DVec3, f64, DVec3)>) {
+    pub(super) fn followed_now(s: &State, i: usize) -> (State, Option<(DVec3, f64, DVec3)>) {
         let mut now = s.clone();
         now.moved_on_to(crate::clock::clock_us());
         let followed = now.settings.cameras[i]

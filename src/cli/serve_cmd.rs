@@ -57,6 +57,14 @@ pub struct ServeArgs {
     /// choose which.
     #[arg(long, value_enum, value_name = "ROLE")]
     mavlink_gimbal: Option<crate::cameras::GimbalRole>,
+    /// The payload SDK's link, where apps written with Gremsy's PayloadSdk drive one view as
+    /// their payload: udpin:0.0.0.0:14566 (the SDK's port), another endpoint, or off
+    /// (replaces the config's `[payload] endpoint`; docs/mavlink.md).
+    #[arg(long, value_name = "ENDPOINT")]
+    payload: Option<String>,
+    /// The view the payload SDK drives, 0 to 3 (replaces the config's `[payload] view`).
+    #[arg(long, value_name = "N")]
+    payload_view: Option<usize>,
     /// The demo vehicle hovers at the state's attitude and position instead of flying.
     #[arg(long)]
     demo_hover: bool,
@@ -157,6 +165,12 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if let Some(role) = args.mavlink_gimbal {
         cfg.cameras.gimbal = role;
+    }
+    if let Some(p) = &args.payload {
+        cfg.payload.endpoint = p.clone();
+    }
+    if let Some(v) = args.payload_view {
+        cfg.payload.view = v;
     }
     if let Some((w, h)) = args.demo_size {
         (cfg.demo.width, cfg.demo.height) = (w, h);

@@ -356,3 +356,10 @@ impl Drop for Load {
         }
     }
 }
+
+/// Asserts that each of `lines` is in `log`.
+pub fn assert_logged(log: &str, lines: &[&str]) {
+    for line in lines {
+        assert!(log.contains(line), "{line:?} not in the log:\n{log}");
+    }
+}

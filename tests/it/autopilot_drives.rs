@@ -188,14 +188,15 @@ fn a_real_autopilot_takes_the_demos_place_and_a_second_sender_of_attitude_is_a_w
     drop((ardupilot, _other));
     head.serve.terminate();
     let log = head.serve.log();
-    for line in [
-        "the demo's simulated flight drives the views as system 1, component 1",
-        "the autopilot is system 1, component 1",
-        "the demo's simulated flight steps aside",
-        "two senders of attitude: mavlink 2/1",
-    ] {
-        assert!(log.contains(line), "{line:?} not in the log:\n{log}");
-    }
+    common::assert_logged(
+        &log,
+        &[
+            "the demo's simulated flight drives the views as system 1, component 1",
+            "the autopilot is system 1, component 1",
+            "the demo's simulated flight steps aside",
+            "two senders of attitude: mavlink 2/1",
+        ],
+    );
 }
 
 /// A survey line flown by `flavour`'s autopilot for `seconds`: 10 m/s east-north-east,

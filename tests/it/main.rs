@@ -34,6 +34,7 @@ mod mavsdk;
 mod no_panics;
 mod one_path;
 mod package;
+mod payload_sdk;
 mod players;
 mod protocol_camera;
 mod protocol_system;
