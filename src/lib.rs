@@ -26,7 +26,8 @@
 //!   detection stage, which runs `detect`'s detectors and tracker); `control`, the DigiView
 //!   protocol's request handling, server and client; `autopilot`, the MAVLink link the
 //!   vehicle's attitude and position come in on; `cameras`, each view a MAVLink camera and
-//!   gimbal, speaking on the link through the trait and outbox `autopilot` owns; `http`, the
+//!   gimbal, speaking on the link through the trait and outbox `autopilot` owns; `payload`,
+//!   one view as the payload SDK's payload on a link of its own, through `cameras`; `http`, the
 //!   tuning page and its JSON API, through `control`'s request handling. Every one that
 //!   changes the settings asks `state::Gate` once per request and steers a view by its view
 //!   operations. Each owns its section of the serve configuration, and reaches no other

@@ -19,6 +19,7 @@ mod detect_onnx;
 mod exposure;
 mod gimbal_video;
 mod klv_flight;
+mod payload_video;
 mod rolling_video;
 mod serve_video;
 mod services;

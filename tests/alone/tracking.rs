@@ -18,21 +18,6 @@ use std::time::{Duration, Instant};
 const W: u32 = 640;
 const H: u32 = 480;
 
-/// The centroid of the pink mover's pixels in `img` (red high, green and blue between, as
-/// nothing else in the synthetic world is), with their count, when there are enough.
-fn pink(img: &RgbImage) -> Option<(f64, f64)> {
-    let (mut n, mut sx, mut sy) = (0usize, 0.0, 0.0);
-    for (x, y, p) in img.enumerate_pixels() {
-        let [r, g, b] = p.0.map(i32::from);
-        if r > 190 && (100..=205).contains(&g) && (120..=235).contains(&b) && r - g > 40 && b > g {
-            n += 1;
-            sx += x as f64 + 0.5;
-            sy += y as f64 + 0.5;
-        }
-    }
-    (n >= 12).then(|| (sx / n as f64, sy / n as f64))
-}
-
 /// How far `p` is from the picture's centre, as a part of its width.
 fn off_centre(p: (f64, f64)) -> f64 {
     (p.0 - W as f64 / 2.0).hypot(p.1 - H as f64 / 2.0) / W as f64
@@ -101,7 +86,7 @@ fn a_view_follows_the_mover_a_ground_station_clicks_until_told_to_stop() {
     let viewer = Viewer::open(&format!("{}/cam0", serve.rtsp.clone().unwrap()));
     let start = Instant::now();
     let at = loop {
-        if let Some(p) = pink(&viewer.fresh_frame()) {
+        if let Some(p) = common::pink_mover(&viewer.fresh_frame()) {
             break p;
         }
         assert!(
@@ -134,7 +119,7 @@ fn a_view_follows_the_mover_a_ground_station_clicks_until_told_to_stop() {
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(10) {
         let img = viewer.frame_after(Duration::from_millis(200));
-        let p = pink(&img).unwrap_or_else(|| {
+        let p = common::pink_mover(&img).unwrap_or_else(|| {
             img.save(dir.path().join("lost.png")).unwrap();
             panic!(
                 "the mover left camera 0's picture after {:?}",
@@ -202,7 +187,7 @@ fn a_view_follows_the_mover_a_ground_station_clicks_until_told_to_stop() {
     );
     std::thread::sleep(Duration::from_secs(5));
     let img = viewer.fresh_frame();
-    let after = pink(&img).map(off_centre);
+    let after = common::pink_mover(&img).map(off_centre);
     eprintln!("5 s after the stop: the mover at {after:?} of the width off centre");
     assert!(
         after.is_none_or(|o| o > 0.1),

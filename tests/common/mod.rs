@@ -363,3 +363,18 @@ pub fn assert_logged(log: &str, lines: &[&str]) {
         assert!(log.contains(line), "{line:?} not in the log:\n{log}");
     }
 }
+
+/// The centroid of the pink mover's pixels in `img` (red high, green and blue between, as
+/// nothing else in the synthetic world is), with their count, when there are enough.
+pub fn pink_mover(img: &RgbImage) -> Option<(f64, f64)> {
+    let (mut n, mut sx, mut sy) = (0usize, 0.0, 0.0);
+    for (x, y, p) in img.enumerate_pixels() {
+        let [r, g, b] = p.0.map(i32::from);
+        if r > 190 && (100..=205).contains(&g) && (120..=235).contains(&b) && r - g > 40 && b > g {
+            n += 1;
+            sx += x as f64 + 0.5;
+            sy += y as f64 + 0.5;
+        }
+    }
+    (n >= 12).then(|| (sx / n as f64, sy / n as f64))
+}

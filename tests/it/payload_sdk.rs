@@ -277,3 +277,62 @@ fn with_allow_set_none_the_app_changes_nothing() {
     );
     assert_eq!(before, (lock_flags(&mut h.ctl), fov_degrees(&mut h.ctl)));
 }
+
+/// How far the earth-frame yaw turned over `statuses` (degrees, unwrapped).
+fn turned(statuses: &Value) -> f64 {
+    let yaws: Vec<f64> = statuses
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["yaw"].as_f64().unwrap())
+        .collect();
+    yaws.windows(2)
+        .map(|w| (w[1] - w[0] + 540.0).rem_euclid(360.0) - 180.0)
+        .sum()
+}
+
+#[test]
+fn gb_mode_lock_holds_the_view_to_the_earth_and_follow_turns_it_with_the_nose() {
+    // The demo flies its circle (a lap in 90 s: the nose turns 4° a second).
+    let mut h = head(&[], false);
+    let sdk = &mut h.sdk;
+    assert_eq!(set(sdk, "GB_MODE", 1), (ACCEPTED, 1));
+    sdk.ask(&json!({"gimbal": {"angle": [-30, 0, 20], "for": 0.5}}));
+    let held = sdk.ask(&json!({"listen": 2.5}))["attitudes"].clone();
+    assert!(
+        turned(&held).abs() < 0.5,
+        "locked, it turned {:.2}°",
+        turned(&held)
+    );
+    assert!(
+        held.as_array()
+            .unwrap()
+            .iter()
+            .all(|a| a["mode"] == "LOCK_MODE")
+    );
+    assert_eq!(set(sdk, "GB_MODE", 2), (ACCEPTED, 2));
+    sdk.ask(&json!({"gimbal": {"angle": [-30, 0, 20], "for": 0.5}}));
+    let following = sdk.ask(&json!({"listen": 2.5}))["attitudes"].clone();
+    let t = following.as_array().unwrap().last().unwrap()["t"]
+        .as_f64()
+        .unwrap()
+        - following[0]["t"].as_f64().unwrap();
+    let rate = turned(&following) / t;
+    assert!(
+        (rate.abs() - 4.0).abs() < 1.0,
+        "following, it turned {rate:.2}°/s"
+    );
+    assert!(
+        following
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|a| a["mode"] == "FOLLOW_MODE")
+    );
+    // Mapping: straight down, its top towards the nose.
+    assert_eq!(set(sdk, "GB_MODE", 3), (ACCEPTED, 3));
+    let down = sdk.ask(&json!({"listen": 0.5}))["attitudes"].clone();
+    let last = down.as_array().unwrap().last().unwrap();
+    assert!(last["pitch"].as_f64().unwrap() < -89.5, "{last}");
+    assert_eq!(last["mode"], "MAPPING_MODE");
+}
