@@ -178,6 +178,12 @@ impl Outbox {
     /// Sends `msg` from `component` (signed when signing is on); false while the link is
     /// down or the component is silent here.
     pub fn send(&self, component: u8, msg: &MavMessage) -> bool {
+        self.send_any(component, msg)
+    }
+
+    /// Sends a message of another dialect than the common set (the payload SDK's
+    /// MOUNT_ORIENTATION), as [`Outbox::send`] does.
+    pub fn send_any<M: mavlink::Message>(&self, component: u8, msg: &M) -> bool {
         let shared = &*self.shared;
         let component = match &self.rename {
             Some(rename) => match rename(component) {

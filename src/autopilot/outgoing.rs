@@ -18,11 +18,11 @@ use std::time::{Duration, Instant};
 use tracing::{info, warn};
 
 /// `msg` on `connection`, signed when signing is on.
-pub(super) fn send_one(
+pub(super) fn send_one<M: mavlink::Message>(
     shared: &Shared,
     connection: &Connection,
     header: MavHeader,
-    msg: &MavMessage,
+    msg: &M,
 ) {
     let _ = match &shared.signing {
         Some(signing) => {

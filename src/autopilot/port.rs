@@ -197,9 +197,18 @@ impl Port {
         }
     }
 
-    pub fn send(&self, header: MavHeader, msg: &MavMessage) -> Result<(), MessageWriteError> {
+    /// Sends `msg`, of any dialect, as MAVLink 2.
+    pub fn send<M: mavlink::Message>(
+        &self,
+        header: MavHeader,
+        msg: &M,
+    ) -> Result<(), MessageWriteError> {
         match self {
-            Port::Net(c, _) => c.send(&header, msg).map(drop),
+            Port::Net(c, _) => {
+                let mut raw = mavlink::MAVLinkV2MessageRaw::new();
+                raw.serialize_message(header, msg);
+                c.send_raw(&MAVLinkMessageRaw::V2(raw)).map(drop)
+            }
             Port::Listening { socket, peers, .. } => {
                 let mut bytes = Vec::with_capacity(280);
                 mavlink::write_versioned_msg(&mut bytes, MavlinkVersion::V2, header, msg)?;

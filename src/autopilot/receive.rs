@@ -133,7 +133,7 @@ fn accept(shared: &Shared, raw: &MAVLinkMessageRaw) -> Option<(MavHeader, MavMes
 }
 
 /// A command frame that did not parse because its command is not in MAVLink's common set
-/// (an ArduPilot or vendor command, as the payload SDK's gimbal calibration, 42501): there is
+/// (an ArduPilot or vendor command, as the payload SDK's gimbal calibration, 42503): there is
 /// no ACK to give it in the common set, so it is logged, once per sender and command.
 fn unknown_command(shared: &Shared, raw: &MAVLinkMessageRaw) {
     if ![75, 76].contains(&raw.message_id()) {

@@ -181,7 +181,7 @@ impl Capture {
         Ok(())
     }
 
-    /// `captures/digiview-20261121-142501-0003.ext`
+    /// `captures/digiview-20261121-142503-0003.ext`
     fn name(&self, suffix: &str) -> PathBuf {
         let when = glib::DateTime::now_local()
             .and_then(|t| t.format("%Y%m%d-%H%M%S"))

@@ -11,6 +11,7 @@
 //! does not take is answered (UNSUPPORTED, FAILED) and logged with the reason.
 
 mod commands;
+mod mount;
 mod params;
 mod report;
 mod status;
@@ -225,7 +226,11 @@ impl Components for Payload {
             return;
         }
         if attitude {
-            out.send(GIMBAL, &self.attitude());
+            let status = self.attitude();
+            out.send(GIMBAL, &status);
+            if let MavMessage::GIMBAL_DEVICE_ATTITUDE_STATUS(a) = &status {
+                out.send_any(GIMBAL, &mount::orientation(a));
+            }
         }
         self.stream_items(out, now);
         if detections {

@@ -159,11 +159,11 @@ pub fn set(modes: &mut Modes, name: &str, v: u32, widest: f64) -> Result<Set, Re
                 widest / factor.unwrap_or(1.0),
             ))))
         }
+        // Shutter priority (10) is manual here: the fisheye's exposure has no auto gain beside
+        // a given shutter.
         "C_V_AE" => {
-            value(
-                v == 0 || v == 3,
-                "DigiView's exposure is 0 auto or 3 manual",
-            )?;
+            let modes = "DigiView's exposure is 0 auto, or 3 manual (10, shutter priority, too)";
+            value(v == 0 || v == 3 || v == 10, modes)?;
             Ok(Set::Settings(Box::new(move |s| {
                 s.sensor.ae = v == 0;
                 Ok(())

@@ -10,7 +10,6 @@ use common::autopilot::free_udp_port;
 use common::gcs::{Gcs, accepted, cameras, params};
 use common::serve::Serve;
 use common::viewer::Viewer;
-use image::RgbImage;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
 use std::time::{Duration, Instant};
