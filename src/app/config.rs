@@ -257,13 +257,6 @@ impl Config {
                         .into(),
                 );
             }
-            if self.payload.view >= crate::state::MAX_CAMERAS {
-                return out_of_range(format!(
-                    "payload view {} is not a camera: give 0 to {}",
-                    self.payload.view,
-                    crate::state::MAX_CAMERAS - 1
-                ));
-            }
             if self.payload.endpoint == self.mavlink.endpoint {
                 return out_of_range(format!(
                     "payload endpoint {} is the autopilot link's too: give it a port of its own \

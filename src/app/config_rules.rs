@@ -43,6 +43,7 @@ pub const CONFIG_RULES: &[ConfigRule] = &[
     rule("detection.crop_hz", 0.0, 30.0, "Hz"),
     rule("detection.threads", 1.0, 16.0, ""),
     rule("klv_camera", 0.0, (MAX_CAMERAS - 1) as f64, ""),
+    rule("payload.view", 0.0, (MAX_CAMERAS - 1) as f64, ""),
     rule("health_interval_s", 0.0, 3600.0, "s"),
     rule("readout.time_ms", 0.0, MAX_READOUT_MS, "ms"),
 ];
@@ -68,6 +69,7 @@ impl Config {
             ("detection.crop_hz", self.detection.crop_hz),
             ("detection.threads", self.detection.threads as f64),
             ("klv_camera", self.klv_camera as f64),
+            ("payload.view", self.payload.view as f64),
             ("health_interval_s", self.health_interval_s),
             ("readout.time_ms", self.readout.time_ms),
         ];

@@ -22,6 +22,7 @@ use std::time::Duration;
 const VIEW: u8 = 1;
 /// MAVLink's results and PARAM_EXT_ACK's.
 const ACCEPTED: u64 = 0;
+const DENIED: u64 = 2;
 const UNSUPPORTED: u64 = 3;
 const PARAM_VALUE_UNSUPPORTED: u64 = 1;
 const PARAM_FAILED: u64 = 2;
@@ -234,6 +235,10 @@ fn the_sdk_reads_its_status_items_and_the_gimbal_and_is_answered_for_what_a_view
     assert_eq!(bitrate, UNSUPPORTED, "stream bitrate");
     let focus = sdk.ask(&json!({"command": [100, 532, 1, 1]}));
     assert_eq!(focus, UNSUPPORTED, "focus");
+    // The Python SDK's setFormatSDCard: deleting takes a signed message and allow_delete.
+    let format = sdk.ask(&json!({"command": [100, 526, 1, 1]}));
+    assert_eq!(format, DENIED, "storage format");
+    assert_eq!(captured(&h.config, ".jpg").len(), 1, "the still is kept");
     drop(h.sdk);
     h.serve.terminate();
     let log = h.serve.log();
