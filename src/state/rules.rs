@@ -119,9 +119,31 @@ impl Rule {
     /// carries in milliradians).
     pub fn holds(&self, v: f64) -> bool {
         let slack = if self.unit == "rad" { 1e-3 } else { 0.0 };
+        // A lower bound that only says "more than 0" (an object's size) has no slack: 0 is
+        // no size.
+        let below = if self.lo > 0.0 && self.lo < slack {
+            0.0
+        } else {
+            slack
+        };
         match self.outside {
             Outside::Wrap => v.abs() <= TAU + slack,
-            _ => v >= self.lo - slack && v <= self.hi + slack,
+            _ => v >= self.lo - below && v <= self.hi + slack,
+        }
+    }
+
+    /// `v` as a refusal says it: an angle in radians and in degrees (whichever the user gave
+    /// it in), a huge number in exponent form.
+    pub fn shown(&self, v: f64) -> String {
+        let trimmed = |x: String| x.trim_end_matches('0').trim_end_matches('.').to_string();
+        match (v.abs() < 1e6, self.unit) {
+            (false, _) => format!("{v:e}"),
+            (true, "rad") => format!(
+                "{} rad ({}°)",
+                trimmed(format!("{v:.6}")),
+                trimmed(format!("{:.3}", v.to_degrees()))
+            ),
+            (true, _) => format!("{v}"),
         }
     }
 

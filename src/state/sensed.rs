@@ -142,8 +142,9 @@ fn checked(rule: &Rule, v: f64) -> Result<f64, Invalid> {
     match rule.holds(v) {
         true => Ok(v),
         false => Err(Invalid(format!(
-            "{} {v} is outside {}",
+            "{} {} is outside {}",
             rule.label,
+            rule.shown(v),
             rule.range()
         ))),
     }

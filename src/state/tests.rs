@@ -66,7 +66,7 @@ fn a_vehicle_sample_outside_its_rules_is_refused_and_the_last_one_kept() {
         .set_attitude(crate::geometry::Euler::new(0.5, 2.0, 0.0))
         .unwrap_err();
     assert!(
-        e.0.contains("vehicle attitude pitch 2 is outside ±π/2"),
+        e.0.contains("vehicle attitude pitch 2 rad (114.592°) is outside ±π/2"),
         "{e}"
     );
     assert_eq!(sensed.vehicle().attitude.pitch, 0.1);

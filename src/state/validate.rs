@@ -167,13 +167,10 @@ fn refuse_outside((rule, place, v): Value) -> ControlFlow<Invalid> {
         "" => String::new(),
         a => format!(", and {a}"),
     };
-    let shown = match v.abs() < 1e6 {
-        true => format!("{v}"),
-        false => format!("{v:e}"),
-    };
     ControlFlow::Break(Invalid(format!(
-        "{} {shown} is outside {}{also}",
+        "{} {} is outside {}{also}",
         place.label(rule),
+        rule.shown(v),
         rule.range()
     )))
 }

@@ -455,9 +455,18 @@ fn careless_values_are_refused_with_what_to_change() {
         (
             "--track",
             "size=-4deg",
-            "tracked object 0 size -0.06981317007977318 is outside 0.000001..=π rad, and more than 0",
+            "tracked object 0 size -0.069813 rad (-4°) is outside 0.000001..=π rad, and more than 0",
         ),
-        ("--cam", "0:roll=3", "camera 0 roll 3 is outside ±π/2 rad"),
+        (
+            "--track",
+            "size=0deg",
+            "tracked object 0 size 0 rad (0°) is outside 0.000001..=π rad, and more than 0",
+        ),
+        (
+            "--cam",
+            "0:roll=3",
+            "camera 0 roll 3 rad (171.887°) is outside ±π/2 rad",
+        ),
         (
             "--cam",
             "1:pitch=1e300",

@@ -22,14 +22,23 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, Unreadable> {
     } else {
         yaml_fields(text)?
     };
-    let get = |names: &[&str]| {
+    // A field found but not numbers (`.nan`, text) is said as such, not as missing.
+    let found = |names: &[&str]| {
         names
             .iter()
             .find_map(|n| fields.iter().find(|(k, _)| k == n))
-            .map(|(_, v)| v.clone())
+            .map(|(name, v)| match v {
+                Ok(v) if v.iter().all(|x| x.is_finite()) => Ok(v.clone()),
+                Ok(_) => Err(Unreadable(format!(
+                    "{name} holds a value that is not a finite number"
+                ))),
+                Err(e) => Err(Unreadable(format!("{name}: {}", e.0))),
+            })
     };
-    let k = get(&K_NAMES).ok_or("no camera matrix (camera_matrix or K)")?;
-    let d = get(&D_NAMES).ok_or("no distortion coefficients (distortion_coefficients or D)")?;
+    let get = |names: &[&str]| found(names).and_then(Result::ok);
+    let k = found(&K_NAMES).ok_or("no camera matrix (camera_matrix or K)")??;
+    let d =
+        found(&D_NAMES).ok_or("no distortion coefficients (distortion_coefficients or D)")??;
     if k.len() != 9 {
         return Err(format!("the camera matrix has {} values, not 9", k.len()).into());
     }
@@ -67,8 +76,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Imported, Unreadable> {
     })
 }
 
+/// A file's top-level names and their numbers, or why a name's value is not numbers.
+type Fields = Vec<(String, Result<Vec<f64>, Unreadable>)>;
+
 /// Top-level name → numbers, for YAML FileStorage.
-fn yaml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, Unreadable> {
+fn yaml_fields(text: &str) -> Result<Fields, Unreadable> {
     // FileStorage writes `%YAML:1.0`, which is not a YAML 1.x directive; drop it.
     let cleaned: String = text
         .lines()
@@ -85,7 +97,7 @@ fn yaml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, Unreadable> {
             Yaml::Hash(m) => m.get(&Yaml::String("data".into())).map(yaml_numbers),
             other => Some(yaml_numbers(other)),
         };
-        if let Some(Ok(values)) = values {
+        if let Some(values) = values {
             out.push((name.to_string(), values));
         }
     }
@@ -108,7 +120,7 @@ fn yaml_numbers(v: &Yaml) -> Result<Vec<f64>, Unreadable> {
 }
 
 /// Top-level element name → numbers, for XML FileStorage.
-fn xml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, Unreadable> {
+fn xml_fields(text: &str) -> Result<Fields, Unreadable> {
     let doc = roxmltree::Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
     let root = doc.root_element();
     if root.tag_name().name() != "opencv_storage" {
@@ -124,9 +136,7 @@ fn xml_fields(text: &str) -> Result<Vec<(String, Vec<f64>)>, Unreadable> {
             Some(data) => data.text().unwrap_or(""),
             None => node.text().unwrap_or(""),
         };
-        if let Ok(values) = numbers(body) {
-            out.push((node.tag_name().name().to_string(), values));
-        }
+        out.push((node.tag_name().name().to_string(), numbers(body)));
     }
     Ok(out)
 }

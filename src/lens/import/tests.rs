@@ -135,6 +135,17 @@ fn malformed_calibrations_are_refused_with_the_file_and_the_reason() {
         |t| t.replace("camera_matrix", "camera_matrx"),
         "no camera matrix",
     );
+    // A matrix that is there but not numbers is said as such, not as missing.
+    fails(
+        "opencv_fisheye.yaml",
+        |t| t.replace("9.6214504395283496e+02", ".nan"),
+        "camera_matrix: `.nan` is not a number",
+    );
+    fails(
+        "opencv_fisheye.xml",
+        |t| t.replace("<data>", "<data>nan "),
+        "not a finite number",
+    );
     fails(
         "opencv_fisheye.yaml",
         |t| t.replace("image_height: 1080", "image_height: [1080"),
