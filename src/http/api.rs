@@ -288,6 +288,10 @@ async fn put_param(
             let message = "the body is a JSON object of fields (Content-Type: application/json)";
             return ApiError(StatusCode::BAD_REQUEST, message.into()).into_response();
         }
+        Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
+            let message = "the body is too large: a parameter's fields are a small JSON object";
+            return ApiError(StatusCode::PAYLOAD_TOO_LARGE, message.into()).into_response();
+        }
         Err(e) => {
             let message = format!("the body is not JSON: {}", e.body_text());
             return ApiError(StatusCode::BAD_REQUEST, message).into_response();

@@ -229,3 +229,42 @@ async fn a_script_reads_and_sets_over_rest_and_the_event_socket() {
     }
     println!("pushed after {:?}", t.elapsed());
 }
+
+/// PUT with a `len`-byte body, written in pieces while the answer is read on another thread
+/// (a server that answers early and closes resets the rest of the write): the status line.
+fn put_large(host: &str, path: &str, len: usize) -> String {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(host).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    let mut reader = s.try_clone().unwrap();
+    let answer = std::thread::spawn(move || {
+        let mut got = vec![0u8; 4096];
+        let n = reader.read(&mut got).unwrap_or(0);
+        String::from_utf8_lossy(&got[..n]).into_owned()
+    });
+    let head = format!(
+        "PUT {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n\
+         Content-Length: {len}\r\nConnection: close\r\n\r\n"
+    );
+    let _ = s.write_all(head.as_bytes());
+    let piece = vec![b'a'; 64 * 1024];
+    for _ in 0..len / piece.len() {
+        if s.write_all(&piece).is_err() {
+            break;
+        }
+    }
+    let text = answer.join().unwrap();
+    text.lines().next().unwrap_or("").to_string()
+}
+
+#[test]
+fn a_body_too_large_is_refused_as_too_large_and_changes_nothing() {
+    let serve = Serve::start(&[]);
+    let http = serve.http.clone().unwrap();
+    let host = http.trim_start_matches("http://").trim_end_matches('/');
+    let (_, before) = request(host, "GET", "/api/params/CAM_FOV?cam_id=0", None);
+    let status = put_large(host, "/api/params/CAM_FOV", 10 << 20);
+    assert!(status.contains(" 413 "), "{status:?}");
+    let (_, after) = request(host, "GET", "/api/params/CAM_FOV?cam_id=0", None);
+    assert_eq!(before, after);
+}
