@@ -329,6 +329,19 @@ mod tests {
             ("[readout]\ndirection = \"sideways\"", "top_to_bottom"),
             ("[readout]\ntimestamp = \"now\"", "start"),
             (
+                "[payload]\nendpoint = \"udpin:0.0.0.0:14550\"",
+                "a port of its own",
+            ),
+            (
+                "[payload]\nendpoint = \"udp:14566\"",
+                "mavlink endpoint \"udp:14566\"",
+            ),
+            ("[payload]\nview = 4", "payload view 4 is outside 0..=3"),
+            (
+                "[payload]\nendpoint = \"udpin:0.0.0.0:14566\"\n[cameras]\nenabled = false",
+                "needs the views as cameras",
+            ),
+            (
                 "[demo]\nreadout_ms = -1",
                 "demo readout_ms -1 is outside 0..=100 ms",
             ),

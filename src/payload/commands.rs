@@ -82,7 +82,12 @@ impl Payload {
         a: Answer,
     ) {
         if let Some(why) = &a.why {
-            let what = format!("{command:?} to payload component {component}");
+            let role = match component {
+                CAMERA => "camera",
+                GIMBAL => "gimbal",
+                _ => "component",
+            };
+            let what = format!("{command:?} to the payload's {role} {component}");
             self.gate.policy().refusals.note(peer, &what, why);
         }
         let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {

@@ -245,7 +245,7 @@ fn the_sdk_reads_its_status_items_and_the_gimbal_and_is_answered_for_what_a_view
     common::assert_logged(
         &log,
         &[
-            "MAV_CMD_DO_SET_HOME to payload component 154",
+            "MAV_CMD_DO_SET_HOME to the payload's gimbal 154",
             "MAV_CMD_USER_4 4 2",
             "MAV_CMD_SET_CAMERA_FOCUS is not a command DigiView's cameras take",
             "status item 25 (IR_TEMP_MAX): DigiView has no such sensor",

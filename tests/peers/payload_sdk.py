@@ -188,10 +188,13 @@ class Sdk:
         t = time.monotonic()
         self.command(self.camera, ML.MAV_CMD_REQUEST_CAMERA_CAPTURE_STATUS)
         before = self.wait(t, "CAMERA_CAPTURE_STATUS")
+        if before is None:
+            return out  # no status: the example would ask again for ever
         out["images_before"] = before.image_count
         t = time.monotonic()
         self.command(self.camera, ML.MAV_CMD_REQUEST_CAMERA_SETTINGS)
-        out["mode"] = self.wait(t, "CAMERA_SETTINGS").mode_id
+        settings = self.wait(t, "CAMERA_SETTINGS")
+        out["mode"] = None if settings is None else settings.mode_id
         count = 1 if self.python else 0
         out["capture_ack"] = self.command(self.camera, ML.MAV_CMD_IMAGE_START_CAPTURE, 0, 0, count)
         end = time.monotonic() + 10
