@@ -219,6 +219,8 @@ struct Shared {
     /// the autopilot link's for a payload link.
     ids: Arc<LinkStatus>,
     profile: Profile,
+    /// The sequence number of the next message sent (`outgoing::send_one`).
+    sequence: std::sync::atomic::AtomicU8,
     /// Commands not in the common set already logged: (system, component, command).
     unknown: Mutex<std::collections::HashSet<(u8, u8, u16)>>,
     connection: Mutex<Option<Connection>>,
@@ -288,6 +290,7 @@ impl Link {
             ids: kind.ids.unwrap_or_else(|| status.clone()),
             status: status.clone(),
             profile: kind.profile,
+            sequence: Default::default(),
             unknown: Mutex::default(),
             connection: Mutex::new(None),
             syncs_sent: Mutex::new(VecDeque::new()),

@@ -17,13 +17,18 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use tracing::{info, warn};
 
-/// `msg` on `connection`, signed when signing is on.
+/// `msg` on `connection`, signed when signing is on, numbered by the link's sequence (one
+/// counter for everything DigiView sends on the link, whatever carries it).
 pub(super) fn send_one<M: mavlink::Message>(
     shared: &Shared,
     connection: &Connection,
     header: MavHeader,
     msg: &M,
 ) {
+    let header = MavHeader {
+        sequence: shared.sequence.fetch_add(1, Ordering::Relaxed),
+        ..header
+    };
     let _ = match &shared.signing {
         Some(signing) => {
             let mut raw = MAVLinkV2MessageRaw::new();

@@ -125,6 +125,22 @@ impl Answer {
             why: Some(why.to_string()),
         }
     }
+
+    /// The COMMAND_ACK of `command` from `component` to whoever sent it (`to`), then what
+    /// follows it.
+    pub fn send(&self, out: &Outbox, (component, command): (u8, MavCmd), to: &MavHeader) {
+        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command,
+            result: self.result,
+            target_system: to.system_id as u8,
+            target_component: to.component_id,
+            ..Default::default()
+        });
+        out.send(component, &ack);
+        for m in &self.then {
+            out.send(component, m);
+        }
+    }
 }
 
 /// What a camera command would do, as the policy judges it: None for those that only read
@@ -179,18 +195,7 @@ impl Cameras {
         if let (Some(why), Ok(())) = (&answer.why, permitted) {
             self.gate.policy().refusals.note(peer, &name, why);
         }
-        let component = super::FIRST_COMPONENT + i as u8;
-        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-            command: cmd.command,
-            result: answer.result,
-            target_system: from.system_id as u8,
-            target_component: from.component_id,
-            ..Default::default()
-        });
-        out.send(component, &ack);
-        for m in &answer.then {
-            out.send(component, m);
-        }
+        answer.send(out, (super::FIRST_COMPONENT + i as u8, cmd.command), from);
     }
 
     /// The answer to `cmd`, None when it is not a camera's command. The REQUEST_* commands

@@ -137,20 +137,15 @@ impl Cameras {
                 }
                 _ => None,
             };
-            let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-                command,
+            let answer = super::Answer {
                 result: match answer {
                     Some(_) => MavResult::MAV_RESULT_ACCEPTED,
                     None => MavResult::MAV_RESULT_UNSUPPORTED,
                 },
-                target_system: from.system_id as u8,
-                target_component: from.component_id,
-                ..Default::default()
-            });
-            out.send(device_component(i), &ack);
-            if let Some(m) = answer {
-                out.send(device_component(i), &m);
-            }
+                then: answer.into_iter().collect(),
+                why: None,
+            };
+            answer.send(out, (device_component(i), command), from);
         }
         true
     }
@@ -159,7 +154,7 @@ impl Cameras {
     /// to the airframe: ahead, level with the vehicle, following it), neutral (ahead and
     /// level, roll and pitch held to the horizon), else the angle its quaternion gives
     /// (none: rates only), its flags' locks and yaw frame, as a gimbal manager's command.
-    pub(super) fn set_attitude(
+    pub(crate) fn set_attitude(
         &self,
         i: usize,
         m: &GIMBAL_DEVICE_SET_ATTITUDE_DATA,

@@ -6,16 +6,14 @@
 
 use super::Cameras;
 use super::commands::{Answer, Command};
-use super::gimbal::Refused;
 use super::info::view_quaternion;
 use crate::geometry::ground::ground_point;
 use crate::geometry::rotation::direction;
 use crate::geometry::{GeoPoint, GeoPosition};
 use crate::state::State;
-use crate::state::view::Op;
 use glam::{DQuat, DVec2, DVec3};
 use mavlink::MavHeader;
-use mavlink::dialects::common::{GIMBAL_DEVICE_SET_ATTITUDE_DATA, MavCmd, MavMessage};
+use mavlink::dialects::common::{MavCmd, MavMessage};
 use std::time::Instant;
 
 /// Where something is in a view's picture: its box as parts of the picture's width and
@@ -36,23 +34,9 @@ pub struct InPicture {
 }
 
 impl Cameras {
-    /// GIMBAL_DEVICE_SET_ATTITUDE for view `i`, as a gimbal device takes it.
-    pub(crate) fn set_device_attitude(
-        &self,
-        i: usize,
-        m: &GIMBAL_DEVICE_SET_ATTITUDE_DATA,
-    ) -> Result<(), Refused> {
-        self.set_attitude(i, m)
-    }
-
     /// View `i`'s GIMBAL_DEVICE_ATTITUDE_STATUS now.
     pub(crate) fn view_attitude(&self, i: usize) -> MavMessage {
         self.device_attitude(&self.state(), i)
-    }
-
-    /// View `i`'s GIMBAL_DEVICE_INFORMATION.
-    pub(crate) fn view_gimbal_information(&self, i: usize) -> MavMessage {
-        self.device_information(i)
     }
 
     /// View `i`'s horizontal field of view now and the widest its crop mode takes, radians.
@@ -75,19 +59,14 @@ impl Cameras {
     /// Follows what is in `corners` (top left, bottom right: parts of view `i`'s picture),
     /// as CAMERA_TRACK_RECTANGLE does.
     pub(crate) fn follow_box(&self, from: &MavHeader, i: usize, corners: [f32; 4]) -> Answer {
-        let [x0, y0, x1, y1] = corners;
-        let cmd = Command {
-            command: MavCmd::MAV_CMD_CAMERA_TRACK_RECTANGLE,
-            params: [x0, y0, x1, y1, 0.0, 0.0, 0.0],
-            location: (0.0, 0.0, 0.0),
-            above_home: false,
-        };
-        self.tracking_command(from, i, &cmd)
+        let rectangle = MavCmd::MAV_CMD_CAMERA_TRACK_RECTANGLE;
+        self.tracking_command(from, i, &track(rectangle, corners))
     }
 
-    /// Stops view `i` following anything.
-    pub(crate) fn stop_following(&self, i: usize) -> Result<(), crate::state::Refused> {
-        self.gate.steer(i, Op::StopFollowing)
+    /// Stops view `i` following anything, as CAMERA_STOP_TRACKING does.
+    pub(crate) fn unfollow(&self, from: &MavHeader, i: usize) -> Answer {
+        let stop = MavCmd::MAV_CMD_CAMERA_STOP_TRACKING;
+        self.tracking_command(from, i, &track(stop, [0.0; 4]))
     }
 
     /// Where what view `i` follows is in its picture, while it follows something.
@@ -95,9 +74,15 @@ impl Cameras {
         let s = self.state();
         let (now, followed) = Self::followed_now(&s, i);
         let (ray, size, _) = followed?;
-        let plan = self.own_picture(&now, i).ok()?;
+        self.seen_at(&now, i, ray, size)
+    }
+
+    /// Where something `size` across (radians) along the world `ray` is in view `i`'s own
+    /// picture as `s` draws it, if the picture shows that direction.
+    pub(super) fn seen_at(&self, s: &State, i: usize, ray: DVec3, size: f64) -> Option<PictureBox> {
+        let plan = self.own_picture(s, i).ok()?;
         let p = plan.view_point(&plan.views[0], ray)?;
-        Some(self.picture_box(&now, i, p, size))
+        Some(self.picture_box(s, i, p, size))
     }
 
     /// The tracked objects view `i`'s picture shows, where it shows them.
@@ -147,5 +132,15 @@ impl Cameras {
             dt
         };
         self.apply_motion(n, dt);
+    }
+}
+
+/// A tracking command with its first four parameters.
+fn track(command: MavCmd, [a, b, c, d]: [f32; 4]) -> Command {
+    Command {
+        command,
+        params: [a, b, c, d, 0.0, 0.0, 0.0],
+        location: (0.0, 0.0, 0.0),
+        above_home: false,
     }
 }

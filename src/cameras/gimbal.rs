@@ -341,7 +341,7 @@ impl Cameras {
     /// GIMBAL_DEVICE_INFORMATION of gimbal `i`, which its camera answers for as its manager
     /// (the view is a gimbal with no component of its own, GIMBAL_DEVICE_ID 1): what MAVSDK's
     /// Gimbal plugin waits for before it lists the gimbal with a vendor and a model.
-    pub(super) fn device_information(&self, i: usize) -> MavMessage {
+    pub(crate) fn device_information(&self, i: usize) -> MavMessage {
         let (roll, pitch, yaw) = LIMITS;
         MavMessage::GIMBAL_DEVICE_INFORMATION(GIMBAL_DEVICE_INFORMATION_DATA {
             uid: 0,

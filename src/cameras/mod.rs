@@ -25,6 +25,7 @@ pub use commands::Answer;
 pub use device::{GimbalRole, device_component};
 pub use for_payload::{InPicture, PictureBox};
 pub use host::public_host;
+pub use settings::is_setting;
 
 use crate::autopilot::{Components, Outbox};
 use crate::clock::clock_us;

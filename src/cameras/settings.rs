@@ -108,6 +108,11 @@ fn settings(lenses: &[(u8, String)]) -> Vec<Setting> {
     ]
 }
 
+/// Whether `name` is one of the cameras' parameters.
+pub fn is_setting(name: &str) -> bool {
+    settings(&[]).iter().any(|s| s.name == name)
+}
+
 /// A parameter's value in camera `i`'s state (CAM_MODE is the camera's own, not the state's).
 fn value(s: &Settings, i: usize, name: &str) -> u8 {
     let c = &s.cameras[i];

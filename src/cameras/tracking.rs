@@ -206,19 +206,10 @@ impl Cameras {
         };
         m.tracking_status = CameraTrackingStatusFlags::CAMERA_TRACKING_STATUS_FLAGS_ACTIVE;
         m.target_data = CameraTrackingTargetData::CAMERA_TRACKING_TARGET_DATA_IN_STATUS;
-        let (w, h) = (self.cfg.width as f64, self.cfg.height as f64);
-        let Some(p) = self
-            .own_picture(&now, i)
-            .ok()
-            .and_then(|plan| plan.view_point(&plan.views[0], ray))
-        else {
+        let Some(at) = self.seen_at(&now, i, ray, size) else {
             return MavMessage::CAMERA_TRACKING_IMAGE_STATUS(m);
         };
-        let (x, y) = (p.x / w, p.y / h);
-        // Half the size, as parts of the picture's width and height.
-        let cam = &now.settings.cameras[i];
-        let half_w = (size / 2.0) / cam.fov();
-        let half_h = half_w * w / h;
+        let (x, y, half_w, half_h) = (at.centre.x, at.centre.y, at.half.x, at.half.y);
         match f.shape {
             Shape::Point => {
                 m.tracking_mode = CameraTrackingMode::CAMERA_TRACKING_MODE_POINT;

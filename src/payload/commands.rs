@@ -90,17 +90,7 @@ impl Payload {
             let what = format!("{command:?} to the payload's {role} {component}");
             self.gate.policy().refusals.note(peer, &what, why);
         }
-        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-            command,
-            result: a.result,
-            target_system: from.system_id as u8,
-            target_component: from.component_id,
-            ..Default::default()
-        });
-        out.send(component, &ack);
-        for m in &a.then {
-            out.send(component, m);
-        }
+        a.send(out, (component, command), from);
     }
 
     /// A command to the gimbal device: its information and attitude are given; calibration,
@@ -109,7 +99,7 @@ impl Payload {
         let request = command == MavCmd::MAV_CMD_REQUEST_MESSAGE;
         let answer = match p[0] as u32 {
             GIMBAL_DEVICE_INFORMATION_DATA::ID if request => {
-                Answer::accepted(vec![self.cameras.view_gimbal_information(self.view)])
+                Answer::accepted(vec![self.cameras.device_information(self.view)])
             }
             GIMBAL_DEVICE_ATTITUDE_STATUS_DATA::ID if request => {
                 Answer::accepted(vec![self.attitude()])
@@ -186,9 +176,10 @@ impl Payload {
         match (mode, x) {
             (0.0, 0.0) => {
                 self.inner().tracking = false;
-                match self.cameras.stop_following(self.view) {
-                    Ok(()) => Answer::accepted(vec![]),
-                    Err(e) => Answer::denied(e),
+                let answer = self.cameras.unfollow(from, self.view);
+                Answer {
+                    then: vec![],
+                    ..answer
                 }
             }
             (0.0, 1.0) => Answer::accepted(vec![]),
@@ -200,18 +191,12 @@ impl Payload {
 
     /// GIMBAL_DEVICE_SET_ATTITUDE from the SDK: an angle or rates, its flags' yaw lock, or
     /// its retract and neutral, as from an autopilot.
-    pub(super) fn set_attitude(
-        &self,
-        from: &MavHeader,
-        peer: Peer,
-        m: &GIMBAL_DEVICE_SET_ATTITUDE_DATA,
-    ) {
+    pub(super) fn set_attitude(&self, peer: Peer, m: &GIMBAL_DEVICE_SET_ATTITUDE_DATA) {
         let what = "GIMBAL_DEVICE_SET_ATTITUDE to the payload's gimbal";
         if self.gate.permit(peer, Act::Change, what).is_err() || !self.shown() {
             return;
         }
-        let _ = from;
-        if let Err(e) = self.cameras.set_device_attitude(self.view, m) {
+        if let Err(e) = self.cameras.set_attitude(self.view, m) {
             self.gate.policy().refusals.note(peer, what, &e.to_string());
         }
     }
@@ -254,6 +239,10 @@ impl Payload {
         msg: &MavMessage,
     ) {
         let name = p.param_id.to_str().unwrap_or("").to_string();
+        // DigiView's own parameters are the cameras' (which ask the policy themselves).
+        if crate::cameras::is_setting(&name) {
+            return self.to_camera(out, from, peer, msg);
+        }
         let raw = &p.param_value;
         let v = u32::from_le_bytes([raw[0], raw[1], raw[2], raw[3]]);
         let what = format!("PARAM_EXT_SET {name} of the payload's camera");
@@ -263,7 +252,6 @@ impl Payload {
                 let (_, widest) = self.cameras.view_fov(self.view);
                 let set = params::set(&mut self.inner().modes, &name, v, widest);
                 match set {
-                    Ok(Set::NotOurs) => return self.to_camera(out, from, peer, msg),
                     Ok(set) => self.apply(set).map_err(|why| {
                         self.gate.policy().refusals.note(peer, &what, &why);
                         ParamAck::PARAM_ACK_FAILED
@@ -304,7 +292,7 @@ impl Payload {
             };
             return self
                 .cameras
-                .set_device_attitude(self.view, &m)
+                .set_attitude(self.view, &m)
                 .map_err(|e| e.to_string());
         }
         params::apply(&self.gate, self.view, set)

@@ -155,7 +155,7 @@ impl Components for Payload {
                 self.command(out, (from, peer), c, msg)
             }
             (MavMessage::GIMBAL_DEVICE_SET_ATTITUDE(m), Some(0 | GIMBAL)) => {
-                self.set_attitude(from, peer, m)
+                self.set_attitude(peer, m)
             }
             (
                 MavMessage::PARAM_EXT_SET(_)

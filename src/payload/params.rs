@@ -83,8 +83,8 @@ pub enum Refusal {
 /// A change of the settings other than the view's.
 pub type Change = Box<dyn FnOnce(&mut crate::state::Settings) -> Result<(), crate::state::Invalid>>;
 
-/// What a parameter set asks of the view: done here on `modes`, a view operation or a
-/// settings change for the caller, or the DigiView parameter the cameras know.
+/// What a parameter set asks of the view: done here on `modes`, or a view operation or a
+/// settings change for the caller.
 pub enum Set {
     Done,
     View(Op),
@@ -93,7 +93,6 @@ pub enum Set {
         neutral: bool,
     },
     Settings(Change),
-    NotOurs,
 }
 
 /// What setting `name` to `v` does, for a view whose widest fov is `widest`.
@@ -183,7 +182,6 @@ pub fn set(modes: &mut Modes, name: &str, v: u32, widest: f64) -> Result<Set, Re
                 Ok(())
             })))
         }
-        _ if is_digiview(name) => Ok(Set::NotOurs),
         _ => Err(Refusal::Unknown(unknown(name))),
     }
 }
@@ -219,22 +217,6 @@ fn zoom_levels(name: &str) -> &'static [f64] {
         "C_V_ZM_SR_LV" => &SUPER_RESOLUTION,
         _ => &COMBINED,
     }
-}
-
-/// The DigiView parameters its cameras answer under their own names.
-fn is_digiview(name: &str) -> bool {
-    [
-        "LAYOUT",
-        "OVERLAY",
-        "LENS",
-        "CROP",
-        "LOCK",
-        "CONTROL",
-        "SORTING",
-        "DETECTION",
-        "CAM_MODE",
-    ]
-    .contains(&name)
 }
 
 /// Why a name the profile does not take is refused, in the operator's words.
@@ -309,7 +291,7 @@ pub fn apply(gate: &Gate, i: usize, set: Set) -> Result<(), String> {
     match set {
         Set::View(op) => gate.steer(i, op).map_err(|e| e.to_string()),
         Set::Settings(change) => gate.change(change).map_err(|e: crate::state::Invalid| e.0),
-        Set::Done | Set::Rest { .. } | Set::NotOurs => Ok(()),
+        Set::Done | Set::Rest { .. } => Ok(()),
     }
 }
 

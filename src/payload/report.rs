@@ -58,24 +58,25 @@ impl Payload {
             let v = env!("CARGO_PKG_VERSION").split('.').nth(k);
             v.and_then(|v| v.parse::<f32>().ok()).unwrap_or(0.0)
         };
-        let followed = self
-            .cameras
-            .followed_box(self.view)
-            .map(|b| status::sdk_box(&b));
-        let (target, here) = self.cameras.view_target(self.view);
+        // Each item computes only what it reads (several are streamed, each at its interval).
+        let followed = || {
+            let b = self.cameras.followed_box(self.view);
+            b.map(|b| status::sdk_box(&b))
+        };
+        let target = || self.cameras.view_target(self.view);
         match index {
             0 => {
                 let (fov, widest) = self.cameras.view_fov(self.view);
                 (widest / fov) as f32
             }
-            3..=6 => followed.map_or(0.0, |b| b[index - 3] as f32),
-            7 => self.track_status(followed.is_some()),
-            10 => target.map_or(f32::NAN, |t| t.lon as f32),
-            11 => target.map_or(f32::NAN, |t| t.lat as f32),
-            12 => target.map_or(f32::NAN, |t| t.alt as f32),
-            13 => here.lon as f32,
-            14 => here.lat as f32,
-            15 => here.alt as f32,
+            3..=6 => followed().map_or(0.0, |b| b[index - 3] as f32),
+            7 => self.track_status(followed().is_some()),
+            10 => target().0.map_or(f32::NAN, |t| t.lon as f32),
+            11 => target().0.map_or(f32::NAN, |t| t.lat as f32),
+            12 => target().0.map_or(f32::NAN, |t| t.alt as f32),
+            13 => target().1.lon as f32,
+            14 => target().1.lat as f32,
+            15 => target().1.alt as f32,
             16..=18 => version(index - 16),
             19 => self.param_u32("C_SOURCE") as f32,
             20 => self.param_u32("C_V_REC") as f32,

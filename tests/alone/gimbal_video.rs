@@ -11,10 +11,7 @@ use common::autopilot::free_udp_port;
 use common::peers::LinePeer;
 use common::serve::Serve;
 use common::viewer::Viewer;
-use common::{Load, four_view_state, landmark_matches, lens_cal, view};
-use digiview::render::FramePlan;
-use digiview::scene::GridWorld;
-use digiview::scene::synth::truth;
+use common::{Load, four_view_state, view, view0_landmark_errors};
 use serde_json::json;
 use std::time::Duration;
 
@@ -58,23 +55,9 @@ fn pointed(flavour: &str) -> (Vec<f64>, f64, f64) {
     // What the driver asked for, drawn from the ground truth.
     let mut want_state = state.clone();
     want_state.settings.cameras[0] = view(YAW, PITCH, 90.0, 1, 7);
-    let lens = lens_cal()
-        .find("CIL216")
-        .unwrap()
-        .lens()
-        .for_frame(DEMO.0, DEMO.1, None);
-    let plan = FramePlan::new(&want_state, &lens).unwrap();
-    let want = truth(&GridWorld::default(), &plan, &want_state);
-    let px_per_degree = plan.views[0].rect.w as f64 / 90.0;
-
     let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());
-    let _ = viewer.frame_after(Duration::from_secs(1));
-    let mut errors = vec![];
-    for _ in 0..30 {
-        let (got, _) = viewer.frame();
-        let matches = landmark_matches(&plan, &want_state, &want, &got);
-        errors.extend(matches.iter().filter(|m| m.view == 0).map(|m| m.error()));
-    }
+    let run = (30, Duration::from_secs(1));
+    let (mut errors, px_per_degree) = view0_landmark_errors(&viewer, &want_state, DEMO, run);
     // The device's attitude over the whole run, the video's included.
     let again = json!({"do": "angle", "pitch": PITCH, "yaw": YAW, "earth": true, "for": 0.5});
     let answer = driver.ask(&again);

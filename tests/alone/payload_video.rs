@@ -12,12 +12,9 @@ use common::autopilot::free_udp_port;
 use common::peers::LinePeer;
 use common::serve::Serve;
 use common::viewer::Viewer;
-use common::{Load, four_view_state, landmark_matches, lens_cal, view};
-use digiview::render::FramePlan;
-use digiview::scene::GridWorld;
-use digiview::scene::synth::truth;
+use common::{Load, four_view_state, view, view0_landmark_errors};
 use serde_json::{Value, json};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 const DEMO: (u32, u32) = (1280, 720);
 
@@ -74,21 +71,8 @@ fn turned(statuses: &Value) -> (f64, f64) {
 fn worst_landmark(viewer: &Viewer, (yaw, pitch): (f64, f64)) -> (f64, usize) {
     let mut want_state = four_view_state(7);
     want_state.settings.cameras[0] = view(yaw, pitch, 90.0, 1, 7);
-    let lens = lens_cal()
-        .find("CIL216")
-        .unwrap()
-        .lens()
-        .for_frame(DEMO.0, DEMO.1, None);
-    let plan = FramePlan::new(&want_state, &lens).unwrap();
-    let want = truth(&GridWorld::default(), &plan, &want_state);
-    let px_per_degree = plan.views[0].rect.w as f64 / 90.0;
-    let _ = viewer.frame_after(Duration::from_millis(500));
-    let mut errors = vec![];
-    for _ in 0..20 {
-        let (got, _) = viewer.frame();
-        let matches = landmark_matches(&plan, &want_state, &want, &got);
-        errors.extend(matches.iter().filter(|m| m.view == 0).map(|m| m.error()));
-    }
+    let run = (20, Duration::from_millis(500));
+    let (errors, px_per_degree) = view0_landmark_errors(viewer, &want_state, DEMO, run);
     let worst = errors.iter().copied().fold(0.0, f64::max);
     (worst / px_per_degree, errors.len())
 }
@@ -165,16 +149,7 @@ fn a_user_4_box_on_a_mover_is_tracked_reported_and_listed_in_the_detection_packe
     let (mut sdk, ready) = LinePeer::start("payload_sdk.py", &[&payload.to_string()]);
     assert_eq!(ready["ready"], true, "{ready}");
     let viewer = Viewer::open(&format!("{}/cam0", serve.rtsp.clone().unwrap()));
-    let start = Instant::now();
-    let at = loop {
-        if let Some(p) = common::pink_mover(&viewer.fresh_frame()) {
-            break p;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "no pink mover in view"
-        );
-    };
+    let at = common::first_pink_mover(&viewer);
     // The payload_do_object_tracking example: tracking mode, OSD, the tracker's items at
     // 10 Hz, then a box on the mover.
     assert_eq!(sdk.ask(&json!({"set": ["TRACK_MODE", 0]}))["result"], 0);

@@ -83,16 +83,7 @@ fn a_view_follows_the_mover_a_ground_station_clicks_until_told_to_stop() {
 
     // Find the mover in camera 0's picture, and click on it.
     let viewer = Viewer::open(&format!("{}/cam0", serve.rtsp.clone().unwrap()));
-    let start = Instant::now();
-    let at = loop {
-        if let Some(p) = common::pink_mover(&viewer.fresh_frame()) {
-            break p;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "no pink mover in view"
-        );
-    };
+    let at = common::first_pink_mover(&viewer);
     let (x, y) = (at.0 / W as f64, at.1 / H as f64);
     eprintln!("clicked the mover at ({x:.3}, {y:.3})");
     let point = MavCmd::MAV_CMD_CAMERA_TRACK_POINT;

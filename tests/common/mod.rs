@@ -378,3 +378,44 @@ pub fn pink_mover(img: &RgbImage) -> Option<(f64, f64)> {
     }
     (n >= 12).then(|| (sx / n as f64, sy / n as f64))
 }
+
+/// Landmark errors (px) in view 0 of `frames` decoded frames of `viewer`, after `settle`,
+/// against the ground truth `want` draws from the demo's CIL216 lens at `demo` pixels, and
+/// the picture's pixels a degree (view 0 is 90° wide).
+pub fn view0_landmark_errors(
+    viewer: &viewer::Viewer,
+    want: &State,
+    demo: (u32, u32),
+    (frames, settle): (usize, std::time::Duration),
+) -> (Vec<f64>, f64) {
+    let lens = lens_cal()
+        .find("CIL216")
+        .unwrap()
+        .lens()
+        .for_frame(demo.0, demo.1, None);
+    let plan = FramePlan::new(want, &lens).unwrap();
+    let truth = digiview::scene::synth::truth(&GridWorld::default(), &plan, want);
+    let px_per_degree = plan.views[0].rect.w as f64 / 90.0;
+    let _ = viewer.frame_after(settle);
+    let mut errors = vec![];
+    for _ in 0..frames {
+        let (got, _) = viewer.frame();
+        let matches = landmark_matches(&plan, want, &truth, &got);
+        errors.extend(matches.iter().filter(|m| m.view == 0).map(|m| m.error()));
+    }
+    (errors, px_per_degree)
+}
+
+/// Where the pink mover first shows in `viewer`'s fresh frames, within 20 s.
+pub fn first_pink_mover(viewer: &viewer::Viewer) -> (f64, f64) {
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(p) = pink_mover(&viewer.fresh_frame()) {
+            return p;
+        }
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(20),
+            "no pink mover in view"
+        );
+    }
+}
