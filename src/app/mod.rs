@@ -96,15 +96,17 @@ impl Core {
         let settings = Arc::new(LiveSettings::new(state.settings, cal)?);
         let sensed = Arc::new(Sensed::new(state.vehicle, state.tracked));
         let policy = Arc::new(Policy::new(options.permissions));
+        let report = Arc::<Report>::default();
+        let capture = crate::head::capture::CaptureConfig {
+            codec: cfg.encoder.codec,
+            ..cfg.capture.clone()
+        };
         Ok(Core {
             gate: Arc::new(Gate::new(settings, sensed, policy.clone())),
-            report: Arc::default(),
+            capture: Arc::new(Capture::new(capture, report.clone())),
+            report,
             policy,
             telemetry: Arc::new(Telemetry::new(cfg.mavlink.attitude_sample)),
-            capture: Arc::new(Capture::new(crate::head::capture::CaptureConfig {
-                codec: cfg.encoder.codec,
-                ..cfg.capture.clone()
-            })),
         })
     }
 }

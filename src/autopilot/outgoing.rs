@@ -1,6 +1,7 @@
 //! What the autopilot link sends, on its own thread every 100 ms: DigiView's HEARTBEAT each
 //! second, the message rates it asks the autopilot for, TIMESYNC requests ten times a second
-//! (the clock mapping's round trips), and the attitude's staleness, reported once each way.
+//! (the clock mapping's round trips), the attitude's staleness, reported once each way, and
+//! what has failed (SYSTEM_STATUS's error) as a STATUSTEXT each time it changes.
 //! Everything sent is signed when signing is on.
 
 use super::driver::Driver;
@@ -49,6 +50,8 @@ struct Sending {
     counted: (Instant, u64),
     second: (Instant, u64),
     lost: bool,
+    /// What ground stations were last told had failed (None: nothing).
+    told: Option<String>,
 }
 
 /// Every 100 ms: HEARTBEAT each second, the rate requests, and the attitude's staleness.
@@ -60,6 +63,7 @@ pub(super) fn send(shared: &Shared) {
         counted: (now, 0),
         second: (now, 0),
         lost: false,
+        told: None,
     };
     // The first report comes soon after the start, so the log shows the mapping settled.
     let mut next_report = now + FIRST_REPORT;
@@ -105,6 +109,7 @@ fn speak(shared: &Shared, c: &Connection, s: &mut Sending) {
         s.beat = Instant::now();
         send_one(shared, c, header, &heartbeat());
     }
+    tell_failures(shared, c, header, &mut s.told);
     let Some((system, component)) = autopilot else {
         return;
     };
@@ -205,10 +210,32 @@ fn report(
     (Instant::now(), n, c.resets)
 }
 
+/// What failed (SYSTEM_STATUS's error), told to ground stations as it changes: a STATUSTEXT
+/// error naming it, and one saying so when nothing has failed any more.
+fn tell_failures(shared: &Shared, c: &Connection, header: MavHeader, told: &mut Option<String>) {
+    let now = shared.report.brief();
+    if now == *told {
+        return;
+    }
+    let msg = match &now {
+        Some(what) => said(
+            MavSeverity::MAV_SEVERITY_ERROR,
+            &format!("DigiView: {what}"),
+        ),
+        None => said(MavSeverity::MAV_SEVERITY_INFO, "DigiView: running again"),
+    };
+    send_one(shared, c, header, &msg);
+    *told = now;
+}
+
 /// A warning for ground stations (STATUSTEXT, at most 50 characters: one chunk).
 pub(super) fn status_text(text: &str) -> MavMessage {
+    said(MavSeverity::MAV_SEVERITY_WARNING, text)
+}
+
+fn said(severity: MavSeverity, text: &str) -> MavMessage {
     MavMessage::STATUSTEXT(STATUSTEXT_DATA {
-        severity: MavSeverity::MAV_SEVERITY_WARNING,
+        severity,
         text: text.into(),
         ..Default::default()
     })

@@ -182,7 +182,9 @@ impl Sink {
                 .unwrap_or_else(|e| e.into_inner())
                 .take()
                 .context("the recording was lost")?;
-            r.finish()?;
+            if r.finish()? == crate::stream::record_file::Left::Removed {
+                bail!("no frame was written to the video");
+            }
             out.keep()?;
         }
         Ok(())

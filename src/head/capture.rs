@@ -5,11 +5,12 @@
 //! its view alone ([`ViewShooter`]): a still is asked for here, rendered by the frame loop,
 //! written and reported back; a view's recording takes its own stream's access units.
 
+use super::recording::{self, Disk, Running};
 use crate::frame::PlaneLayout;
-use crate::state::MAX_CAMERAS;
 use crate::state::capture::{
     CaptureError, CaptureStatus, Capturer, Geotag, StillDone, ViewShooter,
 };
+use crate::state::{CaptureFailure, MAX_CAMERAS, Report};
 use crate::stream::Recorder;
 use crate::stream::encoder::AccessUnit;
 use crate::stream::record::Container;
@@ -20,7 +21,7 @@ use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
 use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-use tracing::{error, info, warn};
+use tracing::{error, info};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -93,11 +94,13 @@ pub struct Capture {
     /// Stills of single views asked for and not rendered yet.
     view_stills: Mutex<Vec<ViewStill>>,
     /// Recordings of single views' own streams, and whether each owes a key frame.
-    view_recorders: Mutex<[Option<Recorder>; MAX_CAMERAS]>,
+    view_recorders: Mutex<[Option<Running>; MAX_CAMERAS]>,
     view_key_wanted: [AtomicBool; MAX_CAMERAS],
     /// Set when the encoder should send a key frame (a recording starts).
     key_wanted: AtomicBool,
-    recorder: Mutex<Option<Recorder>>,
+    recorder: Mutex<Option<Running>>,
+    /// Where a recording that stopped, or a still not written, is reported.
+    report: Arc<Report>,
     images: AtomicU16,
     videos: AtomicU16,
     index: AtomicU32,
@@ -116,7 +119,7 @@ pub struct Still {
 }
 
 impl Capture {
-    pub fn new(cfg: CaptureConfig) -> Capture {
+    pub fn new(cfg: CaptureConfig, report: Arc<Report>) -> Capture {
         Capture {
             cfg,
             still_wanted: AtomicBool::new(false),
@@ -125,6 +128,7 @@ impl Capture {
             view_key_wanted: Default::default(),
             key_wanted: AtomicBool::new(false),
             recorder: Mutex::new(None),
+            report,
             images: AtomicU16::new(0),
             videos: AtomicU16::new(0),
             index: AtomicU32::new(0),
@@ -161,24 +165,42 @@ impl Capture {
         self.cfg.raw
     }
 
+    fn disk(&self) -> Disk<'_> {
+        Disk {
+            dir: &self.cfg.dir,
+            min_free_mb: self.cfg.min_free_mb,
+        }
+    }
+
     /// The directory exists (made if missing) and has room; the error says why not.
     fn ready(&self) -> Result<(), CaptureError> {
         let dir = &self.cfg.dir;
-        let unusable = |source| CaptureError::Directory {
+        std::fs::create_dir_all(dir).map_err(|source| CaptureError::Directory {
             dir: dir.clone(),
             source,
-        };
-        std::fs::create_dir_all(dir).map_err(unusable)?;
-        let stat = rustix::fs::statvfs(dir).map_err(|e| unusable(e.into()))?;
-        let free_mb = stat.f_bavail.saturating_mul(stat.f_frsize) / (1024 * 1024);
-        if free_mb < self.cfg.min_free_mb {
+        })?;
+        let disk = self.disk();
+        let free_mb = disk.free_mb()?;
+        if free_mb < disk.needed_mb() {
             return Err(CaptureError::Full {
                 dir: dir.clone(),
                 free_mb,
-                min_free_mb: self.cfg.min_free_mb,
+                min_free_mb: disk.needed_mb(),
             });
         }
         Ok(())
+    }
+
+    /// A still was written (`Ok`), or not: the report says so until one works again.
+    fn still_done<E: std::fmt::Display>(&self, written: &Result<(), E>) {
+        let failure = written.as_ref().err().map(|e| CaptureFailure {
+            brief: match self.disk().full() {
+                true => "a still was not written: disk full".into(),
+                false => "a still was not written: write error".into(),
+            },
+            why: format!("a still was not written: {e}"),
+        });
+        self.report.set_capture_failure(failure);
     }
 
     /// `captures/digiview-20261121-142503-0003.ext`
@@ -223,6 +245,7 @@ impl Capture {
         let this = self.clone();
         self.in_order(Box::new(move || {
             let written = this.write_image(&path, &data, &layout, Some(&tag));
+            this.still_done(&written);
             match &written {
                 Ok(()) => {
                     info!("still of camera {view}: {}", path.display());
@@ -281,7 +304,9 @@ impl Capture {
                 files.push((PathBuf::from(name), raw));
             }
             for (path, (data, layout)) in files {
-                match this.write_image(&path, &data, &layout, None) {
+                let written = this.write_image(&path, &data, &layout, None);
+                this.still_done(&written);
+                match written {
                     Ok(()) => info!("still: {}", path.display()),
                     Err(e) => {
                         error!("still {}: {e}", path.display());
@@ -296,12 +321,7 @@ impl Capture {
     /// Feeds the recording, if one runs (called for every access unit).
     pub fn on_access_unit(&self, au: &AccessUnit) {
         let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(r) = recorder.as_mut()
-            && let Err(e) = r.push_unit(au)
-        {
-            error!("{e}: recording stopped");
-            *recorder = None;
-        }
+        recording::feed(&mut recorder, au, &self.disk(), &self.report);
     }
 
     /// Ends the running recordings cleanly (shutdown).
@@ -325,15 +345,10 @@ impl Capture {
     /// Feeds view `i`'s recording, if one runs (each of its stream's access units).
     pub fn on_view_access_unit(&self, i: usize, au: &AccessUnit) {
         let mut recorders = self.view_recorders();
-        if let Some(r) = recorders[i].as_mut()
-            && let Err(e) = r.push_unit(au)
-        {
-            error!("{e}: camera {i}'s recording stopped");
-            recorders[i] = None;
-        }
+        recording::feed(&mut recorders[i], au, &self.disk(), &self.report);
     }
 
-    fn view_recorders(&self) -> std::sync::MutexGuard<'_, [Option<Recorder>; MAX_CAMERAS]> {
+    fn view_recorders(&self) -> std::sync::MutexGuard<'_, [Option<Running>; MAX_CAMERAS]> {
         self.view_recorders
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -342,31 +357,28 @@ impl Capture {
     /// Starts (`on`) or ends the recording of view `i`'s own stream.
     pub fn record_view(&self, i: usize, on: bool) -> Result<(), CaptureError> {
         let mut recorders = self.view_recorders();
-        if !on {
-            if let Some(r) = recorders[i].take() {
-                match r.finish() {
-                    Ok(path) => info!("camera {i}'s recording ended: {}", path.display()),
-                    Err(e) => warn!("{e}"),
-                }
+        match (on, recorders[i].is_some()) {
+            (false, _) => recorders[i].take().map_or((), Running::finish),
+            (true, true) => {}
+            (true, false) => {
+                let name = self.name(&format!("-cam{i}{}", self.cfg.container.extension()));
+                recorders[i] = Some(self.start(&name, format!("camera {i}'s recording"))?);
+                self.view_key_wanted[i].store(true, Ordering::Relaxed);
             }
-            return Ok(());
         }
-        if recorders[i].is_some() {
-            return Ok(());
-        }
-        self.ready()?;
-        let ext = self.cfg.container.extension();
-        let r = Recorder::start(
-            &self.name(&format!("-cam{i}{ext}")),
-            self.cfg.codec,
-            self.cfg.container,
-        )
-        .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
-        info!("recording camera {i} to {}", r.path().display());
-        recorders[i] = Some(r);
-        self.videos.fetch_add(1, Ordering::Relaxed);
-        self.view_key_wanted[i].store(true, Ordering::Relaxed);
         Ok(())
+    }
+
+    /// Starts a recording to `path`, when the disk has room: any failure reported before is
+    /// over.
+    fn start(&self, path: &std::path::Path, what: String) -> Result<Running, CaptureError> {
+        self.ready()?;
+        let r = Recorder::start(path, self.cfg.codec, self.cfg.container)
+            .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
+        info!("{what} to {}", r.path().display());
+        self.report.set_capture_failure(None);
+        self.videos.fetch_add(1, Ordering::Relaxed);
+        Ok(Running::new(r, what))
     }
 }
 
@@ -413,30 +425,14 @@ impl Capturer for Capture {
     }
 
     fn record(&self, on: bool) -> Result<(), CaptureError> {
-        if on {
-            let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
-            if recorder.is_some() {
-                return Ok(());
-            }
-            self.ready()?;
-            let ext = self.cfg.container.extension();
-            let r = Recorder::start(&self.name(ext), self.cfg.codec, self.cfg.container)
-                .map_err(|e| CaptureError::Recorder(Box::new(e)))?;
-            info!("recording to {}", r.path().display());
-            *recorder = Some(r);
-            self.videos.fetch_add(1, Ordering::Relaxed);
-            self.key_wanted.store(true, Ordering::Relaxed);
-            return Ok(());
-        }
-        let taken = self
-            .recorder
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take();
-        if let Some(r) = taken {
-            match r.finish() {
-                Ok(path) => info!("recording ended: {}", path.display()),
-                Err(e) => warn!("{e}"),
+        let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
+        match (on, recorder.is_some()) {
+            (false, _) => recorder.take().map_or((), Running::finish),
+            (true, true) => {}
+            (true, false) => {
+                let name = self.name(self.cfg.container.extension());
+                *recorder = Some(self.start(&name, "the recording".into())?);
+                self.key_wanted.store(true, Ordering::Relaxed);
             }
         }
         Ok(())

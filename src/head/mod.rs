@@ -26,6 +26,7 @@ pub mod latency;
 mod no_signal;
 pub mod pacing;
 pub mod readout_probe;
+mod recording;
 mod source_thread;
 mod supervise;
 mod view_pacing;

@@ -309,6 +309,7 @@ pub(crate) fn status_value(web: &Web) -> Value {
     json!({
         "status": s.status() as u8,
         "failure": s.failure(),
+        "capture": s.capture_failure(),
         "video": web.video.as_ref().map(|v| v.status()),
         "autopilot": web.controller.autopilot.as_ref().map(|a| a.param()),
         "services": s.services.failures(),

@@ -25,8 +25,8 @@ pub enum CaptureError {
         source: std::io::Error,
     },
     #[error(
-        "capture directory {} has {free_mb} MB free, under the {min_free_mb} MB kept free \
-         (capture.min_free_mb)",
+        "capture directory {} is full: {free_mb} MB free, {min_free_mb} MB needed \
+         (capture.min_free_mb, and 1 MB at least)",
         dir.display()
     )]
     Full {

@@ -30,7 +30,7 @@ pub use detection::{DetectionSettings, KEEP};
 pub use file::StateError;
 pub use gate::{Gate, Refused};
 pub use live::LiveSettings;
-pub use report::{Failure, RenderedFrame, Report, RunStatus};
+pub use report::{CaptureFailure, Failure, RenderedFrame, Report, RunStatus};
 pub use sensed::{DEFAULT_POSITION, IN_SIGHT, MAX_PREDICTION, Sensed, Tracked, Vehicle, moved_on};
 pub use settings::{
     Angles, FPS_RANGE, MAX_EXPOSURE_US, MAX_GAIN, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, Output,

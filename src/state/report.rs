@@ -36,6 +36,17 @@ pub enum Failure {
     /// A stage of the head failed unexpectedly (a panic): it is started again, and given up
     /// (the process exits) when it keeps failing.
     Internal = 5,
+    /// A recording stopped or a still was not written (a full or failing disk); reported
+    /// until a recording starts or a still is written again.
+    Capture = 6,
+}
+
+/// Why a recording stopped or a still was not written: in a few words (a ground station's
+/// STATUSTEXT: "the recording stopped: disk full"), and whole (the status, the page, the log).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct CaptureFailure {
+    pub brief: String,
+    pub why: String,
 }
 
 /// What a frame was rendered with: its capture time, the presentation time the composed
@@ -74,6 +85,8 @@ pub struct Report {
     failure: AtomicU8,
     /// The autopilot's attitude is stale; reported while nothing worse is.
     attitude_lost: AtomicBool,
+    /// Why the last recording or still failed, until one works again.
+    capture: Mutex<Option<CaptureFailure>>,
     /// Why CAM_SENSOR cannot be set, for a source with no exposure to set.
     sensor_refusal: Mutex<Option<String>>,
     /// The supervised services that have failed.
@@ -103,9 +116,9 @@ impl Report {
         self.rendered()?.shutter_for(size)
     }
 
-    /// The run's status: error while anything failed, the attitude included.
+    /// The run's status: error while anything failed, the attitude and captures included.
     pub fn status(&self) -> RunStatus {
-        if self.attitude_lost.load(Ordering::Relaxed) {
+        if self.attitude_lost.load(Ordering::Relaxed) || self.capture_failure().is_some() {
             return RunStatus::Error;
         }
         match self.status.load(Ordering::Relaxed) {
@@ -130,12 +143,42 @@ impl Report {
         self.status.store(RunStatus::Error as u8, Ordering::Relaxed);
     }
 
-    /// SYSTEM_STATUS's error byte: a failed stage first, else a stale attitude.
+    /// SYSTEM_STATUS's error byte: a failed stage first, then a failed capture, then a stale
+    /// attitude.
     pub fn failure(&self) -> u8 {
         match self.failure.load(Ordering::Relaxed) {
+            0 if self.capture_failure().is_some() => Failure::Capture as u8,
             0 if self.attitude_lost.load(Ordering::Relaxed) => Failure::Attitude as u8,
             f => f,
         }
+    }
+
+    /// What failed, in a few words for a ground station's STATUSTEXT (40 characters at
+    /// most); None while nothing has.
+    pub fn brief(&self) -> Option<String> {
+        let text = match self.failure() {
+            1 => "camera signal lost; retrying",
+            2 => "encoder failed; rebuilding it",
+            3 => "GPU failed; rebuilding it",
+            4 => "attitude stale; views hold the last",
+            5 => "a stage failed; started again",
+            6 => return self.capture_failure().map(|c| c.brief),
+            _ => return None,
+        };
+        Some(text.into())
+    }
+
+    /// A recording stopped or a still failed, and why (`Some`); or one worked again (`None`).
+    pub fn set_capture_failure(&self, why: Option<CaptureFailure>) {
+        *self.capture.lock().unwrap_or_else(|e| e.into_inner()) = why;
+    }
+
+    /// Why the last recording or still failed, while none has worked since.
+    pub fn capture_failure(&self) -> Option<CaptureFailure> {
+        self.capture
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     /// Whether the autopilot's attitude is stale (the views hold the last one).

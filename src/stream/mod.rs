@@ -11,6 +11,7 @@ pub mod klv;
 pub mod preview;
 pub mod publish;
 pub mod record;
+pub mod record_file;
 pub mod rtsp;
 
 pub use encoder::{AccessUnit, Encoder, EncoderConfig};

@@ -5,14 +5,16 @@
 //! published TS does, for mapping software, and which plays up to any cut by its nature. A
 //! recording starts at a key frame; its timestamps start at zero. The file is written
 //! unbuffered and opened O_SYNC, so what the muxer has written is on the disk, not in a
-//! cache.
+//! cache; once it ends, however it ends, it is cut back to what plays (`record_file`).
 
+use super::record_file::{self, Left};
 use super::{AccessUnit, Codec, StreamError};
 use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
 use std::path::{Path, PathBuf};
+use tracing::warn;
 
 /// What a recording is written as.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -41,6 +43,7 @@ pub struct Recorder {
     /// The KLV metadata's, in a TS recording.
     klv: Option<gst_app::AppSrc>,
     path: PathBuf,
+    container: Container,
     first_pts: Option<gst::ClockTime>,
 }
 
@@ -76,6 +79,7 @@ impl Recorder {
             src,
             klv,
             path: path.to_path_buf(),
+            container,
             first_pts: None,
         })
     }
@@ -142,17 +146,31 @@ impl Recorder {
         }
     }
 
-    /// Ends the file cleanly (its last fragment written) and returns its path.
-    pub fn finish(self) -> Result<PathBuf, StreamError> {
+    /// Ends the file cleanly (its last fragment written): what was left of it (removed when
+    /// it held no frame).
+    pub fn finish(self) -> Result<Left, StreamError> {
         let _ = self.src.end_of_stream();
         if let Some(klv) = &self.klv {
             let _ = klv.end_of_stream();
         }
         let ended = wait_eos(&self.pipeline, gst::ClockTime::from_seconds(5));
         let _ = self.pipeline.set_state(gst::State::Null);
-        ended
-            .map(|()| self.path.clone())
-            .map_err(|e| self.failed(e))
+        let left = self.tidy();
+        ended.map(|()| left).map_err(|e| self.failed(e))
+    }
+
+    /// Stops a recording that failed (its disk, its muxer): the file is cut back to what
+    /// plays, or removed when it held no frame.
+    pub fn abandon(self) -> Left {
+        let _ = self.pipeline.set_state(gst::State::Null);
+        self.tidy()
+    }
+
+    fn tidy(&self) -> Left {
+        record_file::tidy(&self.path, self.container).unwrap_or_else(|e| {
+            warn!("recording {}: {e}", self.path.display());
+            Left::Kept { cut: 0 }
+        })
     }
 }
 

@@ -4,6 +4,7 @@
 //! bytes on the link change nothing.
 
 use crate::common;
+use common::system_status;
 
 use common::autopilot::{SimAutopilot, attitude, clock_s, frame, free_udp_port};
 use common::serve::Serve;
@@ -66,13 +67,6 @@ fn autopilot(ctl: &mut Client) -> Autopilot {
     match ctl.get_one(ParamType::Autopilot.zeroed()).unwrap() {
         Param::Autopilot(a) => a,
         p => panic!("{p:?}"),
-    }
-}
-
-fn status(ctl: &mut Client) -> (u8, u8) {
-    match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
-        Param::SystemStatus(s) => (s.status, s.error),
-        other => panic!("{other:?}"),
     }
 }
 
@@ -148,7 +142,7 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
     sim.silent.store(true, std::sync::atomic::Ordering::Relaxed);
     let t = Instant::now();
     until(Duration::from_secs(2), "a stale attitude reported", || {
-        status(&mut ctl) == (3, 4)
+        system_status(&mut ctl) == (3, 4)
     });
     assert!(
         t.elapsed() >= Duration::from_millis(400),
@@ -165,7 +159,7 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
     sim.silent
         .store(false, std::sync::atomic::Ordering::Relaxed);
     until(Duration::from_secs(2), "the status back", || {
-        status(&mut ctl) == (0, 0)
+        system_status(&mut ctl) == (0, 0)
     });
     let worst = worst_following(&mut ctl, 10);
     assert!(
@@ -225,7 +219,7 @@ fn hostile_bytes_on_the_link_change_nothing() {
         "after the flood: worst {:.1}°",
         worst / DEG
     );
-    assert_eq!(status(&mut ctl), (0, 0));
+    assert_eq!(system_status(&mut ctl), (0, 0));
 }
 
 #[test]
@@ -254,7 +248,7 @@ fn followed_then_lost(ctl: &mut Client, sim: SimAutopilot, round: usize) {
     );
     drop(sim);
     until(Duration::from_secs(2), "the loss reported", || {
-        status(ctl) == (3, 4)
+        system_status(ctl) == (3, 4)
     });
 }
 
@@ -267,7 +261,7 @@ fn a_udp_autopilot_restarted_from_another_port_is_followed_and_answered() {
         // boot clock started afresh.
         let sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{port}"), turning);
         until(Duration::from_secs(5), "the attitude arrives", || {
-            status(&mut ctl) == (0, 0) && worst_following(&mut ctl, 1) < 8.0 * DEG
+            system_status(&mut ctl) == (0, 0) && worst_following(&mut ctl, 1) < 8.0 * DEG
         });
         // DigiView's TIMESYNC requests reach whoever sent last, and are answered.
         let trips = autopilot(&mut ctl).timesync_trips;
@@ -435,7 +429,7 @@ fn a_serial_autopilot_unplugged_and_plugged_back_is_followed_again() {
         // Unplugged: the cable's end goes, and a new one comes under the same name.
         drop(cable);
         until(Duration::from_secs(2), "the loss reported", || {
-            status(&mut ctl) == (3, 4)
+            system_status(&mut ctl) == (3, 4)
         });
         let (next, tty) = pty();
         std::fs::remove_file(&port).unwrap();

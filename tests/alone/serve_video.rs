@@ -4,6 +4,7 @@
 //! changed over the control protocol and seen in the picture, on the same RTSP session.
 
 use crate::common;
+use common::{system_status, wait_status};
 
 use common::serve::{CaptureConfig, Serve};
 use common::viewer::Viewer;
@@ -177,26 +178,6 @@ fn until(viewer: &Viewer, limit: Duration, what: &str, test: impl Fn(&RgbImage) 
     panic!("no frame showed {what} within {limit:?}");
 }
 
-fn status(ctl: &mut Client) -> (u8, u8) {
-    match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
-        Param::SystemStatus(s) => (s.status, s.error),
-        other => panic!("{other:?}"),
-    }
-}
-
-/// Waits until SYSTEM_STATUS reads `want` (status, error), at most `limit`.
-fn wait_status(ctl: &mut Client, want: (u8, u8), limit: Duration) {
-    let t = Instant::now();
-    loop {
-        let now = status(ctl);
-        if now == want {
-            return;
-        }
-        assert!(t.elapsed() < limit, "status stays {now:?}, not {want:?}");
-        std::thread::sleep(Duration::from_millis(100));
-    }
-}
-
 fn capture(ctl: &mut Client) -> Capture {
     match ctl.get_one(ParamType::Capture.zeroed()).unwrap() {
         Param::Capture(c) => c,
@@ -270,7 +251,7 @@ fn a_lost_source_shows_no_signal_and_comes_back_while_captures_go_on() {
     let viewer = Viewer::open(serve.rtsp.as_deref().unwrap());
     let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
     until(&viewer, Duration::from_secs(20), "no signal", no_signal);
-    assert_eq!(status(&mut ctl), (3, 1), "error: the source");
+    assert_eq!(system_status(&mut ctl), (3, 1), "error: the source");
 
     // It turns up: the picture comes, without a restart.
     let frames = dir.path().join("frames");
@@ -299,7 +280,7 @@ fn a_lost_source_shows_no_signal_and_comes_back_while_captures_go_on() {
     std::thread::sleep(Duration::from_secs(2));
     std::fs::rename(&frames, &away).unwrap();
     until(&viewer, Duration::from_secs(10), "no signal", no_signal);
-    assert_eq!(status(&mut ctl), (3, 1), "error: the source");
+    assert_eq!(system_status(&mut ctl), (3, 1), "error: the source");
 
     // It comes back: the picture resumes.
     std::fs::rename(&away, &frames).unwrap();

@@ -419,3 +419,29 @@ pub fn first_pink_mover(viewer: &viewer::Viewer) -> (f64, f64) {
         );
     }
 }
+
+/// SYSTEM_STATUS's (status, error) as the control client `ctl` reads it.
+pub fn system_status(ctl: &mut digiview::control::client::Client) -> (u8, u8) {
+    use digiview::protocol::{Param, ParamType};
+    match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
+        Param::SystemStatus(s) => (s.status, s.error),
+        other => panic!("{other:?}"),
+    }
+}
+
+/// Waits until SYSTEM_STATUS reads `want` (status, error), at most `limit`.
+pub fn wait_status(
+    ctl: &mut digiview::control::client::Client,
+    want: (u8, u8),
+    limit: std::time::Duration,
+) {
+    let t = std::time::Instant::now();
+    loop {
+        let now = system_status(ctl);
+        if now == want {
+            return;
+        }
+        assert!(t.elapsed() < limit, "status stays {now:?}, not {want:?}");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+}

@@ -15,6 +15,7 @@ mod control_server;
 mod crop_modes;
 mod detect_motion;
 mod dewarp_vs_truth;
+mod disk_full;
 mod doctor;
 mod entry_paths;
 mod fuzz_corpus;

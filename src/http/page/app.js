@@ -39,7 +39,7 @@ api.on('connection', (up) => {
 });
 
 const STATUS = ['idle', 'running', 'finished', 'error'];
-const FAILURE = ['', 'source', 'encoder', 'GPU', 'attitude', 'internal'];
+const FAILURE = ['', 'source', 'encoder', 'GPU', 'attitude', 'internal', 'capture'];
 const LINK = ['off', 'opening', 'open, no attitude', 'attitude coming', 'attitude stale'];
 
 function showStatus(s) {
@@ -50,6 +50,7 @@ function showStatus(s) {
   $('status').textContent = `${state}${failure}${fps}`;
   $('status').classList.toggle('bad', s.status === 3);
   const rows = [];
+  if (s.capture) rows.push(['capture', s.capture.why, true]);
   if (v) {
     rows.push(['frames in', `${v.fps_in.toFixed(1)} fps`], ['frames out', `${v.fps_out.toFixed(1)} fps`],
       ['dropped', `${v.dropped_renderer} renderer, ${v.dropped_encoder} encoder`],

@@ -1,0 +1,238 @@
+//! A disk that fills during a recording, as the operator sees it: the recording stops and its
+//! file plays to its end; SYSTEM_STATUS says error 6 (capture) over the DigiView protocol,
+//! `/api/status` says why, a ground station gets the STATUSTEXT; new captures are refused
+//! with the reason and leave no empty file; once space is freed, recording works again and
+//! the status is back to running. The disk is a real one: a tmpfs of a few MB, mounted for
+//! the test (CI runs as root, as this test needs), with a filler file taking most of it.
+
+use crate::common;
+use common::wait_status;
+
+use common::autopilot::free_udp_port;
+use common::gcs::{Gcs, http_get, text};
+use common::serve::{CaptureConfig, Serve};
+use digiview::control::client::Client;
+use digiview::protocol::Param;
+use digiview::protocol::params::Capture;
+use mavlink::dialects::common::{MavMessage, MavSeverity};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+/// A tmpfs of `mb` MB mounted on a directory of the test's, unmounted when dropped.
+struct Tmpfs {
+    dir: PathBuf,
+    _parent: tempfile::TempDir,
+}
+
+impl Tmpfs {
+    fn mount(mb: u32) -> Tmpfs {
+        let parent = tempfile::tempdir().unwrap();
+        let dir = parent.path().join("captures");
+        std::fs::create_dir(&dir).unwrap();
+        let size = format!("size={mb}m");
+        let out = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &size, "tmpfs"])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "mounting a {mb} MB tmpfs needs root: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Tmpfs {
+            dir,
+            _parent: parent,
+        }
+    }
+
+    /// A file of `mb` MB taking that much of the disk.
+    fn fill(&self, mb: usize) -> PathBuf {
+        let path = self.dir.join("filler");
+        std::fs::write(&path, vec![1u8; mb << 20]).unwrap();
+        path
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg("-l").arg(&self.dir).status();
+    }
+}
+
+/// `serve` on the demo at 640x480, its captures on `disk` keeping `min_free_mb`, its
+/// MAVLink link on a free port with a ground station on it.
+fn serve(disk: &Tmpfs, min_free_mb: u32) -> (Serve, Client, Gcs, CaptureConfig) {
+    let config = CaptureConfig::new(
+        "[encoder]\nbitrate_kbps = 6000\n",
+        &format!("min_free_mb = {min_free_mb}\n"),
+    );
+    let text = std::fs::read_to_string(config.path()).unwrap();
+    let text = text.replace(
+        &format!("{:?}", config.captures),
+        &format!("{:?}", disk.dir),
+    );
+    std::fs::write(config.path(), text).unwrap();
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    let serve = Serve::start_video(&[
+        "--config",
+        config.path(),
+        "--demo-size",
+        "960x540",
+        "--size",
+        "640x480",
+        "--mavlink",
+        &link,
+    ]);
+    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    wait_status(&mut ctl, (1, 0), Duration::from_secs(20));
+    let gcs = Gcs::connect(port);
+    gcs.wait_for(Duration::from_secs(5), |_, m| {
+        matches!(m, MavMessage::HEARTBEAT(_)).then_some(())
+    })
+    .expect("DigiView's heartbeat");
+    (serve, ctl, gcs, config)
+}
+
+fn capture(ctl: &mut Client, flags: u8) -> Result<(), String> {
+    ctl.set(Param::Capture(Capture {
+        flags,
+        ..Default::default()
+    }))
+    .map_err(|e| e.to_string())
+}
+
+fn recording(ctl: &mut Client) -> bool {
+    match ctl.get_one(digiview::protocol::ParamType::Capture.zeroed()) {
+        Ok(Param::Capture(c)) => c.flags & 2 != 0,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// The recordings on `dir`, oldest first.
+fn videos(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "mp4"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// A recording's frame count, after FFmpeg decoded it whole without a complaint.
+fn plays(path: &Path) -> u64 {
+    let out = Command::new("ffmpeg")
+        .args(["-v", "error", "-i"])
+        .arg(path)
+        .args(["-f", "null", "-"])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && said.trim().is_empty(),
+        "{} does not play cleanly: {said}",
+        path.display()
+    );
+    common::probe_frames(path).0
+}
+
+/// The STATUSTEXT heard within `limit` holding `words`, and its severity.
+fn told(gcs: &Gcs, words: &str, limit: Duration) -> MavSeverity {
+    gcs.wait_for(limit, |_, m| match m {
+        MavMessage::STATUSTEXT(t) if text(&t.text[..]).contains(words) => Some(t.severity),
+        _ => None,
+    })
+    .unwrap_or_else(|| panic!("no STATUSTEXT saying {words:?}"))
+}
+
+/// What `/api/status` says of the captures.
+fn api_capture(serve: &Serve) -> serde_json::Value {
+    let url = format!("{}api/status", serve.http.as_ref().unwrap());
+    let (code, body) = http_get(&url);
+    assert_eq!(code, 200);
+    serde_json::from_slice::<serde_json::Value>(&body).unwrap()["capture"].clone()
+}
+
+#[test]
+fn a_disk_that_fills_stops_the_recording_playable_says_why_and_records_again_once_freed() {
+    let disk = Tmpfs::mount(4);
+    let filler = disk.fill(2);
+    // Nothing kept free: the disk itself runs out under the recording.
+    let (serve, mut ctl, gcs, _config) = serve(&disk, 0);
+    capture(&mut ctl, 2).unwrap();
+    wait_status(&mut ctl, (3, 6), Duration::from_secs(30));
+    assert!(!recording(&mut ctl), "still recording on a full disk");
+    assert_eq!(
+        told(
+            &gcs,
+            "DigiView: the recording stopped",
+            Duration::from_secs(3)
+        ),
+        MavSeverity::MAV_SEVERITY_ERROR
+    );
+    let why = api_capture(&serve);
+    assert_eq!(why["brief"], "the recording stopped: disk full", "{why}");
+    assert!(why["why"].as_str().unwrap().contains("is kept"), "{why}");
+    let first = videos(&disk.dir);
+    assert_eq!(first.len(), 1, "{first:?}");
+    let frames = plays(&first[0]);
+    assert!(frames >= 10, "{frames} frames kept");
+
+    // Full: a recording or a still is refused, saying so, and leaves no file.
+    for flags in [2, 1] {
+        let refused = capture(&mut ctl, flags).unwrap_err();
+        assert!(refused.contains("is full"), "{refused}");
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(videos(&disk.dir), first, "a refused capture left a file");
+    assert_eq!(std::fs::read_dir(&disk.dir).unwrap().count(), 2);
+
+    // Space freed: recording works again and the status is back to running.
+    std::fs::remove_file(filler).unwrap();
+    capture(&mut ctl, 2).unwrap();
+    wait_status(&mut ctl, (1, 0), Duration::from_secs(2));
+    assert_eq!(api_capture(&serve), serde_json::Value::Null);
+    assert_eq!(
+        told(&gcs, "DigiView: running again", Duration::from_secs(3)),
+        MavSeverity::MAV_SEVERITY_INFO
+    );
+    std::thread::sleep(Duration::from_millis(1500));
+    capture(&mut ctl, 0).unwrap();
+    let now = videos(&disk.dir);
+    assert_eq!(now.len(), 2, "{now:?}");
+    assert!(plays(&now[1]) >= 10);
+}
+
+#[test]
+fn with_space_kept_free_the_recording_ends_cleanly_before_the_disk_is_full() {
+    let disk = Tmpfs::mount(5);
+    let _filler = disk.fill(2);
+    let (serve, mut ctl, gcs, _config) = serve(&disk, 2);
+    capture(&mut ctl, 2).unwrap();
+    wait_status(&mut ctl, (3, 6), Duration::from_secs(30));
+    told(
+        &gcs,
+        "the recording stopped: disk full",
+        Duration::from_secs(3),
+    );
+    let why = api_capture(&serve)["why"].as_str().unwrap().to_string();
+    assert!(why.contains("under the 2 MB kept free"), "{why}");
+    assert!(
+        why.ends_with("is kept"),
+        "the file was cut, not ended: {why}"
+    );
+    let kept = videos(&disk.dir);
+    assert_eq!(kept.len(), 1);
+    assert!(plays(&kept[0]) >= 10);
+    // The check is four times a second: what came in meanwhile (a quarter of a second at
+    // 6 Mb/s, 0.2 MB) may take from the space kept, no more.
+    let free = rustix::fs::statvfs(&disk.dir).unwrap();
+    let free_mb = (free.f_bavail * free.f_frsize) as f64 / (1 << 20) as f64;
+    assert!(
+        free_mb >= 1.75,
+        "{free_mb:.2} MB left of the 2 MB kept free"
+    );
+}
