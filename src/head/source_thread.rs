@@ -10,7 +10,7 @@ use crate::frame::{Frame, PlaneLayout};
 use crate::geometry::Euler;
 use crate::scene::synth::world_origin;
 use crate::source::demo::{DemoCamera, Flight};
-use crate::source::{Ended, SourceSpec, backoff};
+use crate::source::{Ended, SourceSpec, backoff, retry_logged};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use tracing::{error, info};
@@ -56,8 +56,10 @@ impl Head {
                 attempt = 0;
             }
             let wait = backoff(attempt);
+            if retry_logged(attempt) {
+                error!("source {spec} failed ({} times): {e}; retrying in {wait:?}", attempt + 1);
+            }
             attempt += 1;
-            error!("source {spec} failed: {e}; retrying in {wait:?}");
             self.set_source_error(Some(format!("camera gone: {e}")));
             let until = Instant::now() + wait;
             while Instant::now() < until && !self.stop.load(Ordering::Relaxed) {

@@ -188,9 +188,15 @@ impl FrameSlot {
     }
 }
 
-/// Back-off between attempts to (re)open a failed source: 0.5 s, doubling to 8 s.
+/// Wait between attempts to (re)open a failed source: 0.5 s, then 1 s, so a camera that
+/// comes back shows within 2 s (reopening a camera that is not there costs next to nothing).
 pub fn backoff(attempt: u32) -> Duration {
-    Duration::from_millis(500 << attempt.min(4))
+    Duration::from_millis(if attempt == 0 { 500 } else { 1000 })
+}
+
+/// Whether failed attempt `attempt` (from 0) is logged: the first three, then one a minute.
+pub fn retry_logged(attempt: u32) -> bool {
+    attempt < 3 || attempt % 60 == 0
 }
 
 #[cfg(test)]
