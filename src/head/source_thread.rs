@@ -57,7 +57,10 @@ impl Head {
             }
             let wait = backoff(attempt);
             if retry_logged(attempt) {
-                error!("source {spec} failed ({} times): {e}; retrying in {wait:?}", attempt + 1);
+                error!(
+                    "source {spec} failed ({} times): {e}; retrying in {wait:?}",
+                    attempt + 1
+                );
             }
             attempt += 1;
             self.set_source_error(Some(format!("camera gone: {e}")));

@@ -196,7 +196,7 @@ pub fn backoff(attempt: u32) -> Duration {
 
 /// Whether failed attempt `attempt` (from 0) is logged: the first three, then one a minute.
 pub fn retry_logged(attempt: u32) -> bool {
-    attempt < 3 || attempt % 60 == 0
+    attempt < 3 || attempt.is_multiple_of(60)
 }
 
 #[cfg(test)]

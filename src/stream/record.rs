@@ -1,6 +1,6 @@
-//! Recording the encoded stream to fragmented MP4: h264parse (h265parse) → mp4mux with one-second
-//! fragments written as they complete (`streamable`, nothing rewritten at the end), so a
-//! power cut loses at most the last second and the file plays up to there. Or to MPEG-TS
+//! Recording the encoded stream to fragmented MP4: h264parse (h265parse) → mp4mux with
+//! half-second fragments written as they complete (`streamable`, nothing rewritten at the end),
+//! so a power cut loses at most the last half second and the file plays up to there. Or to MPEG-TS
 //! (`Container::Ts`), which carries each frame's KLV metadata beside the video as the
 //! published TS does, for mapping software, and which plays up to any cut by its nature. A
 //! recording starts at a key frame; its timestamps start at zero. The file is written
@@ -57,7 +57,7 @@ impl Recorder {
         let file = "filesink name=file buffer-mode=unbuffered o-sync=true";
         let pipeline = launch(&match container {
             Container::Mp4 => {
-                format!("{video} ! mp4mux fragment-duration=1000 streamable=true ! {file}")
+                format!("{video} ! mp4mux fragment-duration=500 streamable=true ! {file}")
             }
             Container::Ts => format!(
                 "{video} ! mpegtsmux name=mux alignment=7 ! {file} {}",
