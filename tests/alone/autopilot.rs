@@ -149,13 +149,24 @@ fn an_unlocked_camera_follows_the_autopilots_yaw_and_a_silent_autopilot_is_repor
         "not before 0.5 s"
     );
     assert_eq!(autopilot(&mut ctl).link, 4, "AUTOPILOT says stale");
+    // The link stays lost 10 s: the views hold the last attitude throughout, the status and
+    // the page say it is stale.
     let held = centre_yaw(&mut ctl);
-    std::thread::sleep(Duration::from_millis(300));
-    assert_eq!(
-        centre_yaw(&mut ctl),
-        held,
-        "the views hold the last attitude"
-    );
+    let lost = Instant::now();
+    let url = format!("{}api/status", _serve.http.as_ref().unwrap());
+    while lost.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(500));
+        assert_eq!(
+            centre_yaw(&mut ctl),
+            held,
+            "the views hold the last attitude"
+        );
+        assert_eq!(system_status(&mut ctl), (3, 4));
+        let (_, body) = common::gcs::http_get(&url);
+        let page: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(page["failure"], 4, "{page}");
+        assert_eq!(page["autopilot"]["link"], 4, "{page}");
+    }
     sim.silent
         .store(false, std::sync::atomic::Ordering::Relaxed);
     until(Duration::from_secs(2), "the status back", || {
