@@ -20,6 +20,9 @@ packages=(
   ffmpeg
   # exiftool: reads the stills' EXIF and XMP in the tests, as mapping pipelines check them.
   libimage-exiftool-perl
+  # libfaketime: the clock-step test sets the system clock an hour forward and back for
+  # DigiView's process alone.
+  faketime
   # Chromium driven over WebDriver: the tuning page's end-to-end tests.
   chromium chromium-driver
   # pip fetches the onnxruntime wheel, whose ONNX Runtime library the ONNX detector loads;

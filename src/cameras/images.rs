@@ -4,8 +4,9 @@
 //! the head's HTTP server, the image's index) and remembered so a ground station can ask for it again.
 
 use super::info::view_quaternion;
-use super::{Cameras, FIRST_COMPONENT, IMAGES_KEPT, Shot, Taken, boot_ms, utc_us};
+use super::{Cameras, FIRST_COMPONENT, IMAGES_KEPT, Shot, Taken, boot_ms};
 use crate::autopilot::Outbox;
+use crate::clock::utc_us;
 use crate::state::capture::Geotag;
 use mavlink::dialects::common::{CAMERA_IMAGE_CAPTURED_DATA, MavBool, MavMessage};
 use std::time::Instant;

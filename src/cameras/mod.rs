@@ -487,10 +487,3 @@ pub(crate) fn heartbeat(mavtype: MavType) -> MavMessage {
 fn boot_ms() -> u32 {
     (clock_us() / 1000) as u32
 }
-
-/// The wall clock in µs since 1970 (CAMERA_IMAGE_CAPTURED's time_utc).
-fn utc_us() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as u64)
-}

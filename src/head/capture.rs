@@ -205,7 +205,9 @@ impl Capture {
 
     /// `captures/digiview-20261121-142503-0003.ext`
     fn name(&self, suffix: &str) -> PathBuf {
-        let when = glib::DateTime::now_local()
+        // Local time of the UNIX time that never goes back: names sort as they were made.
+        let unix_s = (crate::clock::utc_us() / 1_000_000) as i64;
+        let when = glib::DateTime::from_unix_local(unix_s)
             .and_then(|t| t.format("%Y%m%d-%H%M%S"))
             .map(|s| s.to_string())
             .unwrap_or_else(|_| "now".into());

@@ -191,7 +191,7 @@ impl Body {
 impl Message {
     pub fn new(body: Body) -> Message {
         Message {
-            timestamp: now_us(),
+            timestamp: crate::clock::utc_us(),
             body,
         }
     }
@@ -259,13 +259,6 @@ impl Message {
         }?;
         Ok(Message { timestamp, body })
     }
-}
-
-/// Microseconds since the Unix epoch, the frames' clock.
-pub fn now_us() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_micros() as u64)
 }
 
 #[cfg(test)]

@@ -30,30 +30,36 @@ impl Serve {
     /// As [`Serve::start`], logging at info level into a pipe whose reader is gone (as under
     /// `digiview serve 2>&1 | head -1`).
     pub fn start_unread(extra: &[&str]) -> Serve {
-        let mut serve = Serve::launch(&["--no-video"], extra, Some("info"), None);
+        let mut serve = Serve::launch(&["--no-video"], extra, Some("info"), &[]);
         drop(serve.child.stderr.take());
         serve
     }
 
     fn spawn(mode: &[&str], extra: &[&str]) -> Serve {
-        Serve::launch(mode, extra, None, None)
+        Serve::launch(mode, extra, None, &[])
     }
 
     /// As [`Serve::start_video`] with `DIGIVIEW_FAULT=fault` and errors logged into a pipe
     /// ([`Serve::log`]).
     pub fn start_video_faulty(fault: &str, extra: &[&str]) -> Serve {
-        Serve::launch(&["--rtsp-port", "0"], extra, Some("error"), Some(fault))
+        Serve::launch(
+            &["--rtsp-port", "0"],
+            extra,
+            Some("error"),
+            &[("DIGIVIEW_FAULT", fault)],
+        )
     }
 
     /// As [`Serve::start`], logging at `level` into a pipe ([`Serve::log`]), with
     /// `DIGIVIEW_FAULT=fault` when given.
     pub fn start_logging(level: &str, fault: Option<&str>, extra: &[&str]) -> Serve {
-        Serve::launch(&["--no-video"], extra, Some(level), fault)
+        let fault: Vec<_> = fault.map(|f| ("DIGIVIEW_FAULT", f)).into_iter().collect();
+        Serve::launch(&["--no-video"], extra, Some(level), &fault)
     }
 
     /// As [`Serve::start_video`], logging at `level` into a pipe ([`Serve::log`]).
     pub fn start_video_logging(level: &str, extra: &[&str]) -> Serve {
-        Serve::launch(&["--rtsp-port", "0"], extra, Some(level), None)
+        Serve::launch(&["--rtsp-port", "0"], extra, Some(level), &[])
     }
 
     /// What the server logged (with a piped log), once it has ended.
@@ -67,7 +73,7 @@ impl Serve {
 
     /// `log`: a RUST_LOG level for a piped stderr, else the test's choice (see below);
     /// `fault`: DIGIVIEW_FAULT for this server alone.
-    fn launch(mode: &[&str], extra: &[&str], log: Option<&str>, fault: Option<&str>) -> Serve {
+    fn launch(mode: &[&str], extra: &[&str], log: Option<&str>, env: &[(&str, &str)]) -> Serve {
         let cal = super::lens_cal_path();
         // No autopilot link unless the test asks for one (the default port is one per host).
         let link: &[&str] = if extra.contains(&"--mavlink") {
@@ -96,9 +102,7 @@ impl Serve {
             &["--detector", "off"]
         };
         let mut command = Command::new(env!("CARGO_BIN_EXE_digiview"));
-        if let Some(fault) = fault {
-            command.env("DIGIVIEW_FAULT", fault);
-        }
+        command.envs(env.iter().copied());
         let mut child = command
             .args(["serve", "--control", "127.0.0.1:0"])
             .args(mode)
@@ -261,6 +265,15 @@ impl CaptureConfig {
 /// the demo drawn at 960x540, its MAVLink link on a free UDP port (returned), `extra` flags
 /// beside, logging at `log` into a pipe ([`Serve::log`]) when given.
 pub fn with_stills(extra: &[&str], log: Option<&str>) -> (CaptureConfig, Serve, u16) {
+    with_stills_env(extra, log, &[])
+}
+
+/// As [`with_stills`], with `env` set for the process.
+pub fn with_stills_env(
+    extra: &[&str],
+    log: Option<&str>,
+    env: &[(&str, &str)],
+) -> (CaptureConfig, Serve, u16) {
     let config = CaptureConfig::new(
         "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n",
         "min_free_mb = 1\n",
@@ -278,6 +291,6 @@ pub fn with_stills(extra: &[&str], log: Option<&str>) -> (CaptureConfig, Serve, 
         "640x480",
     ];
     flags.extend_from_slice(extra);
-    let serve = Serve::launch(&["--rtsp-port", "0"], &flags, log, None);
+    let serve = Serve::launch(&["--rtsp-port", "0"], &flags, log, env);
     (config, serve, port)
 }

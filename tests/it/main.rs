@@ -11,6 +11,7 @@ mod common;
 mod autopilot_drives;
 mod cli;
 mod cli_errors;
+mod clock_step;
 mod control_server;
 mod crop_modes;
 mod detect_motion;

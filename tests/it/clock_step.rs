@@ -1,0 +1,174 @@
+//! The system clock set an hour forward and then back under a running head, for its process
+//! alone (libfaketime preloaded, its offset read from a file the test rewrites; the monotonic
+//! clock untouched, as a clock set by NTP or GPS leaves it): the stream goes on, and the times
+//! DigiView gives never go back: the control protocol's frame times, the KLV metadata's,
+//! CAMERA_IMAGE_CAPTURED's time_utc, the recordings' names; the recording across both steps
+//! plays whole.
+
+use crate::common;
+
+use common::gcs::{Gcs, cameras, http_get, image_capture};
+use common::serve::{Serve, with_stills_env};
+use common::viewer::Viewer;
+use digiview::control::client::Client;
+use digiview::protocol::params::Capture;
+use digiview::protocol::{Body, Param, ParamType};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Where Debian's libfaketime is, whatever the architecture.
+fn libfaketime() -> PathBuf {
+    std::fs::read_dir("/usr/lib")
+        .unwrap()
+        .map(|e| e.unwrap().path().join("faketime/libfaketime.so.1"))
+        .find(|p| p.exists())
+        .expect("libfaketime (scripts/setup.sh installs it)")
+}
+
+/// The times DigiView gives at one moment, µs since 1970.
+#[derive(Debug, Clone, Copy)]
+struct Times {
+    frame: u64,
+    klv: u64,
+    image: u64,
+}
+
+struct Head {
+    serve: Serve,
+    ctl: Client,
+    gcs: Gcs,
+    camera: (u8, u8),
+    viewer: Viewer,
+}
+
+impl Head {
+    fn times(&mut self) -> Times {
+        let reply = self
+            .ctl
+            .request(Body::Get(ParamType::SystemStatus.zeroed()))
+            .unwrap();
+        // The KLV metadata comes once the demo's flight has given a position.
+        let url = format!("{}api/status", self.serve.http.as_ref().unwrap());
+        let t = Instant::now();
+        let klv = loop {
+            let status: serde_json::Value = serde_json::from_slice(&http_get(&url).1).unwrap();
+            if let Some(us) = status["video"]["klv"]["time_us"].as_u64() {
+                break us;
+            }
+            assert!(t.elapsed() < Duration::from_secs(5), "no KLV: {status}");
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        let image = image_capture(&self.gcs, self.camera, 1, 0.0)[0].time_utc;
+        Times {
+            frame: reply[0].timestamp,
+            klv,
+            image,
+        }
+    }
+
+    /// Frames keep coming: one decoded within a second, after `what`.
+    fn streams(&self, what: &str) {
+        let t = Instant::now();
+        self.viewer.fresh_frame();
+        assert!(
+            t.elapsed() < Duration::from_secs(1),
+            "the stream stalled {what}"
+        );
+    }
+}
+
+/// Each time moved from `was` to `now` by seconds within `range`.
+fn moved(was: Times, now: Times, range: std::ops::Range<f64>, when: &str) {
+    for (was, now, what) in [
+        (was.frame, now.frame, "frame time"),
+        (was.klv, now.klv, "KLV time"),
+        (was.image, now.image, "time_utc"),
+    ] {
+        let moved = now as f64 / 1e6 - was as f64 / 1e6;
+        assert!(range.contains(&moved), "{what} moved {moved:.1} s {when}");
+    }
+}
+
+fn capture(ctl: &mut Client, flags: u8) {
+    ctl.set(Param::Capture(Capture {
+        flags,
+        ..Default::default()
+    }))
+    .unwrap();
+}
+
+fn recordings(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".mp4"))
+        .collect();
+    names.sort();
+    names
+}
+
+/// Sets the process's clock `offset` from the real one, and waits out libfaketime's cache
+/// (a second, counted in whole seconds: up to two).
+fn set_clock(file: &Path, offset: &str) {
+    std::fs::write(file, offset).unwrap();
+    std::thread::sleep(Duration::from_millis(2500));
+}
+
+#[test]
+fn the_clock_set_an_hour_forward_and_back_leaves_every_time_going_forward() {
+    let dir = tempfile::tempdir().unwrap();
+    let clock = dir.path().join("faketime");
+    std::fs::write(&clock, "+0").unwrap();
+    let lib = libfaketime();
+    let env = [
+        ("LD_PRELOAD", lib.to_str().unwrap()),
+        ("FAKETIME_TIMESTAMP_FILE", clock.to_str().unwrap()),
+        ("FAKETIME_CACHE_DURATION", "1"),
+        ("FAKETIME_DONT_FAKE_MONOTONIC", "1"),
+    ];
+    let (config, serve, port) = with_stills_env(&[], None, &env);
+    let ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
+    let gcs = Gcs::connect(port);
+    let (system, ids) = cameras(&gcs);
+    let viewer = Viewer::open(serve.rtsp.as_deref().unwrap());
+    let mut head = Head {
+        serve,
+        ctl,
+        gcs,
+        camera: (system, *ids.first().unwrap()),
+        viewer,
+    };
+    // The first frame (the client's set-up and first key frame) before anything is timed.
+    head.viewer.frame();
+    capture(&mut head.ctl, 2);
+    let recording = Instant::now();
+    let before = head.times();
+
+    set_clock(&clock, "+3600");
+    head.streams("once the clock went forward");
+    let ahead = head.times();
+    // Forward is followed (this is also what shows the clock was set).
+    moved(
+        before,
+        ahead,
+        3600.0..3620.0,
+        "with the clock set an hour forward",
+    );
+
+    set_clock(&clock, "+0");
+    head.streams("once the clock went back");
+    let back = head.times();
+    moved(ahead, back, 0.0..20.0, "with the clock set an hour back");
+
+    // The recording across both steps plays whole; the next one's name sorts after it.
+    capture(&mut head.ctl, 0);
+    let seconds = recording.elapsed().as_secs_f64();
+    capture(&mut head.ctl, 2);
+    std::thread::sleep(Duration::from_millis(1500));
+    capture(&mut head.ctl, 0);
+    let names = recordings(&config.captures);
+    assert_eq!(names.len(), 2, "{names:?}");
+    let (n, _) = common::probe_frames(&config.captures.join(&names[0]));
+    let fps = n as f64 / seconds;
+    assert!(fps > 5.0, "{n} frames in {seconds:.1} s of recording");
+}
