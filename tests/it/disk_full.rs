@@ -122,12 +122,13 @@ fn videos(dir: &Path) -> Vec<PathBuf> {
     v
 }
 
-/// A recording's frame count, after FFmpeg decoded it whole without a complaint.
+/// A recording's frame count, after FFmpeg decoded it whole without a complaint (ffprobe
+/// decoding every frame: a file cut mid-fragment says "partial file").
 fn plays(path: &Path) -> u64 {
-    let out = Command::new("ffmpeg")
-        .args(["-v", "error", "-i"])
+    let out = Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args(["-show_entries", "stream=nb_read_frames", "-of", "csv=p=0"])
         .arg(path)
-        .args(["-f", "null", "-"])
         .output()
         .unwrap();
     let said = String::from_utf8_lossy(&out.stderr);
@@ -136,7 +137,7 @@ fn plays(path: &Path) -> u64 {
         "{} does not play cleanly: {said}",
         path.display()
     );
-    common::probe_frames(path).0
+    String::from_utf8_lossy(&out.stdout).trim().parse().unwrap()
 }
 
 /// The STATUSTEXT heard within `limit` holding `words`, and its severity.
