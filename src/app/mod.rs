@@ -6,6 +6,7 @@
 //! trait or hook each owns for what it needs of another (`wiring`), says where each one
 //! serves, and runs them until one of them stops the rest. Nothing below imports this module.
 
+pub mod checks;
 pub mod config;
 pub mod config_rules;
 mod wiring;

@@ -13,6 +13,7 @@
 //! components (the payload SDK's, `crate::payload`): nothing of the vehicle is read there and
 //! DigiView's own component says nothing.
 
+pub mod checks;
 pub mod clock;
 mod config;
 pub mod driver;
@@ -235,6 +236,37 @@ struct Shared {
 }
 
 impl Shared {
+    /// A link's shared part at `address`, not open yet.
+    fn new(
+        (address, cfg, kind): (String, &MavlinkConfig, Kind),
+        (sensed, report): (Arc<Sensed>, Arc<Report>),
+        telemetry: Arc<Telemetry>,
+        policy: Arc<Policy>,
+        components: Option<Arc<dyn Components>>,
+    ) -> Shared {
+        let status = Arc::new(LinkStatus::default());
+        Shared {
+            address,
+            cfg: cfg.clone(),
+            sensed,
+            report,
+            telemetry,
+            ids: kind.ids.unwrap_or_else(|| status.clone()),
+            status,
+            profile: kind.profile,
+            sequence: Default::default(),
+            unknown: Mutex::default(),
+            connection: Mutex::new(None),
+            syncs_sent: Mutex::new(VecDeque::new()),
+            components,
+            policy,
+            signing: cfg.signing_key.as_deref().map(|k| {
+                SigningData::from_config(SigningConfig::new(signing_key(k), 0, true, false))
+            }),
+            stop: Arc::new(AtomicBool::new(false)),
+        }
+    }
+
     /// The open connection, while there is one.
     fn connection(&self) -> Option<Connection> {
         self.connection
@@ -279,32 +311,18 @@ impl Link {
         let Endpoint::Address(address) = cfg.endpoint.parse()? else {
             return Ok(None);
         };
-        let status = Arc::new(LinkStatus::default());
-        let stop = Arc::new(AtomicBool::new(false));
-        let shared = Arc::new(Shared {
-            address,
-            cfg: cfg.clone(),
-            sensed,
-            report,
+        let shared = Arc::new(Shared::new(
+            (address, cfg, kind),
+            (sensed, report),
             telemetry,
-            ids: kind.ids.unwrap_or_else(|| status.clone()),
-            status: status.clone(),
-            profile: kind.profile,
-            sequence: Default::default(),
-            unknown: Mutex::default(),
-            connection: Mutex::new(None),
-            syncs_sent: Mutex::new(VecDeque::new()),
-            components,
             policy,
-            signing: cfg.signing_key.as_deref().map(|k| {
-                SigningData::from_config(SigningConfig::new(signing_key(k), 0, true, false))
-            }),
-            stop: stop.clone(),
-        });
+            components,
+        ));
+        let (status, stop) = (shared.status.clone(), shared.stop.clone());
         // Each thread supervised: a panic is noted and the thread started again.
         let mut threads = vec![];
         let mut loops = vec![("mavlink-rx", receive::receive as fn(&Arc<Shared>))];
-        if kind.profile == Profile::Autopilot {
+        if shared.profile == Profile::Autopilot {
             loops.push(("mavlink-tx", |s: &Arc<Shared>| outgoing::send(s)));
         }
         for (name, run) in loops {
@@ -333,7 +351,7 @@ impl Link {
             ));
         }
         let threads = threads.into_iter().flatten().collect();
-        info!("mavlink ({:?}): {}", kind.profile, cfg.endpoint);
+        info!("mavlink ({:?}): {}", shared.profile, cfg.endpoint);
         Ok(Some(Link {
             status,
             stop,

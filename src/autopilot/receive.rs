@@ -71,28 +71,13 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
         fault.check("mavlink-rx");
         match connection.recv_raw() {
             Ok(raw) => {
-                if let Some((header, msg)) = accept(shared, &raw) {
-                    let simulated = shared.status.drivers.is_demo(connection.sender_addr());
-                    let peer = Peer::Mavlink {
-                        system: u8::try_from(header.system_id).unwrap_or(u8::MAX),
-                        component: header.component_id,
-                        from: connection.sender(),
-                        // With signing on, only signed messages are accepted.
-                        signed: shared.signing.is_some(),
-                    };
-                    if shared.profile == Profile::Payload {
-                        shared.status.messages.fetch_add(1, Ordering::Relaxed);
-                    } else {
-                        let heard = (&header, simulated);
-                        if let Some(news) = apply(shared, vehicle, heard, peer, &msg) {
-                            out.send(OWN_COMPONENT, &outgoing::status_text(&news));
-                        }
-                        outgoing::refuse_own_command(&out, &header, &msg);
-                    }
-                    if let Some(c) = &shared.components {
-                        c.handle(&out, &header, peer, &msg);
-                    }
-                }
+                let simulated = shared.status.drivers.is_demo(connection.sender_addr());
+                take(
+                    shared,
+                    (&out, vehicle),
+                    &raw,
+                    (connection.sender(), simulated),
+                );
             }
             Err(mavlink::error::MessageReadError::Io(e))
                 if matches!(
@@ -105,6 +90,46 @@ fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> 
             // A frame that does not parse (unknown id, bad field): skipped.
             Err(_) => {}
         }
+    }
+}
+
+/// One frame as read, from `from` (`simulated`: the demo's flight): checked (signing) and
+/// parsed, given to the vehicle's path (on the autopilot's link) and to the components.
+pub(super) fn take(
+    shared: &Shared,
+    (out, vehicle): (&Outbox, &mut Vehicle),
+    raw: &MAVLinkMessageRaw,
+    (from, simulated): (Option<std::net::IpAddr>, bool),
+) {
+    if let Some((header, msg)) = accept(shared, raw) {
+        deliver(shared, (out, vehicle), (&header, &msg), (from, simulated));
+    }
+}
+
+/// One message, as [`take`] gives it on.
+pub(super) fn deliver(
+    shared: &Shared,
+    (out, vehicle): (&Outbox, &mut Vehicle),
+    (header, msg): (&MavHeader, &MavMessage),
+    (from, simulated): (Option<std::net::IpAddr>, bool),
+) {
+    let peer = Peer::Mavlink {
+        system: u8::try_from(header.system_id).unwrap_or(u8::MAX),
+        component: header.component_id,
+        from,
+        // With signing on, only signed messages are accepted.
+        signed: shared.signing.is_some(),
+    };
+    if shared.profile == Profile::Payload {
+        shared.status.messages.fetch_add(1, Ordering::Relaxed);
+    } else {
+        if let Some(news) = apply(shared, vehicle, (header, simulated), peer, msg) {
+            out.send(OWN_COMPONENT, &outgoing::status_text(&news));
+        }
+        outgoing::refuse_own_command(out, header, msg);
+    }
+    if let Some(c) = &shared.components {
+        c.handle(out, header, peer, msg);
     }
 }
 

@@ -13,6 +13,7 @@
 //! one of this server's names on its port).
 
 mod api;
+pub mod checks;
 mod events;
 mod names;
 mod page;

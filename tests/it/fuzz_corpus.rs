@@ -1,5 +1,6 @@
-//! Replays the committed fuzz corpus (`fuzz/corpus`) through the same invariants the fuzz
-//! targets assert, so every input the fuzzer found interesting stays a regression test.
+//! Replays the committed fuzz corpus (`fuzz/corpus`, grown by `scripts/fuzz.sh`) through the
+//! same invariants the fuzz targets assert, so every input the fuzzer found interesting stays
+//! a regression test on stable Rust.
 
 use crate::common;
 use digiview::control::checks;
@@ -29,5 +30,41 @@ fn the_server_frames_corpus_holds_its_invariants() {
     let cal = common::lens_cal();
     for input in corpus("server_frames") {
         checks::handle_stream(&checks::controller(&cal), &input);
+    }
+}
+
+#[test]
+fn the_mavlink_corpus_holds_its_invariants() {
+    let cal = common::lens_cal();
+    for input in corpus("mavlink") {
+        digiview::app::checks::mavlink_messages(
+            &mut digiview::app::checks::mavlink_bench(&cal),
+            &input,
+        );
+    }
+}
+
+#[test]
+fn the_web_bodies_corpus_holds_its_invariants() {
+    let cal = common::lens_cal();
+    for input in corpus("web_bodies") {
+        digiview::http::checks::put_body(&std::sync::Arc::new(checks::controller(&cal)), &input);
+    }
+}
+
+#[test]
+fn the_text_files_corpus_holds_its_invariants() {
+    let cal = common::lens_cal();
+    for input in corpus("text_files") {
+        digiview::app::checks::text_files(&cal, &input);
+    }
+}
+
+#[test]
+fn the_external_lines_corpus_holds_its_invariants() {
+    for input in corpus("external_lines") {
+        if let Ok(line) = std::str::from_utf8(&input) {
+            let _ = digiview::detect::external::parse(line);
+        }
     }
 }
