@@ -77,15 +77,27 @@ impl Head {
     }
 }
 
-/// Each time moved from `was` to `now` by seconds within `range`.
-fn moved(was: Times, now: Times, range: std::ops::Range<f64>, when: &str) {
-    for (was, now, what) in [
-        (was.frame, now.frame, "frame time"),
-        (was.klv, now.klv, "KLV time"),
-        (was.image, now.image, "time_utc"),
-    ] {
-        let moved = now as f64 / 1e6 - was as f64 / 1e6;
-        assert!(range.contains(&moved), "{what} moved {moved:.1} s {when}");
+/// The times once each has moved from `was` by seconds within `range`, within 5 s (the last
+/// frame's KLV comes with the next frame).
+fn moved(head: &mut Head, was: Times, range: std::ops::Range<f64>, when: &str) -> Times {
+    let t = Instant::now();
+    loop {
+        let now = head.times();
+        let off = [
+            (was.frame, now.frame, "frame time"),
+            (was.klv, now.klv, "KLV time"),
+            (was.image, now.image, "time_utc"),
+        ]
+        .into_iter()
+        .map(|(was, now, what)| (now as f64 / 1e6 - was as f64 / 1e6, what))
+        .find(|(moved, _)| !range.contains(moved));
+        let Some((moved, what)) = off else {
+            return now;
+        };
+        assert!(
+            t.elapsed() < Duration::from_secs(5),
+            "{what} moved {moved:.1} s {when}"
+        );
     }
 }
 
@@ -107,11 +119,62 @@ fn recordings(dir: &Path) -> Vec<String> {
     names
 }
 
-/// Sets the process's clock `offset` from the real one, and waits out libfaketime's cache
-/// (a second, counted in whole seconds: up to two).
-fn set_clock(file: &Path, offset: &str) {
-    std::fs::write(file, offset).unwrap();
-    std::thread::sleep(Duration::from_millis(2500));
+/// Sets the process's clock `ahead_s` seconds from the real one (libfaketime reads the file at
+/// every call: every thread sees it at once). A step forward is awaited on the web server's
+/// Date header; one back cannot be (hyper's cached Date waits for the clock to pass its next
+/// second again), and needs no wait.
+fn set_clock(file: &Path, serve: &Serve, ahead_s: i64) {
+    std::fs::write(file, format!("{ahead_s:+}")).unwrap();
+    let t = Instant::now();
+    while ahead_s > 0 {
+        let off = (process_ahead_s(serve) - ahead_s).rem_euclid(86_400);
+        if off <= 2 || off >= 86_398 {
+            return;
+        }
+        assert!(
+            t.elapsed() < Duration::from_secs(10),
+            "the process's clock is {} s ahead, not {ahead_s}",
+            process_ahead_s(serve)
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// How far the process's system clock is ahead of the real one, seconds within a day, as its
+/// web server's Date header gives it (to the second).
+fn process_ahead_s(serve: &Serve) -> i64 {
+    use std::io::{Read, Write};
+    let url = serve.http.as_ref().unwrap();
+    let addr = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    write!(
+        s,
+        "GET /api/lenses HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut reply = String::new();
+    s.read_to_string(&mut reply).unwrap();
+    // date: Fri, 27 Nov 2026 13:20:05 GMT
+    let date = reply
+        .lines()
+        .find_map(|l| {
+            l.to_ascii_lowercase()
+                .strip_prefix("date: ")
+                .map(String::from)
+        })
+        .unwrap_or_else(|| panic!("no Date header: {reply}"));
+    let hms: Vec<i64> = date
+        .split(' ')
+        .nth(4)
+        .unwrap()
+        .split(':')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let theirs = hms[0] * 3600 + hms[1] * 60 + hms[2];
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap();
+    (theirs - (now.as_secs() % 86_400) as i64).rem_euclid(86_400)
 }
 
 #[test]
@@ -123,7 +186,8 @@ fn the_clock_set_an_hour_forward_and_back_leaves_every_time_going_forward() {
     let env = [
         ("LD_PRELOAD", lib.to_str().unwrap()),
         ("FAKETIME_TIMESTAMP_FILE", clock.to_str().unwrap()),
-        ("FAKETIME_CACHE_DURATION", "1"),
+        // Read at every call, so every thread sees a step at once, as with a real clock.
+        ("FAKETIME_NO_CACHE", "1"),
         ("FAKETIME_DONT_FAKE_MONOTONIC", "1"),
     ];
     let (config, serve, port) = with_stills_env(&[], None, &env);
@@ -144,21 +208,20 @@ fn the_clock_set_an_hour_forward_and_back_leaves_every_time_going_forward() {
     let recording = Instant::now();
     let before = head.times();
 
-    set_clock(&clock, "+3600");
+    set_clock(&clock, &head.serve, 3600);
     head.streams("once the clock went forward");
-    let ahead = head.times();
-    // Forward is followed (this is also what shows the clock was set).
-    moved(
-        before,
-        ahead,
-        3600.0..3620.0,
-        "with the clock set an hour forward",
-    );
+    // Forward is followed.
+    let forward = "with the clock set an hour forward";
+    let ahead = moved(&mut head, before, 3600.0..3620.0, forward);
 
-    set_clock(&clock, "+0");
+    set_clock(&clock, &head.serve, 0);
     head.streams("once the clock went back");
-    let back = head.times();
-    moved(ahead, back, 0.0..20.0, "with the clock set an hour back");
+    moved(
+        &mut head,
+        ahead,
+        0.0..20.0,
+        "with the clock set an hour back",
+    );
 
     // The recording across both steps plays whole; the next one's name sorts after it.
     capture(&mut head.ctl, 0);
