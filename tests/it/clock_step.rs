@@ -125,8 +125,11 @@ fn recordings(dir: &Path) -> Vec<String> {
 /// second again), and needs no wait.
 fn set_clock(file: &Path, serve: &Serve, ahead_s: i64) {
     std::fs::write(file, format!("{ahead_s:+}")).unwrap();
+    if ahead_s <= 0 {
+        return;
+    }
     let t = Instant::now();
-    while ahead_s > 0 {
+    loop {
         let off = (process_ahead_s(serve) - ahead_s).rem_euclid(86_400);
         if off <= 2 || off >= 86_398 {
             return;
