@@ -360,7 +360,14 @@ impl Capture {
     pub fn record_view(&self, i: usize, on: bool) -> Result<(), CaptureError> {
         let mut recorders = self.view_recorders();
         match (on, recorders[i].is_some()) {
-            (false, _) => recorders[i].take().map_or((), Running::finish),
+            // Finished outside the lock: the stream's units go on meanwhile (up to 5 s).
+            (false, _) => {
+                let ended = recorders[i].take();
+                drop(recorders);
+                if let Some(r) = ended {
+                    r.finish();
+                }
+            }
             (true, true) => {}
             (true, false) => {
                 let name = self.name(&format!("-cam{i}{}", self.cfg.container.extension()));
@@ -429,7 +436,14 @@ impl Capturer for Capture {
     fn record(&self, on: bool) -> Result<(), CaptureError> {
         let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
         match (on, recorder.is_some()) {
-            (false, _) => recorder.take().map_or((), Running::finish),
+            // Finished outside the lock, as before: the encoder's units go on meanwhile.
+            (false, _) => {
+                let ended = recorder.take();
+                drop(recorder);
+                if let Some(r) = ended {
+                    r.finish();
+                }
+            }
             (true, true) => {}
             (true, false) => {
                 let name = self.name(self.cfg.container.extension());

@@ -1,9 +1,8 @@
 //! A recording while it runs, the composed stream's or one view's: fed each access unit by
 //! `capture`, it watches its disk. Four times a second the free space is read; when what the
 //! muxer holds would take it under what is kept free (`capture.min_free_mb`), the recording is
-//! ended cleanly, its last fragment written. A
-//! disk that fails under it (full with nothing kept free, a write error) stops it, its file cut
-//! back to what plays. Either way the head's report says why (SYSTEM_STATUS error 6,
+//! ended cleanly, its last fragment written. A disk that fails under it (full with nothing
+//! kept free, a write error) stops it, its file cut back to what plays. Either way the head's report says why (SYSTEM_STATUS error 6,
 //! `/api/status`, the page, a STATUSTEXT) and no empty file is left.
 
 use crate::state::Report;
