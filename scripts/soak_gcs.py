@@ -2,11 +2,12 @@
 """The ground station of scripts/soak.sh, written with pymavlink (not DigiView's own crate).
 
 Talks to DigiView's MAVLink port as QGroundControl does for as long as it is asked to: a
-HEARTBEAT a second; every 2 s it asks one camera (in turn) for CAMERA_CAPTURE_STATUS and its
-VIDEO_STREAM_INFORMATION (unused parameters NaN, as MAVSDK sends them); every 3 s it turns
-one view's gimbal with MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, alternating COMMAND_LONG and
-COMMAND_INT. It counts what was asked, what was answered and how, and the longest gap in
-each camera's heartbeats. It prints a line a minute and, at the end, one JSON summary line.
+HEARTBEAT a second, and a command three times a second to the cameras in turn: a request
+for CAMERA_CAPTURE_STATUS, one for VIDEO_STREAM_INFORMATION (unused parameters NaN, as MAVSDK
+sends them), then MAV_CMD_SET_CAMERA_ZOOM to a new zoom level, as COMMAND_INT every other
+time. (The views' gimbals are the autopilot's to point in the soak: they are gimbal devices.)
+It counts what was asked, what was answered and how, and the longest gap in each camera's
+heartbeats. It prints a line a minute and, at the end, one JSON summary line.
 
 Usage: soak_gcs.py PORT SECONDS
 """
@@ -30,7 +31,7 @@ def main():
     )
     m = link.mav
     start = time.monotonic()
-    next_beat = next_ask = next_steer = next_report = start
+    next_beat = next_ask = next_report = start
     asked = answered = streams = 0
     results = {}
     last_beat = {}
@@ -43,23 +44,21 @@ def main():
                              0, 0, mavutil.mavlink.MAV_STATE_ACTIVE)
             next_beat += 1.0
         if now >= next_ask:
-            cam = CAMERAS[turn % 4]
-            for msg_id in (CAMERA_CAPTURE_STATUS, VIDEO_STREAM_INFORMATION):
+            cam = CAMERAS[(turn // 3) % 4]
+            if turn % 3 < 2:
+                msg_id = (CAMERA_CAPTURE_STATUS, VIDEO_STREAM_INFORMATION)[turn % 3]
                 m.command_long_send(1, cam, mavutil.mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
                                     msg_id, math.nan, math.nan, math.nan, math.nan, math.nan, 0)
-                asked += 1
-            next_ask += 2.0
-        if now >= next_steer:
-            cam = CAMERAS[turn % 4]
-            pitch, yaw = -20.0 - 20.0 * math.sin(turn / 5), 40.0 * math.cos(turn / 7)
-            cmd = mavutil.mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW
-            if turn % 2:
-                m.command_int_send(1, cam, 0, cmd, 0, 0, pitch, yaw, math.nan, math.nan, 0, 0, 0)
             else:
-                m.command_long_send(1, cam, cmd, 0, pitch, yaw, math.nan, math.nan, 0, 0, 0)
+                level = 50.0 + 50.0 * math.sin(turn / 7)
+                cmd = mavutil.mavlink.MAV_CMD_SET_CAMERA_ZOOM
+                if turn % 2:
+                    m.command_int_send(1, cam, 0, cmd, 0, 0, 2, level, math.nan, math.nan, 0, 0, 0)
+                else:
+                    m.command_long_send(1, cam, cmd, 0, 2, level, math.nan, math.nan, 0, 0, 0)
             asked += 1
             turn += 1
-            next_steer += 3.0
+            next_ask += 1.0 / 3.0
         if now >= next_report:
             if now > start:
                 print(f"gcs: {int((now - start) / 60)} min: asked {asked}, answered {answered}, "

@@ -29,6 +29,27 @@ struct Params {
     shutter: array<vec4f, KNOTS>,
 }
 
+// A rectangle of the output and how its pixels map to rays: twin of the Rust `GpuView`
+// (src/render/gpu/params.rs). The draw pass's views (views.wgsl), the thermal layer's entries.
+struct View {
+    // x, y, w, h in output pixels.
+    rect: vec4u,
+    // KIND_*, unused ×3.
+    kind: vec4u,
+    // lens_from_view, by columns (xyz).
+    m0: vec4f,
+    m1: vec4f,
+    m2: vec4f,
+    // Rectilinear: focal, w/2, h/2. Panorama: radians per pixel, pitch, w/2, h/2.
+    // Fisheye: origin x, y, fisheye pixels per view pixel.
+    p: vec4f,
+}
+
+// Whether rectangle r (x, y, w, h) holds pixel (x, y).
+fn contains(r: vec4u, x: u32, y: u32) -> bool {
+    return x >= r.x && y >= r.y && x < r.x + r.z && y < r.y + r.w;
+}
+
 // KNOTS in src/geometry/shutter.rs.
 const KNOTS: u32 = 17u;
 

@@ -21,7 +21,7 @@ struct Lens {
     offset_frame: vec4f,
     // half_fov, normalized radius at half_fov, the model's θ limit and radius limit.
     limits: vec4f,
-    // Kannala-Brandt k1..k4; Double Sphere (ξ, α).
+    // Kannala-Brandt k1..k4; pinhole k1..k3; Double Sphere (ξ, α).
     k: vec4f,
     // OCam: number of pol and invpol coefficients.
     counts: vec4u,
@@ -49,6 +49,13 @@ fn kannala_brandt_r(theta: f32) -> f32 {
     let k = params.lens.k;
     let t2 = theta * theta;
     return theta * (1.0 + t2 * (k.x + t2 * (k.y + t2 * (k.z + t2 * k.w))));
+}
+
+fn pinhole_r(theta: f32) -> f32 {
+    let k = params.lens.k;
+    let t = tan(theta);
+    let t2 = t * t;
+    return t * (1.0 + t2 * (k.x + t2 * (k.y + t2 * k.z)));
 }
 
 // Negative where the model does not project (its denominator vanishes).

@@ -22,28 +22,9 @@ const SHUTTER_STEPS: u32 = 2u;
 // correction) it lacks is left out.
 override VIEW_KINDS: u32 = 0x1fu;
 
-// Twin of the Rust `GpuView` (src/render/gpu/params.rs).
-struct View {
-    // x, y, w, h in output pixels.
-    rect: vec4u,
-    // KIND_*, unused ×3.
-    kind: vec4u,
-    // lens_from_view, by columns (xyz).
-    m0: vec4f,
-    m1: vec4f,
-    m2: vec4f,
-    // Rectilinear: focal, w/2, h/2. Panorama: radians per pixel, pitch, w/2, h/2.
-    // Fisheye: origin x, y, fisheye pixels per view pixel.
-    p: vec4f,
-}
-
 const NO_VIEW: i32 = -1;
 // MAX_VIEWS in src/render/gpu/params.rs (src/render/gpu/twins.rs holds them equal).
 const MAX_VIEWS: u32 = 68u;
-
-fn contains(r: vec4u, x: u32, y: u32) -> bool {
-    return x >= r.x && y >= r.y && x < r.x + r.z && y < r.y + r.w;
-}
 
 // The view drawn at a pixel: the last one containing it (tiles cover views).
 fn view_at(x: u32, y: u32) -> i32 {

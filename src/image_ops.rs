@@ -1,5 +1,6 @@
 //! Pixel sampling and image metrics shared by the renderers, the scene synthesiser and the
-//! tests: bilinear fetches in OpenCV pixel coordinates, PSNR, and colour-blob centroids.
+//! tests: bilinear fetches in OpenCV pixel coordinates, PSNR, colour-blob centroids, and a
+//! pixel's neighbours.
 
 use crate::layout::Rect;
 use glam::{DVec2, DVec3};
@@ -37,7 +38,7 @@ pub fn bilinear_wrap_x(img: &RgbImage, p: DVec2) -> DVec3 {
 }
 
 /// Bilinear interpolation of `at(x, y)` (which resolves out-of-range pixels) at `p`.
-fn bilinear_by(p: DVec2, at: impl Fn(i64, i64) -> DVec3) -> DVec3 {
+pub fn bilinear_by(p: DVec2, at: impl Fn(i64, i64) -> DVec3) -> DVec3 {
     let (x0, y0) = (p.x.floor(), p.y.floor());
     let (fx, fy) = (p.x - x0, p.y - y0);
     let (x0, y0) = (x0 as i64, y0 as i64);
@@ -87,6 +88,26 @@ pub fn centroid(img: &RgbImage, rect: Rect, colour: DVec3, tolerance: f64) -> Op
         }
     }
     (sum > 0.0).then(|| (acc / sum, sum))
+}
+
+/// The 8 pixels around pixel `i` of a w × h picture (pixels numbered along rows), those
+/// inside it.
+pub fn neighbours(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = ((i % w) as i64, (i / w) as i64);
+    [
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+        (-1, 0),
+        (1, 0),
+        (-1, 1),
+        (0, 1),
+        (1, 1),
+    ]
+    .into_iter()
+    .map(move |(dx, dy)| (x + dx, y + dy))
+    .filter(move |&(x, y)| x >= 0 && y >= 0 && x < w as i64 && y < h as i64)
+    .map(move |(x, y)| y as usize * w + x as usize)
 }
 
 #[cfg(test)]

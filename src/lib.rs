@@ -7,12 +7,13 @@
 //!   `geometry` (frames, attitudes, view orientation, the ground), `lens` (the lens models,
 //!   lens.cal, importers, calibration), `layout` (where views sit in the output frame),
 //!   `frame` (frames as bytes: pixel formats, plane layouts, YUV), `image_ops` (sampling and
-//!   image metrics), `gst` (the GStreamer plumbing sources and streams share), `clock` (the one
-//!   time base), `modes` (the modes an operator picks, as enums), `protocol` (the control
-//!   protocol's codec), `policy` (the one trust boundary: who may change the state, stop the
-//!   system or delete files, and the refusal log every control path shares), `supervise` (a
-//!   service's thread run again after a panic, its failures reported through a trait the
-//!   head's report implements). On them: `state`, the live state in three parts (what an
+//!   image metrics), `thermal` (a thermal sensor's counts: temperatures, gain, palettes),
+//!   `gst` (the GStreamer plumbing sources and streams share), `clock` (the one time base),
+//!   `modes` (the modes an operator picks, as enums), `protocol` (the control protocol's
+//!   codec), `policy` (the one trust boundary: who may change the state, stop the system or
+//!   delete files, and the refusal log every control path shares), `supervise` (a service's
+//!   thread run again after a panic, its failures reported through a trait the head's report
+//!   implements). On them: `state`, the live state in three parts (what an
 //!   operator sets, validated by the one table of rules, with the one set of view operations
 //!   that steer a view; what the head reports; what the vehicle sends and the detector sees),
 //!   the one gate every control path changes the settings through, and the capture hooks
@@ -63,4 +64,5 @@ pub mod state;
 pub mod stream;
 pub mod supervise;
 pub mod telemetry;
+pub mod thermal;
 pub mod units;

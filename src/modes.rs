@@ -1,7 +1,8 @@
 //! The modes an operator picks, as the seed numbers them on the wire: a view's control mode
-//! (CAM_CONTROL_MODE) and crop mode (CAM_CROP_MODE), and the output's layout and detection
-//! overlay (VIDEO_OUTPUT). Shared data at the bottom: the renderer, the layout and every
-//! entry path name them by these types; only the wire codecs see their numbers.
+//! (CAM_CONTROL_MODE) and crop mode (CAM_CROP_MODE), the output's layout and detection
+//! overlay (VIDEO_OUTPUT), and how a view shows the thermal camera (the camera setting
+//! THERMAL). Shared data at the bottom: the renderer, the layout and every entry path name
+//! them by these types; only the wire codecs see their numbers.
 
 use serde::{Deserialize, Serialize};
 
@@ -107,6 +108,48 @@ numbered!(
     }
 );
 
+numbered!(
+    /// How a view shows the thermal camera (`render::thermal_layer`; the camera setting
+    /// THERMAL).
+    #[derive(Default)]
+    ThermalShow, "thermal display" {
+        /// The fisheye alone.
+        #[default]
+        Off = 0,
+        /// The thermal colours over the fisheye view where the thermal camera sees, half of
+        /// each pixel (a rectified view; others show none).
+        Blend = 1,
+        /// The thermal picture in the view's lower right corner, a third of its width.
+        Pip = 2,
+        /// The thermal picture alone, filling the view (black bars where the aspects differ).
+        Thermal = 3,
+    }
+);
+
+impl ThermalShow {
+    /// Its name, as the web API and the command line give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ThermalShow::Off => "off",
+            ThermalShow::Blend => "blend",
+            ThermalShow::Pip => "pip",
+            ThermalShow::Thermal => "thermal",
+        }
+    }
+}
+
+impl std::str::FromStr for ThermalShow {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("no thermal display {s:?}: off, blend, pip or thermal"))
+    }
+}
+
 /// How a view is drawn (CAM_CROP_MODE; conventions.md, "Crop modes"). Any number is taken,
 /// as the seed says: one that names no mode draws the view black.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -195,5 +238,17 @@ mod tests {
             assert_eq!(Crop::from(v).code(), v);
         }
         assert_eq!(Crop::from(9), Crop::Unknown(9));
+    }
+
+    #[test]
+    fn the_thermal_displays_are_named_and_read_back_and_others_refused_in_words() {
+        for &m in ThermalShow::ALL {
+            assert_eq!(m.name().parse::<ThermalShow>(), Ok(m));
+            assert_eq!(ThermalShow::try_from(m.code()), Ok(m));
+        }
+        let e = "overlay".parse::<ThermalShow>().unwrap_err();
+        assert!(e.contains("off, blend, pip or thermal"), "{e}");
+        let e = ThermalShow::try_from(4).unwrap_err();
+        assert_eq!(e.to_string(), "thermal display 4 is outside 0..=3");
     }
 }

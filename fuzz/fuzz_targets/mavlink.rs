@@ -3,12 +3,11 @@
 #![no_main]
 
 use digiview::app::checks::{mavlink_bench, mavlink_messages};
+use digiview::cli::locate::built_in_lens_cal;
 use digiview::lens::LensCal;
 use libfuzzer_sys::fuzz_target;
-use std::path::Path;
+use std::sync::LazyLock;
 
-fuzz_target!(|data: &[u8]| {
-    let cal = LensCal::parse(Path::new("lens.cal"), include_str!("../../lens-cal/lens.cal"))
-        .expect("the shipped lens.cal parses");
-    mavlink_messages(&mut mavlink_bench(&cal), data);
-});
+static CAL: LazyLock<LensCal> = LazyLock::new(built_in_lens_cal);
+
+fuzz_target!(|data: &[u8]| mavlink_messages(&mut mavlink_bench(&CAL), data));

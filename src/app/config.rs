@@ -13,6 +13,7 @@ use crate::head::HeadConfig;
 use crate::head::capture::CaptureConfig;
 use crate::http::HttpConfig;
 use crate::source::demo::DemoConfig;
+use crate::source::thermal::ThermalConfig;
 use crate::source::{SourceSpec, SpecError};
 use crate::stream::PublishTarget;
 use crate::stream::publish::PublishError;
@@ -35,6 +36,8 @@ pub struct Config {
     /// The initial state (a state file as `digiview render --state` takes).
     pub state: Option<PathBuf>,
     pub demo: DemoConfig,
+    /// A thermal sensor beside the fisheye (docs/thermal.md); off by default.
+    pub thermal: ThermalConfig,
     /// Who runs the auto exposure of a V4L2 camera.
     pub exposure: ExposureConfig,
     pub control: ControlConfig,
@@ -78,6 +81,7 @@ impl Default for Config {
             lens: None,
             state: None,
             demo: DemoConfig::default(),
+            thermal: ThermalConfig::default(),
             exposure: ExposureConfig::default(),
             control: ControlConfig::default(),
             rtsp: RtspConfig::default(),
@@ -194,6 +198,9 @@ impl Config {
         }
         if d.stamp && !d.format.is_yuv() {
             return out_of_range("demo stamp needs a 4:2:0 format (nv12 or i420)".into());
+        }
+        if let Err(e) = self.thermal.setup() {
+            return out_of_range(e.to_string());
         }
         if let Err(e) = crate::detect::onnx::wanted(&self.detection.classes) {
             return out_of_range(format!("detection classes: {e}"));
@@ -316,6 +323,16 @@ mod tests {
             ("[encoder]\nbitrate_kbps = 5", "bitrate_kbps"),
             ("[capture]\nstill_format = \"gif\"", "still_format"),
             ("klv_camera = 4", "klv_camera"),
+            ("[thermal]\nfps = 0", "thermal fps 0 is outside 1..=240 fps"),
+            (
+                "[thermal]\nmount = { pitch = \"95deg\" }",
+                "thermal mount pitch 95.00deg is outside -90.00deg..=90.00deg",
+            ),
+            (
+                "[thermal]\nmount.yaw = nan",
+                "thermal mount yaw NaNdeg is outside",
+            ),
+            ("[thermal]\nsource = \"cam\"", "thermal source: "),
             ("publish_views = [\"4=udp://h:5600\"]", "CAMERA=URL"),
             ("[mavlink]\nsigning_key = \"\"", "signing_key is empty"),
             ("[mavlink]\nsigning_key = \"  \"", "signing_key is empty"),

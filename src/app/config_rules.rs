@@ -7,6 +7,9 @@ use super::{Config, ConfigError};
 use crate::geometry::shutter::MAX_READOUT_MS;
 use crate::state::{MAX_CAMERAS, MAX_OUTPUT, MIN_OUTPUT};
 use crate::stream::encoder::BITRATE_KBPS;
+use crate::thermal::{KELVIN_OFFSET, KELVIN_PER_COUNT};
+use crate::units::deg;
+use std::f64::consts::{FRAC_PI_2, PI};
 
 /// One number of the configuration: its key (`demo.fps`), range and unit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,6 +49,12 @@ pub const CONFIG_RULES: &[ConfigRule] = &[
     rule("payload.view", 0.0, (MAX_CAMERAS - 1) as f64, ""),
     rule("health_interval_s", 0.0, 3600.0, "s"),
     rule("readout.time_ms", 0.0, MAX_READOUT_MS, "ms"),
+    rule("thermal.fps", 1.0, 240.0, "fps"),
+    rule("thermal.kelvin_per_count", KELVIN_PER_COUNT.0, KELVIN_PER_COUNT.1, "K"),
+    rule("thermal.kelvin_offset", KELVIN_OFFSET.0, KELVIN_OFFSET.1, "K"),
+    rule("thermal.mount.yaw", -PI, PI, "rad"),
+    rule("thermal.mount.pitch", -FRAC_PI_2, FRAC_PI_2, "rad"),
+    rule("thermal.mount.roll", -PI, PI, "rad"),
 ];
 
 impl Config {
@@ -72,6 +81,12 @@ impl Config {
             ("payload.view", self.payload.view as f64),
             ("health_interval_s", self.health_interval_s),
             ("readout.time_ms", self.readout.time_ms),
+            ("thermal.fps", self.thermal.fps as f64),
+            ("thermal.kelvin_per_count", self.thermal.kelvin_per_count),
+            ("thermal.kelvin_offset", self.thermal.kelvin_offset),
+            ("thermal.mount.yaw", self.thermal.mount.yaw.0),
+            ("thermal.mount.pitch", self.thermal.mount.pitch.0),
+            ("thermal.mount.roll", self.thermal.mount.roll.0),
         ];
         if let Some(id) = self.mavlink.system_id {
             out.push(("mavlink.system_id", id as f64));
@@ -79,7 +94,9 @@ impl Config {
         out
     }
 
-    /// Every number against its rule: "demo fps 200 is outside 1..=120 fps".
+    /// Every number against its rule: "demo fps 200 is outside 1..=120 fps"; an angle in
+    /// degrees, as people write them ("thermal mount pitch 95.00deg is outside
+    /// -90.00deg..=90.00deg").
     pub(super) fn check_ranges(&self) -> Result<(), ConfigError> {
         for (key, v) in self.values() {
             let Some(r) = CONFIG_RULES.iter().find(|r| r.key == key) else {
@@ -91,7 +108,10 @@ impl Config {
                     u => format!(" {u}"),
                 };
                 let key = key.replace('.', " ");
-                let message = format!("{key} {v} is outside {}..={}{unit}", r.lo, r.hi);
+                let message = match r.unit {
+                    "rad" => format!("{key} {} is outside {}..={}", deg(v), deg(r.lo), deg(r.hi)),
+                    _ => format!("{key} {v} is outside {}..={}{unit}", r.lo, r.hi),
+                };
                 return Err(ConfigError::Range(message));
             }
         }

@@ -18,6 +18,7 @@ use crate::cameras::{self, Cameras};
 use crate::control::Controller;
 use crate::control::server::{self, Shutdown};
 use crate::head::capture::Capture;
+use crate::head::thermal::Sensor;
 use crate::head::{DetectorError, Head, HeadError, HeadParts};
 use crate::lens::LensCal;
 use crate::policy::{Permissions, Policy};
@@ -455,9 +456,15 @@ fn start_head(
         telemetry: core.telemetry.clone(),
         key_wanted,
         demo_autopilot: link.and_then(|l| wiring::demo_autopilot(&cfg.mavlink, l)),
+        thermal: Sensor::configured(&cfg.thermal, core.gate.settings().lenses())
+            .map_err(ConfigError::Range)?
+            .map(Arc::new),
     };
     let head = Head::new(cfg.head()?, parts);
     head.load_detector()?;
+    if let (Some(c), Some(reader)) = (cameras, wiring::thermal_reader(&head)) {
+        c.set_thermal(reader);
+    }
     Ok((head, line))
 }
 

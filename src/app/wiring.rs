@@ -7,6 +7,7 @@
 use crate::autopilot::sim::SimAutopilot;
 use crate::autopilot::{Endpoint, LinkStatus, MavlinkConfig};
 use crate::cameras::Cameras;
+use crate::cameras::thermal::{Point, ThermalReader};
 use crate::control::AutopilotStatus;
 use crate::head::{DemoAutopilot, Head};
 use crate::http::NotStarted;
@@ -32,7 +33,11 @@ struct Video(Arc<Head>);
 
 impl crate::http::Video for Video {
     fn status(&self) -> serde_json::Value {
-        serde_json::to_value(self.0.health()).unwrap_or_default()
+        let mut status = serde_json::to_value(self.0.health()).unwrap_or_default();
+        if let (Some(sensor), Some(map)) = (&self.0.thermal, status.as_object_mut()) {
+            map.insert("thermal".into(), sensor.status());
+        }
+        status
     }
     fn preview(&self) -> Arc<Preview> {
         self.0.preview.clone()
@@ -48,6 +53,45 @@ impl crate::http::Video for Video {
     fn readout_estimate(&self) -> serde_json::Value {
         serde_json::to_value(self.0.readout_probe.status()).unwrap_or_default()
     }
+    fn thermal(
+        &self,
+        camera: usize,
+        spot: Option<(f64, f64)>,
+    ) -> Result<serde_json::Value, crate::http::thermal::Refused> {
+        use crate::head::thermal::ThermalAsk;
+        use crate::http::thermal::Refused;
+        let spot = spot.map(|(x, y)| glam::DVec2::new(x, y));
+        match self.0.thermal_in_view(camera, spot) {
+            Ok(v) => Ok(serde_json::to_value(v).unwrap_or_default()),
+            Err(e @ ThermalAsk::NoSensor) => Err(Refused::NoSensor(e.to_string())),
+            Err(e @ ThermalAsk::NoFrame) => Err(Refused::NoFrame(e.to_string())),
+            Err(e) => Err(Refused::Bad(e.to_string())),
+        }
+    }
+}
+
+struct Thermal(Arc<Head>);
+
+impl crate::cameras::thermal::ThermalReader for Thermal {
+    fn range(&self, camera: usize) -> Result<(Option<Point>, Option<Point>), String> {
+        let v = self
+            .0
+            .thermal_in_view(camera, None)
+            .map_err(|e| e.to_string())?;
+        let (w, h) = (v.width as f64, v.height as f64);
+        let point = |s: crate::thermal::Spot| Point {
+            kelvin: s.kelvin,
+            x: s.x / w,
+            y: s.y / h,
+        };
+        Ok((v.hottest.map(point), v.coldest.map(point)))
+    }
+}
+
+/// The head's thermal sensor as the MAVLink cameras read it, where it has one.
+pub(super) fn thermal_reader(head: &Arc<Head>) -> Option<Arc<dyn ThermalReader>> {
+    head.thermal.as_ref()?;
+    Some(Arc::new(Thermal(head.clone())))
 }
 
 /// The video head as the HTTP server sees it.

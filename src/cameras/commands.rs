@@ -73,7 +73,7 @@ impl Command {
     }
 
     /// Param `n` (1-based) as a whole number, when it is one in range.
-    fn whole(&self, n: usize, max: f32) -> Option<u32> {
+    pub(super) fn whole(&self, n: usize, max: f32) -> Option<u32> {
         let v = self.params[n - 1];
         (v.is_finite() && v >= 0.0 && v <= max && v.fract() == 0.0).then_some(v as u32)
     }
@@ -161,7 +161,8 @@ pub(super) fn act_of(command: MavCmd) -> Option<Act> {
         | MAV_CMD_DO_SET_ROI_NONE
         | MAV_CMD_CAMERA_TRACK_POINT
         | MAV_CMD_CAMERA_TRACK_RECTANGLE
-        | MAV_CMD_CAMERA_STOP_TRACKING => Some(Act::Change),
+        | MAV_CMD_CAMERA_STOP_TRACKING
+        | MAV_CMD_SET_CAMERA_SOURCE => Some(Act::Change),
         MAV_CMD_STORAGE_FORMAT => Some(Act::Delete),
         _ => None,
     }
@@ -241,6 +242,7 @@ impl Cameras {
                 None => Answer::denied(format!("camera mode {}", p[1])),
             },
             MAV_CMD_SET_CAMERA_ZOOM => self.zoom(i, p[0], p[1]),
+            MAV_CMD_SET_CAMERA_SOURCE => self.camera_source(i, cmd),
             MAV_CMD_IMAGE_START_CAPTURE => {
                 let asker = (from.system_id as u8, from.component_id);
                 self.start_images(i, (p[1], p[2]), (asker, p[3]))
@@ -291,6 +293,7 @@ impl Cameras {
             }
             STORAGE_INFORMATION_DATA::ID => Answer::accepted(vec![self.storage()]),
             CAMERA_CAPTURE_STATUS_DATA::ID => Answer::accepted(vec![self.capture_status(i)]),
+            CAMERA_THERMAL_RANGE_DATA::ID => return self.thermal_range(i),
             VIDEO_STREAM_INFORMATION_DATA::ID | VIDEO_STREAM_STATUS_DATA::ID => {
                 let Some(stream) = cmd.stream(2) else {
                     return Some(Answer::denied(format!("no video stream {p2}")));

@@ -4,6 +4,7 @@
 
 use super::{Cameras, Streams, boot_ms};
 use crate::geometry::ground::ground_point;
+use crate::modes::ThermalShow;
 use crate::state::State;
 use crate::state::view::zoom;
 use glam::DQuat;
@@ -79,7 +80,11 @@ impl Cameras {
                 | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM
                 | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_TRACKING_POINT
                 | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_TRACKING_RECTANGLE
-                | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_TRACKING_GEO_STATUS,
+                | CameraCapFlags::CAMERA_CAP_FLAGS_HAS_TRACKING_GEO_STATUS
+                | match self.has_thermal() {
+                    true => CameraCapFlags::CAMERA_CAP_FLAGS_HAS_THERMAL_RANGE,
+                    false => CameraCapFlags::empty(),
+                },
             resolution_h: w as u16,
             resolution_v: h as u16,
             cam_definition_version: version,
@@ -259,10 +264,18 @@ impl Cameras {
             // The composed frame shows many views: its hfov is that of the camera asked.
             _ => (out.width, out.height, cam.fov().to_degrees()),
         };
+        let mut flags = VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_RUNNING;
+        if self.has_thermal() {
+            flags |= VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_THERMAL_RANGE_ENABLED;
+            // The view's own stream is the thermal picture while the view shows it alone.
+            if id == VIEW_STREAM && cam.thermal() == ThermalShow::Thermal {
+                flags |= VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_THERMAL;
+            }
+        }
         VIDEO_STREAM_STATUS_DATA {
             framerate: out.fps as f32,
             bitrate: streams.bitrate_kbps * 1000,
-            flags: VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_RUNNING,
+            flags,
             resolution_h: w as u16,
             resolution_v: h as u16,
             rotation: 0,

@@ -19,6 +19,7 @@ mod host;
 mod images;
 mod info;
 mod settings;
+pub mod thermal;
 mod tracking;
 
 pub use commands::Answer;
@@ -109,6 +110,8 @@ pub struct Cameras {
     shots: Arc<Mutex<Vec<Shot>>>,
     /// When each camera's running recording started, as first seen.
     recording_since: Mutex<[Option<Instant>; MAX_CAMERAS]>,
+    /// The thermal sensor's reader, once the head runs one (`thermal`).
+    thermal: std::sync::OnceLock<Arc<dyn thermal::ThermalReader>>,
 }
 
 struct Shot {
@@ -191,6 +194,7 @@ impl Cameras {
             state: Mutex::default(),
             shots: Arc::default(),
             recording_since: Mutex::default(),
+            thermal: std::sync::OnceLock::new(),
         }
     }
 

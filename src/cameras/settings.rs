@@ -1,9 +1,9 @@
 //! A camera's settings as the camera protocol exposes them: PARAM_EXT_* parameters (layout,
 //! overlay, lens, the view's crop mode, lock flags and control mode, the detection's sorting
-//! mode and whether it runs, and the camera mode), described for ground stations by a camera
-//! definition file (the protocol's XML) that each camera offers over MAVLink FTP and the head
-//! serves over HTTP. Every parameter is read from and
-//! written to the live state, so a change over the DigiView protocol shows here and one
+//! mode and whether it runs, how the view shows a thermal sensor where there is one, and the
+//! camera mode), described for ground stations by a camera definition file (the protocol's
+//! XML) that each camera offers over MAVLink FTP and the head serves over HTTP. Every
+//! parameter is read from and written to the live state, so a change over the DigiView protocol shows here and one
 //! made here shows there. The file's version is a checksum of its content: it changes
 //! whenever the content does (another lens.cal, another DigiView), and ground stations fetch
 //! it again.
@@ -26,8 +26,9 @@ struct Setting {
     options: Vec<(u8, String)>,
 }
 
-/// The parameters, in PARAM_EXT index order; LENS's options are lens.cal's lenses.
-fn settings(lenses: &[(u8, String)]) -> Vec<Setting> {
+/// The parameters, in PARAM_EXT index order; LENS's options are lens.cal's lenses; THERMAL
+/// only with a thermal sensor.
+fn settings(lenses: &[(u8, String)], thermal: bool) -> Vec<Setting> {
     let named = |names: &[&str]| -> Vec<(u8, String)> {
         names
             .iter()
@@ -99,6 +100,11 @@ fn settings(lenses: &[(u8, String)]) -> Vec<Setting> {
             description: "Detection",
             options: named(&["Off", "On"]),
         },
+        Setting {
+            name: "THERMAL",
+            description: "Thermal picture",
+            options: named(&["Off", "Blended", "Picture in picture", "Thermal"]),
+        },
         // The camera protocol's own: MAVSDK and QGroundControl look for it in a definition.
         Setting {
             name: "CAM_MODE",
@@ -106,11 +112,14 @@ fn settings(lenses: &[(u8, String)]) -> Vec<Setting> {
             options: named(&["Photo", "Video"]),
         },
     ]
+    .into_iter()
+    .filter(|s| thermal || s.name != "THERMAL")
+    .collect()
 }
 
 /// Whether `name` is one of the cameras' parameters.
 pub fn is_setting(name: &str) -> bool {
-    settings(&[]).iter().any(|s| s.name == name)
+    settings(&[], true).iter().any(|s| s.name == name)
 }
 
 /// A parameter's value in camera `i`'s state (CAM_MODE is the camera's own, not the state's).
@@ -123,6 +132,7 @@ fn value(s: &Settings, i: usize, name: &str) -> u8 {
         "CROP" => c.crop().code(),
         "LOCK" => c.locks().0,
         "CONTROL" => c.control().code(),
+        "THERMAL" => c.thermal().code(),
         "SORTING" => s.detection.sorting_mode,
         _ => s.detection.run_ai as u8,
     }
@@ -142,6 +152,7 @@ fn change_of(name: &str, v: u8) -> Change {
         "CROP" => Change::View(Op::Crop(v)),
         "LOCK" => Change::View(Op::Locks(v as f64)),
         "CONTROL" => Change::View(Op::Control(v)),
+        "THERMAL" => Change::View(Op::Thermal(v)),
         "LAYOUT" => other(|s, v| {
             s.output.layout = LayoutMode::try_from(v).map_err(|e| Invalid(e.to_string()))?;
             Ok(())
@@ -174,13 +185,14 @@ impl Cameras {
         }
     }
 
-    fn lens_options(&self) -> Vec<(u8, String)> {
-        self.gate.settings().lenses().names()
+    /// The parameters as this head has them (its lenses, its thermal sensor or none).
+    fn all_settings(&self) -> Vec<Setting> {
+        settings(&self.gate.settings().lenses().names(), self.has_thermal())
     }
 
     /// The camera definition file, and its version (never 0, which means "none").
     pub fn definition(&self) -> (String, u16) {
-        let body = definition_body(&settings(&self.lens_options()));
+        let body = definition_body(&self.all_settings());
         let crc = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740).checksum(body.as_bytes());
         let version = crc.max(1);
         let xml = format!(
@@ -200,7 +212,7 @@ impl Cameras {
         i: usize,
         msg: &MavMessage,
     ) {
-        let all = settings(&self.lens_options());
+        let all = self.all_settings();
         let component = FIRST_COMPONENT + i as u8;
         let value_of = |index: usize, s: &State| {
             let p = &all[index];
@@ -350,13 +362,14 @@ mod tests {
     #[test]
     fn the_options_are_the_values_the_table_takes() {
         let lenses = [(0, "CIL216".to_string())];
-        for s in settings(&lenses) {
+        for s in settings(&lenses, true) {
             let key = match s.name {
                 "LAYOUT" => "output.layout",
                 "OVERLAY" => "output.overlay",
                 "CROP" => "camera.crop",
                 "LOCK" => "camera.lock",
                 "CONTROL" => "camera.control",
+                "THERMAL" => "camera.thermal",
                 "SORTING" => "detection.sorting_mode",
                 "DETECTION" => "detection.run_ai",
                 _ => continue,

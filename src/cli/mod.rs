@@ -55,7 +55,7 @@ pub enum Command {
     /// Time the renderer: N frames of a 4K fisheye, a new attitude each, per-stage medians.
     Bench(bench_cmd::BenchArgs),
     /// Run the system; `--no-video` runs the control server alone on the live state.
-    Serve(serve_cmd::ServeArgs),
+    Serve(Box<serve_cmd::ServeArgs>),
     /// Talk to a running server over the control protocol: get, set, watch, quit.
     Ctl(ctl_cmd::CtlArgs),
     /// Check that this machine has what `serve` needs (GPU, GStreamer, camera, lens.cal,
@@ -184,7 +184,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Synth(args) => render_cmd::synth(&lens_cal()?, args),
         Command::Bench(args) => bench_cmd::bench(&lens_cal()?, args),
         Command::Detect(args) => detect_cmd::detect(args),
-        Command::Serve(args) => serve_cmd::serve(&lens_cal()?, args),
+        Command::Serve(args) => serve_cmd::serve(&lens_cal()?, *args),
         Command::Doctor(args) => doctor::doctor(cli.lens_cal.as_deref(), args),
         Command::Ctl(args) => ctl_cmd::run(args),
         Command::SimAutopilot(args) => sim_cmd::sim_autopilot(args),

@@ -65,6 +65,11 @@ pub struct ServeArgs {
     /// The view the payload SDK drives, 0 to 3 (replaces the config's `[payload] view`).
     #[arg(long, value_name = "N")]
     payload_view: Option<usize>,
+    /// A thermal sensor beside the fisheye: demo, v4l2:DEVICE (Y16), gst:DESCRIPTION
+    /// (GRAY16_LE), file:PATH, image:PATH, sequence:PATTERN, or off (replaces the config's
+    /// `[thermal] source`; docs/thermal.md).
+    #[arg(long, value_name = "SOURCE")]
+    thermal: Option<String>,
     /// The demo vehicle hovers at the state's attitude and position instead of flying.
     #[arg(long)]
     demo_hover: bool,
@@ -147,6 +152,9 @@ fn config(args: &ServeArgs) -> Result<Config> {
     }
     if !args.publish_views.is_empty() {
         cfg.publish_views = args.publish_views.clone();
+    }
+    if let Some(t) = &args.thermal {
+        cfg.thermal.source = t.clone();
     }
     if args.demo_hover {
         cfg.demo.motion = false;

@@ -303,11 +303,4 @@ impl Head {
             },
         )
     }
-
-    fn pause(&self, d: Duration) {
-        let until = Instant::now() + d;
-        while Instant::now() < until && !self.stop.load(Ordering::Relaxed) {
-            std::thread::sleep(Duration::from_millis(20).min(d));
-        }
-    }
 }

@@ -9,7 +9,6 @@ use crate::detect::{AngularBox, Detection};
 use crate::render::FramePlan;
 use crate::state::State;
 use glam::DVec2;
-use std::sync::atomic::Ordering;
 use tracing::warn;
 
 impl Head {
@@ -23,11 +22,7 @@ impl Head {
         labels: &mut Vec<String>,
     ) -> Option<(Vec<Detection>, FramePlan)> {
         // The frames' own size (what the sender's pixels are in), once one has come.
-        let size = self.frame_size.load(Ordering::Relaxed);
-        let sensor = match ((size >> 32) as u32, size as u32) {
-            (0, _) | (_, 0) => (state.settings.sensor.width, state.settings.sensor.height),
-            wh => wh,
-        };
+        let sensor = self.frame_size_or_sensor(state);
         let lens = match self.gate.settings().lenses().for_frame(
             state.settings.lens,
             sensor,

@@ -168,9 +168,8 @@ impl Head {
         let taken = Instant::now();
         let replaced_now = self.slot.stats().dropped;
         let replaced = std::mem::replace(&mut l.replaced_then, replaced_now) != replaced_now;
-        // A frame just taken is signal, however long ago it was put: a source that waits
-        // while its last frame is not taken (the demo) puts nothing while this loop is
-        // late, and a loop a second late drew "no signal" over a live camera's frame.
+        // A frame just taken is signal, however long ago it was put (a loop a second late
+        // drew "no signal" over a live camera's frame); the slot's silence starts at a take.
         let signal = fresh.is_some() || self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
         if fresh.is_some() && self.source_error().is_some() {
             self.set_source_error(None);
@@ -394,17 +393,7 @@ impl Head {
         // A rolling shutter's frame is drawn as its middle row saw the world.
         let middle_us = self.cfg.readout.middle_after_stamp_us().round() as i64;
         let middle_us = frame.captured_us.saturating_add_signed(middle_us);
-        let (attitude, position) = self.telemetry.at(middle_us);
-        if let Some(a) = attitude {
-            (
-                s.vehicle.attitude.yaw,
-                s.vehicle.attitude.pitch,
-                s.vehicle.attitude.roll,
-            ) = (a.yaw, a.pitch, a.roll);
-        }
-        if let Some(p) = position {
-            s.vehicle.position = p;
-        }
+        self.vehicle_at(&mut s, middle_us);
         // Tiles, and views that follow an object, follow it between scans.
         s.moved_on_to(frame.captured_us);
         let size = (frame.layout.width, frame.layout.height);
@@ -426,6 +415,9 @@ impl Head {
         let plan = FramePlan::new(&s, &lens)
             .map_err(|e| RenderFailure::Frame(e.to_string()))?
             .with_shutter(shutter.clone());
+        let cameras = (0..plan.layout.views.len()).filter(|&i| plan.shows_camera(i));
+        let layer = self.thermal_layer(&s, &plan, cameras.map(|i| (i, i)));
+        let plan = plan.with_thermal(layer);
         let camera = (&lens, s.settings.mount.euler());
         self.readout_probe
             .offer(frame, camera, self.cfg.readout, &self.telemetry);

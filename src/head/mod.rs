@@ -29,6 +29,7 @@ pub mod readout_probe;
 mod recording;
 mod source_thread;
 mod supervise;
+pub mod thermal;
 mod view_pacing;
 mod views;
 
@@ -143,6 +144,8 @@ pub struct Head {
     /// Where the demo's flight goes as an autopilot's would (None: straight into the
     /// telemetry).
     demo_autopilot: Option<DemoAutopilot>,
+    /// The thermal sensor beside the fisheye, if there is one.
+    pub thermal: Option<Arc<thermal::Sensor>>,
 }
 
 /// What the head reads, writes and feeds, built by the assembly.
@@ -160,6 +163,8 @@ pub struct HeadParts {
     /// Set by the RTSP server and the relays when a client joins: a key frame is owed.
     pub key_wanted: Arc<AtomicBool>,
     pub demo_autopilot: Option<DemoAutopilot>,
+    /// The thermal sensor, its lens found (`[thermal]`).
+    pub thermal: Option<Arc<thermal::Sensor>>,
 }
 
 /// Counters the frame loop keeps and the health log reads.
@@ -196,6 +201,7 @@ impl Head {
             telemetry,
             key_wanted,
             demo_autopilot,
+            thermal,
         } = parts;
         let exposure = exposure::ExposureStage::new(&cfg.source, cfg.exposure.auto);
         Arc::new(Head {
@@ -226,6 +232,7 @@ impl Head {
             external: std::sync::OnceLock::new(),
             frame_size: AtomicU64::new(0),
             demo_autopilot,
+            thermal,
         })
     }
 
@@ -259,16 +266,31 @@ impl Head {
                 })
             })?
         };
+        let thermal = match self.thermal.clone() {
+            Some(sensor) => {
+                let head = self.clone();
+                Some(thread("thermal", move || {
+                    head.supervised("thermal", || {
+                        head.thermal_thread(&sensor);
+                        Ok(())
+                    })
+                })?)
+            }
+            None => None,
+        };
         let exposure = self.start_exposure();
         let result = self.supervised("frames", || self.frame_loop());
         self.stop.store(true, Ordering::Relaxed);
         if let Some(t) = exposure {
             let _ = t.join();
         }
+        let thermal = thermal.map_or(Ok(()), |t| t.join().unwrap_or(Ok(())));
         self.capture.finish();
         // The first failure is the one to report: a stage that gave up stopped the others.
         let others = [source, health, detection].map(|t| t.join().unwrap_or(Ok(())));
-        result.and(others.into_iter().collect::<Result<Vec<()>, _>>().map(drop))
+        result
+            .and(thermal)
+            .and(others.into_iter().collect::<Result<Vec<()>, _>>().map(drop))
     }
 
     /// Whether the encoder has put out a picture: what `serve` waits for before it says the
@@ -289,6 +311,15 @@ impl Head {
             .clone()
     }
 
+    /// The newest frame's size, or the sensor's in the settings before the first.
+    fn frame_size_or_sensor(&self, state: &State) -> (u32, u32) {
+        let size = self.frame_size.load(Ordering::Relaxed);
+        match ((size >> 32) as u32, size as u32) {
+            (0, _) | (_, 0) => (state.settings.sensor.width, state.settings.sensor.height),
+            wh => wh,
+        }
+    }
+
     /// Where the demo's movers are, while the demo is the source.
     fn demo_truth(&self) -> Option<detection::score::DemoTruth> {
         let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
@@ -305,6 +336,27 @@ impl Head {
     /// The state now: the settings with the vehicle and objects as last sensed.
     pub fn state(&self) -> State {
         State::now(self.gate.settings(), self.gate.sensed())
+    }
+
+    /// Puts in `s` the vehicle's attitude and position at `t_us`, as far as the telemetry
+    /// knows them (what it does not know is left as it was).
+    fn vehicle_at(&self, s: &mut State, t_us: u64) {
+        let (attitude, position) = self.telemetry.at(t_us);
+        if let Some(a) = attitude {
+            let v = &mut s.vehicle.attitude;
+            (v.yaw, v.pitch, v.roll) = (a.yaw, a.pitch, a.roll);
+        }
+        if let Some(p) = position {
+            s.vehicle.position = p;
+        }
+    }
+
+    /// Waits `d`, or less once the head is stopping.
+    fn pause(&self, d: std::time::Duration) {
+        let until = Instant::now() + d;
+        while Instant::now() < until && !self.stop.load(Ordering::Relaxed) {
+            std::thread::sleep(std::time::Duration::from_millis(20).min(d));
+        }
     }
 }
 

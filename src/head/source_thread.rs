@@ -8,6 +8,7 @@ use crate::clock::clock_us;
 use crate::exposure::{SensorModel, Setting};
 use crate::frame::{Frame, PlaneLayout};
 use crate::geometry::Euler;
+use crate::scene::GridWorld;
 use crate::scene::synth::world_origin;
 use crate::source::demo::{DemoCamera, Flight};
 use crate::source::{Ended, SourceSpec, backoff, retry_logged};
@@ -64,10 +65,7 @@ impl Head {
             }
             attempt += 1;
             self.set_source_error(Some(format!("camera gone: {e}")));
-            let until = Instant::now() + wait;
-            while Instant::now() < until && !self.stop.load(Ordering::Relaxed) {
-                std::thread::sleep(Duration::from_millis(50));
-            }
+            self.pause(wait);
         }
     }
 
@@ -121,8 +119,9 @@ impl Head {
             state.settings.sensor.roi(),
         )?;
         let layout = PlaneLayout::tight(d.format, d.width, d.height)?;
-        let camera =
-            DemoCamera::new(&lens, layout, state.settings.mount.euler()).with_readout(d.readout_ms);
+        let camera = DemoCamera::new(&lens, layout, state.settings.mount.euler())
+            .with_readout(d.readout_ms)
+            .in_world(GridWorld::demo(d.movers));
         let flight = Flight {
             hover: state.vehicle.position,
             // Spinning is about level and north, by the clock alone: never about an attitude

@@ -110,6 +110,21 @@ impl Head {
 
     /// Feeds the watched views' streams that are due (`ViewPacing`) and takes the stills
     /// asked for, drawn from the frame `renderer` rendered last.
+    /// Each of views `wanted` alone at `(w, h)` as `framed`'s state has it, with the thermal
+    /// picture where the view shows it.
+    fn view_plans(&self, framed: &Framed, wanted: &[usize], (w, h): (u32, u32)) -> Vec<FramePlan> {
+        let (state, lens) = (&framed.state, &framed.lens);
+        wanted
+            .iter()
+            .map(|&i| {
+                let plan = FramePlan::single_view(state, lens, i, w, h)
+                    .with_shutter(framed.shutter.clone());
+                let layer = self.thermal_layer(state, &plan, std::iter::once((0, i)));
+                plan.with_thermal(layer)
+            })
+            .collect()
+    }
+
     pub(super) fn render_views(
         self: &Arc<Head>,
         outs: &mut ViewOutputs,
@@ -145,7 +160,8 @@ impl Head {
             Some(framed) => {
                 let size = self.cfg.view_size;
                 let objects = self.cfg.klv_objects;
-                let pictures = draw_views(outs, renderer, framed, &wanted, (size, objects));
+                let plans = self.view_plans(framed, &wanted, size);
+                let pictures = draw_views(outs, renderer, framed, (&wanted, &plans), objects);
                 let took = now.elapsed();
                 outs.pacing.drawn(&wanted, took, now);
                 self.stats
@@ -234,24 +250,20 @@ impl Head {
     }
 }
 
-/// Views `wanted`, each alone at `size`, drawn with `state` and `lens` from the frame last
-/// uploaded to `renderer`, in one submission: I420, with the mip filter as the composed frame
+/// Views `wanted`, each alone as its plan says, drawn from the frame last uploaded to
+/// `renderer`, in one submission: I420, with the mip filter as the composed frame
 /// where a view is minified, else bilinear (`FramePlan::cheapest_filter`); and each view's
 /// KLV packet for the frame captured at `time_us` (with its tracked objects if `objects`).
 fn draw_views(
     outs: &mut ViewOutputs,
     renderer: &mut Renderer,
     framed: &Framed,
-    wanted: &[usize],
-    ((w, h), objects): ((u32, u32), bool),
+    (wanted, plans): (&[usize], &[FramePlan]),
+    objects: bool,
 ) -> Vec<(Picture, Option<Arc<[u8]>>)> {
-    let (state, lens, time_us) = (&framed.state, &framed.lens, framed.unix_us);
-    let plans: Vec<_> = wanted
-        .iter()
-        .map(|&i| FramePlan::single_view(state, lens, i, w, h).with_shutter(framed.shutter.clone()))
-        .collect();
+    let (state, time_us) = (&framed.state, framed.unix_us);
     let mut jobs = Vec::with_capacity(wanted.len());
-    let drawn = wanted.iter().zip(&plans).try_for_each(|(&i, plan)| {
+    let drawn = wanted.iter().zip(plans).try_for_each(|(&i, plan)| {
         let id = match outs.outputs[i] {
             Some(id) => id,
             None => *outs.outputs[i].insert(renderer.add_output(PixelFormat::I420, Filter::Mip)?),
@@ -260,9 +272,10 @@ fn draw_views(
         jobs.push((id, plan));
         Ok(())
     });
-    let klv = wanted.iter().zip(&plans).map(|(&i, plan)| {
+    let klv = wanted.iter().zip(plans).map(|(&i, plan)| {
         let name = format!("DigiView cam {i}");
-        let frame = Some((w, h));
+        let r = plan.views[0].rect;
+        let frame = Some((r.w, r.h));
         let m = ViewMetadata::of(plan, &plan.views[0], state, (time_us, frame), name)?;
         Some(m.with_objects(objects).packet().into())
     });

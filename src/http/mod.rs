@@ -18,6 +18,7 @@ mod events;
 mod names;
 mod page;
 mod preview;
+pub mod thermal;
 
 use crate::control::Controller;
 use crate::stream::Preview;
@@ -89,6 +90,13 @@ pub trait Video: Send + Sync {
     fn estimate_readout(&self, seconds: f64) -> Result<serde_json::Value, NotStarted>;
     /// Where the readout estimate stands, and its answer.
     fn readout_estimate(&self) -> serde_json::Value;
+    /// What view `camera` shows of the thermal sensor (`/api/thermal`): its hottest and
+    /// coldest point and, at view pixel `spot`, the temperature.
+    fn thermal(
+        &self,
+        camera: usize,
+        spot: Option<(f64, f64)>,
+    ) -> Result<serde_json::Value, thermal::Refused>;
 }
 
 /// Why a readout estimate did not start.
@@ -131,6 +139,7 @@ pub async fn serve(
         .merge(api::routes())
         .route("/api/events", get(events::upgrade))
         .route("/api/preview", get(preview::upgrade))
+        .route("/api/thermal", get(thermal::in_view))
         .route(&format!("{CAPTURES_PATH}{{name}}"), get(api::capture_file))
         .layer(axum::Extension(events::Feed::start(web.clone())))
         .layer(axum::middleware::from_fn_with_state(

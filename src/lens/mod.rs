@@ -262,6 +262,11 @@ impl Lenses {
         self.lenses.iter().find(|l| l.id == id)
     }
 
+    /// The lens called `name` at its calibration frame.
+    pub fn named(&self, name: &str) -> Option<&Lens> {
+        self.lenses.iter().find(|l| l.name == name)
+    }
+
     /// Every lens's id and name, in lens.cal's order.
     pub fn names(&self) -> Vec<(u8, String)> {
         self.lenses.iter().map(|l| (l.id, l.name.clone())).collect()

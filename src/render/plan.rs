@@ -10,8 +10,10 @@ use crate::layout::{Layout, LayoutError, Rect, Slot};
 use crate::lens::Lens;
 use crate::modes::Crop;
 use crate::render::mip::{Filter, MAX_LEVELS};
+use crate::render::thermal_layer::ThermalLayer;
 use crate::state::{State, Tracked};
 use glam::{DMat3, DVec2, DVec3};
+use std::sync::Arc;
 
 /// The most samples per axis a minified view takes per output pixel.
 pub const MAX_SAMPLES: u32 = 8;
@@ -59,6 +61,8 @@ pub struct FramePlan {
     pub lens_from_world: DMat3,
     /// The rolling shutter's rotations, row by row (None: a global shutter).
     pub shutter: Option<ShutterTable>,
+    /// The thermal camera's picture over the views (None: none shows it).
+    pub thermal: Option<Arc<ThermalLayer>>,
 }
 
 impl FramePlan {
@@ -104,6 +108,7 @@ impl FramePlan {
             lens: lens.clone(),
             lens_from_world,
             shutter: None,
+            thermal: None,
         };
         for i in 0..plan.views.len() {
             plan.views[i].samples = plan.samples_for(&plan.views[i]);
@@ -146,6 +151,7 @@ impl FramePlan {
             lens: lens.clone(),
             lens_from_world,
             shutter: None,
+            thermal: None,
         };
         plan.views[0].samples = plan.samples_for(&plan.views[0]);
         plan
@@ -175,6 +181,7 @@ impl FramePlan {
             lens: lens.clone(),
             lens_from_world,
             shutter: None,
+            thermal: None,
         };
         for (i, &(yaw, pitch, fov)) in aims.iter().enumerate() {
             let i = i as u32;
@@ -230,6 +237,12 @@ impl FramePlan {
     /// [`ShutterTable::new`], around the middle row, whose attitude the plan was made with).
     pub fn with_shutter(mut self, shutter: Option<ShutterTable>) -> FramePlan {
         self.shutter = shutter;
+        self
+    }
+
+    /// The same plan with `layer` drawn over its views.
+    pub fn with_thermal(mut self, layer: Option<Arc<ThermalLayer>>) -> FramePlan {
+        self.thermal = layer;
         self
     }
 

@@ -44,7 +44,7 @@ const GRID: DVec3 = DVec3::new(200.0, 200.0, 180.0);
 const HAZE: DVec3 = DVec3::new(200.0, 210.0, 222.0);
 const ZENITH: DVec3 = DVec3::new(60.0, 110.0, 200.0);
 /// Soft edge half-width of discs and lines, metres.
-const EDGE: f64 = 0.3;
+pub(super) const EDGE: f64 = 0.3;
 
 #[derive(Clone, Debug)]
 pub struct GridWorld {
@@ -109,9 +109,20 @@ impl Default for GridWorld {
     }
 }
 
+impl GridWorld {
+    /// The demo's world, its movers going round (`moving`) or standing where they start.
+    pub fn demo(moving: bool) -> GridWorld {
+        let mut world = GridWorld::default();
+        if !moving {
+            world.movers.iter_mut().for_each(|m| m.speed = 0.0);
+        }
+        world
+    }
+}
+
 /// 1 on a line of the grid of `spacing` with half-width `half`, 0 away from it; seen through
 /// a footprint `f` metres wide (0: a point), the share of it the line covers.
-fn line(x: f64, spacing: f64, half: f64, f: f64) -> f64 {
+pub(super) fn line(x: f64, spacing: f64, half: f64, f: f64) -> f64 {
     let d = (x - (x / spacing).round() * spacing).abs();
     if f <= 2.0 * EDGE {
         return smoothstep(half + EDGE, half - EDGE, d);
@@ -119,6 +130,19 @@ fn line(x: f64, spacing: f64, half: f64, f: f64) -> f64 {
     // The footprint [d - f/2, d + f/2] against the nearest line and the next one over.
     let covered = |c: f64| ((d + f / 2.0).min(c + half) - (d - f / 2.0).max(c - half)).max(0.0);
     ((covered(0.0) + covered(spacing)) / f).min(1.0)
+}
+
+/// A gentle large-scale tone of the ground at `p`, -1 to 1, so it is not one flat colour
+/// (nor one temperature).
+pub(super) fn tone(p: DVec2) -> f64 {
+    (p.x * TAU / 47.0).sin() * (p.y * TAU / 53.0).sin()
+}
+
+/// How far a ray at or above the horizon is from the horizon's haze towards the zenith's sky,
+/// 0 to 1.
+pub(super) fn skyward(ray: DVec3) -> f64 {
+    let elevation = (-ray.z).clamp(0.0, 1.0).asin();
+    1.0 - (-4.0 * elevation).exp()
 }
 
 impl GridWorld {
@@ -133,15 +157,12 @@ impl GridWorld {
             let c = self.ground(DVec2::new(hit.x, hit.y), (distance, footprint), t);
             HAZE.lerp(c, (-distance / self.haze_distance).exp())
         } else {
-            let elevation = (-ray.z).clamp(0.0, 1.0).asin();
-            HAZE.lerp(ZENITH, 1.0 - (-4.0 * elevation).exp())
+            HAZE.lerp(ZENITH, skyward(ray))
         }
     }
 
     fn ground(&self, p: DVec2, (distance, f): (f64, f64), t: f64) -> DVec3 {
-        // A gentle large-scale tone so the ground is not flat colour.
-        let tone = 1.0 + 0.07 * (p.x * TAU / 47.0).sin() * (p.y * TAU / 53.0).sin();
-        let mut c = GROUND * tone;
+        let mut c = GROUND * (1.0 + 0.07 * tone(p));
         // Grid lines fade with distance, before they shrink below a pixel anywhere.
         let fade = (-distance / 250.0).exp();
         let minor = line(p.x, 10.0, 0.25, f).max(line(p.y, 10.0, 0.25, f));

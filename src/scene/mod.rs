@@ -1,12 +1,14 @@
 //! Synthetic worlds with known content: the input stand-in for a camera and the source of
 //! ground truth. A world answers "what colour is seen along this ray from here at time t";
 //! `synth` turns that into the fisheye frame a lens would capture and into the exact output
-//! frame DigiView should produce.
+//! frame DigiView should produce; `thermal`, the world's temperatures and what a thermal camera
+//! beside the fisheye sees of them.
 
 pub mod board;
 pub mod grid;
 pub mod panorama;
 pub mod synth;
+pub mod thermal;
 
 pub use grid::{GridWorld, Landmark};
 pub use panorama::PanoramaWorld;

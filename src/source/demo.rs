@@ -30,6 +30,9 @@ pub struct DemoConfig {
     pub fps: u32,
     /// Fly a circle (true) or hover at the state's attitude and position (false).
     pub motion: bool,
+    /// The world's movers go round (true) or stand where they start (false): warm bodies at
+    /// known places for checking the thermal camera's registration.
+    pub movers: bool,
     /// Hover yawing 90°/s and rolling ±20° at 1 Hz, by the monotonic clock (for tests with a
     /// simulated autopilot that reports the same; the demo then sends no flight of its own).
     pub spin: bool,
@@ -51,6 +54,7 @@ impl Default for DemoConfig {
             height: 720,
             fps: 30,
             motion: true,
+            movers: true,
             spin: false,
             format: PixelFormat::Nv12,
             stamp: false,
@@ -171,6 +175,12 @@ impl DemoCamera {
             centre: lens.centre(),
             readout: Readout::default(),
         }
+    }
+
+    /// The same camera in `world` (the demo's own by default).
+    pub fn in_world(mut self, world: GridWorld) -> DemoCamera {
+        self.world = world;
+        self
     }
 
     /// The same camera with a rolling shutter reading out top to bottom in `readout_ms`, its

@@ -14,10 +14,29 @@ use gstreamer_video::prelude::*;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// The tail every source pipeline ends in: formats the GPU ingests, newest buffer only (the
-/// offline reader turns dropping off).
-const SINK: &str = "videoconvert ! video/x-raw,format={NV12,I420,RGBA} \
-                    ! appsink name=digiview_sink max-buffers=1 drop=true";
+/// What a source pipeline ends in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Tail {
+    /// Formats the GPU ingests, newest buffer only (the offline reader turns dropping off).
+    Video,
+    /// A thermal sensor's 16-bit counts (V4L2's Y16), newest buffer only.
+    Thermal,
+}
+
+impl Tail {
+    fn sink(self) -> &'static str {
+        match self {
+            Tail::Video => {
+                "videoconvert ! video/x-raw,format={NV12,I420,RGBA} \
+                 ! appsink name=digiview_sink max-buffers=1 drop=true"
+            }
+            Tail::Thermal => {
+                "videoconvert ! video/x-raw,format=GRAY16_LE \
+                 ! appsink name=digiview_sink max-buffers=1 drop=true"
+            }
+        }
+    }
+}
 
 /// How a source stopped on its own.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -33,21 +52,33 @@ pub struct GstSource {
     looped: bool,
 }
 
-fn description(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, bool), SourceError> {
+fn description(
+    spec: &SourceSpec,
+    fps: u32,
+    looped: bool,
+    tail: Tail,
+) -> Result<(String, bool), SourceError> {
     // (description, whether to pace at the media's own timestamps)
+    let sink = tail.sink();
     Ok(match spec {
         SourceSpec::Demo => return Err(SourceError::NotAPipeline),
-        SourceSpec::V4l2(_) => (format!("v4l2src name=digiview_src ! {SINK}"), false),
-        SourceSpec::Pipeline(d) => (format!("{d} ! {SINK}"), false),
+        SourceSpec::V4l2(_) => (format!("v4l2src name=digiview_src ! {sink}"), false),
+        // A thermal description is paced at its timestamps: a recorded core's raw file
+        // replayed through `rawvideoparse` is not live, and would run as fast as it can.
+        SourceSpec::Pipeline(d) => (format!("{d} ! {sink}"), tail == Tail::Thermal),
         SourceSpec::File(_) => (
-            format!("filesrc name=digiview_src ! decodebin ! {SINK}"),
+            format!("filesrc name=digiview_src ! decodebin ! {sink}"),
             true,
         ),
         SourceSpec::Image(p) => (
             format!(
                 "filesrc name=digiview_src ! decodebin ! {} imagefreeze is-live=true \
-                 ! video/x-raw,framerate={fps}/1 ! {SINK}",
-                once_to_nv12(p)
+                 ! video/x-raw,framerate={fps}/1 ! {sink}",
+                if tail == Tail::Video {
+                    once_to_nv12(p)
+                } else {
+                    ""
+                }
             ),
             true,
         ),
@@ -60,7 +91,7 @@ fn description(spec: &SourceSpec, fps: u32, looped: bool) -> Result<(String, boo
             (
                 format!(
                     "multifilesrc name=digiview_src index=0 loop={looped} \
-                     caps={mime},framerate={fps}/1 ! decodebin ! {SINK}"
+                     caps={mime},framerate={fps}/1 ! decodebin ! {sink}"
                 ),
                 true,
             )
@@ -87,13 +118,14 @@ fn build(
     spec: &SourceSpec,
     fps: u32,
     looped: bool,
+    tail: Tail,
 ) -> Result<(gst::Pipeline, gst_app::AppSink, bool), SourceError> {
     if let SourceSpec::File(p) | SourceSpec::Image(p) = spec
         && !p.is_file()
     {
         return Err(SourceError::NoFile(p.clone()));
     }
-    let (description, sync) = description(spec, fps, looped)?;
+    let (description, sync) = description(spec, fps, looped, tail)?;
     let pipeline = crate::gst::launch(&description).map_err(|source| SourceError::Pipeline {
         spec: spec.to_string(),
         source,
@@ -115,10 +147,15 @@ fn build(
 /// Whether `spec` can ever open: its file exists and its pipeline builds (nothing is started,
 /// so a camera that is not plugged in yet passes).
 pub fn check(spec: &SourceSpec, fps: u32) -> Result<(), SourceError> {
+    check_with(spec, fps, Tail::Video)
+}
+
+/// As [`check`], for a pipeline ending in `tail`.
+pub(super) fn check_with(spec: &SourceSpec, fps: u32, tail: Tail) -> Result<(), SourceError> {
     if *spec == SourceSpec::Demo {
         return Ok(());
     }
-    let (pipeline, _, _) = build(spec, fps, false)?;
+    let (pipeline, _, _) = build(spec, fps, false, tail)?;
     let _ = pipeline.set_state(gst::State::Null);
     Ok(())
 }
@@ -131,17 +168,33 @@ pub fn open(
     looped: bool,
     slot: Arc<FrameSlot>,
 ) -> Result<GstSource, SourceError> {
-    let (pipeline, sink, sync) = build(spec, fps, looped)?;
+    open_with(
+        spec,
+        (fps, looped),
+        Tail::Video,
+        move |sample, base| match to_frame(sample, base) {
+            Ok(frame) => slot.put(frame),
+            Err(e) => tracing::warn!("source: dropped a frame: {e}"),
+        },
+    )
+}
+
+/// Builds and starts the pipeline for `spec` ending in `tail`, each sample handed to
+/// `deliver` with the pipeline; `(fps, looped)` as [`open`] takes them.
+pub(super) fn open_with(
+    spec: &SourceSpec,
+    (fps, looped): (u32, bool),
+    tail: Tail,
+    deliver: impl Fn(&gst::Sample, &gst::Pipeline) + Send + Sync + 'static,
+) -> Result<GstSource, SourceError> {
+    let (pipeline, sink, sync) = build(spec, fps, looped, tail)?;
     sink.set_sync(sync);
     let base = pipeline.clone();
     sink.set_callbacks(
         gst_app::AppSinkCallbacks::builder()
             .new_sample(move |sink| {
                 let sample = sink.pull_sample().map_err(|_| gst::FlowError::Eos)?;
-                match to_frame(&sample, &base) {
-                    Ok(frame) => slot.put(frame),
-                    Err(e) => tracing::warn!("source: dropped a frame: {e}"),
-                }
+                deliver(&sample, &base);
                 Ok(gst::FlowSuccess::Ok)
             })
             .build(),
@@ -165,7 +218,7 @@ impl FileFrames {
         if !matches!(spec, SourceSpec::File(_) | SourceSpec::Sequence(_)) {
             return Err(SourceError::NotAFile(spec.to_string()));
         }
-        let (pipeline, sink, _) = build(spec, fps, false)?;
+        let (pipeline, sink, _) = build(spec, fps, false, Tail::Video)?;
         sink.set_sync(false);
         sink.set_drop(false);
         sink.set_max_buffers(2);
@@ -243,27 +296,22 @@ impl Drop for FileFrames {
     }
 }
 
-/// Copies a decoded sample into a tightly packed frame with its capture time.
 /// A sample that is not a frame the renderers take.
-fn sample_error(what: impl std::fmt::Display) -> SourceError {
+pub(super) fn sample_error(what: impl std::fmt::Display) -> SourceError {
     SourceError::Sample(format!("a decoded sample {what}"))
 }
 
+/// Copies a decoded sample into a tightly packed frame with its capture time.
 fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, SourceError> {
-    let caps = sample.caps().ok_or_else(|| sample_error("without caps"))?;
-    let info = gst_video::VideoInfo::from_caps(caps).map_err(sample_error)?;
+    let video = readable(sample)?;
+    let info = video.info();
     let format = match info.format() {
         gst_video::VideoFormat::Nv12 => PixelFormat::Nv12,
         gst_video::VideoFormat::I420 => PixelFormat::I420,
         gst_video::VideoFormat::Rgba => PixelFormat::Rgba,
         f => return Err(sample_error(format_args!("in the unexpected format {f:?}"))),
     };
-    let buffer = sample
-        .buffer()
-        .ok_or_else(|| sample_error("without buffer"))?;
     let layout = PlaneLayout::tight(format, info.width(), info.height())?;
-    let video =
-        gst_video::VideoFrameRef::from_buffer_ref_readable(buffer, &info).map_err(sample_error)?;
     let mut data = vec![0u8; layout.size as usize];
     for (k, plane) in layout.planes().into_iter().enumerate() {
         let src = video.plane_data(k as u32).map_err(sample_error)?;
@@ -275,16 +323,32 @@ fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, Sou
                 .copy_from_slice(&src[y * stride..y * stride + row]);
         }
     }
-    // Capture time: the buffer's running time on the pipeline's clock, as a clock reading.
-    let captured_us = match (buffer.pts(), pipeline.base_time()) {
-        (Some(pts), Some(base)) if pipeline.clock().is_some() => (pts + base).useconds(),
-        _ => clock_us(),
-    };
     Ok(Frame {
         data,
         layout,
-        captured_us,
+        captured_us: captured_us(video.buffer(), pipeline),
     })
+}
+
+/// A decoded sample's frame, mapped for reading.
+pub(super) fn readable(
+    sample: &gst::Sample,
+) -> Result<gst_video::VideoFrameRef<&gst::BufferRef>, SourceError> {
+    let caps = sample.caps().ok_or_else(|| sample_error("without caps"))?;
+    let info = gst_video::VideoInfo::from_caps(caps).map_err(sample_error)?;
+    let buffer = sample
+        .buffer()
+        .ok_or_else(|| sample_error("without buffer"))?;
+    gst_video::VideoFrameRef::from_buffer_ref_readable(buffer, &info).map_err(sample_error)
+}
+
+/// A buffer's capture time: its running time on the pipeline's clock, as a clock reading (the
+/// clock's now where the pipeline has none).
+pub(super) fn captured_us(buffer: &gst::BufferRef, pipeline: &gst::Pipeline) -> u64 {
+    match (buffer.pts(), pipeline.base_time()) {
+        (Some(pts), Some(base)) if pipeline.clock().is_some() => (pts + base).useconds(),
+        _ => clock_us(),
+    }
 }
 
 impl GstSource {

@@ -3,9 +3,11 @@
 //! built-in demo (the synthetic world through a lens of lens.cal). Every source runs on its
 //! own thread and hands frames, in their native layout and with their capture time, to a
 //! [`FrameSlot`] where the newest frame wins; a source that fails is retried with back-off.
+//! `thermal` reads a thermal sensor's 16-bit frames the same ways.
 
 pub mod demo;
 mod gst_source;
+pub mod thermal;
 
 pub use gst_source::{Ended, FileFrames, GstSource, check, open};
 
@@ -126,6 +128,7 @@ struct SlotInner {
     frame: Option<Frame>,
     stats: SlotStats,
     last_put: Option<Instant>,
+    last_taken: Option<Instant>,
 }
 
 /// A one-frame mailbox between a source and the frame loop: a new frame replaces one not yet
@@ -153,6 +156,7 @@ impl FrameSlot {
         let mut inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         loop {
             if let Some(f) = inner.frame.take() {
+                inner.last_taken = Some(Instant::now());
                 let arrived = inner.last_put.unwrap_or_else(Instant::now);
                 return Some((f, arrived));
             }
@@ -181,10 +185,13 @@ impl FrameSlot {
         self.inner.lock().unwrap_or_else(|e| e.into_inner()).stats
     }
 
-    /// How long since the source last delivered (None: never).
+    /// How long the source has been silent (None: it never delivered): since it last put a
+    /// frame, or since its frame was taken if that was later. A source that waits while its
+    /// last frame is not taken (the demo) puts nothing while the frame loop is late; once the
+    /// loop takes that frame, it starts on the next, and its silence starts then.
     pub fn silence(&self) -> Option<Duration> {
         let inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-        inner.last_put.map(|t| t.elapsed())
+        inner.last_put.max(inner.last_taken).map(|t| t.elapsed())
     }
 }
 
@@ -220,6 +227,30 @@ mod tests {
         for bad in ["", "cam", "file:", "sequence:f/a.png", "rtsp:x"] {
             assert!(bad.parse::<SourceSpec>().is_err(), "{bad:?} accepted");
         }
+    }
+
+    /// The demo put a frame, the loop took it 100 ms late: the source is silent from the take,
+    /// not the put (from the put, a loop a second late then showed "no signal" over the demo
+    /// while it drew its next frame).
+    #[test]
+    fn a_frame_taken_late_starts_the_silence_when_it_was_taken() {
+        let slot = FrameSlot::default();
+        assert_eq!(slot.silence(), None);
+        let layout = PlaneLayout::tight(PixelFormat::Rgba, 1, 1).unwrap();
+        let put_at = Instant::now();
+        slot.put(Frame {
+            data: vec![0; 4],
+            layout,
+            captured_us: 0,
+        });
+        std::thread::sleep(Duration::from_millis(100));
+        assert!(slot.take_until(Instant::now()).is_some());
+        let silence = slot.silence().unwrap();
+        let since_put = put_at.elapsed();
+        assert!(
+            silence + Duration::from_millis(100) <= since_put,
+            "silent {silence:?}, put {since_put:?} ago"
+        );
     }
 
     #[test]

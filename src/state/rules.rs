@@ -17,7 +17,7 @@ use super::settings::{
 };
 use super::view::Camera;
 use crate::geometry::view::fov_range;
-use crate::modes::{Control, Crop, LayoutMode, OverlayMode};
+use crate::modes::{Control, Crop, LayoutMode, OverlayMode, ThermalShow};
 use crate::protocol::ParamType;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -321,6 +321,7 @@ mod named {
     pub const CAMERA_LOCK: Rule = set((CamLockFlags, "flags"), ("camera.lock", "lock flags"), (0.0, 7.0), "", LowBits, cam!(|c: &Camera| c.locks().0));
     pub const CAMERA_CONTROL: Rule = also(set((CamControlMode, "mode"), ("camera.control", "control mode"), top(Control::ALL.len()), "", Refuse, cam!(|c: &Camera| c.control().code())), "2 needs a target");
     pub const CAMERA_CROP: Rule = also(set((CamCropMode, "mode"), ("camera.crop", "crop mode"), U8, "", Ignore, cam!(|c: &Camera| c.crop().code())), "above 4 renders black");
+    pub const CAMERA_THERMAL: Rule = also(state(("camera.thermal", "thermal display"), top(ThermalShow::ALL.len()), "", cam!(|c: &Camera| c.thermal().code())), "with a thermal sensor");
     pub const CAMERA_FOV: Rule = also(set((CamFov, "fov"), ("camera.fov", "fov"), FOV, "rad", Clamp, cam!(Camera::fov)), "the crop mode's range");
     pub const CAMERA_TARGET_LAT: Rule = set((CamTarget, "t_latitude"), ("camera.target.lat", "target latitude"), (-90.0, 90.0), "°", Refuse, Of::Camera(|c| c.target().map(|t| t.lat)));
     pub const CAMERA_TARGET_LON: Rule = set((CamTarget, "t_longitude"), ("camera.target.lon", "target longitude"), (-180.0, 180.0), "°", Refuse, Of::Camera(|c| c.target().map(|t| t.lon)));
@@ -376,7 +377,7 @@ pub const RULES: &[Rule] = &[
     wire(CamZoom, "cam_id", CAM, Refuse), CAMERA_ZOOM,
     wire(CamLockFlags, "cam_id", CAM, Refuse), CAMERA_LOCK,
     wire(CamControlMode, "cam_id", CAM, Refuse), CAMERA_CONTROL,
-    wire(CamCropMode, "cam_id", CAM, Refuse), CAMERA_CROP,
+    wire(CamCropMode, "cam_id", CAM, Refuse), CAMERA_CROP, CAMERA_THERMAL,
     wire(CamOffset, "cam_id", CAM, Refuse),
     wire(CamOffset, "x", (-0.5, 0.5), NotState), wire(CamOffset, "y", (-0.5, 0.5), NotState),
     wire(CamOffset, "frame_rel", U8, NotState),

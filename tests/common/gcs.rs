@@ -182,19 +182,7 @@ impl Gcs {
         params: [f32; 7],
     ) -> Option<(MavResult, Vec<MavMessage>)> {
         self.forget();
-        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            target_system: system,
-            target_component: component,
-            command,
-            param1: params[0],
-            param2: params[1],
-            param3: params[2],
-            param4: params[3],
-            param5: params[4],
-            param6: params[5],
-            param7: params[6],
-            confirmation: 0,
-        }));
+        self.send_command(system, component, command, params);
         let result = self.wait_for(Duration::from_secs(3), |h, m| match m {
             MavMessage::COMMAND_ACK(a) if h.component_id == component && a.command == command => {
                 Some(a.result)
@@ -216,6 +204,24 @@ impl Gcs {
             .map(|(_, m)| m)
             .collect();
         Some((result, after))
+    }
+
+    /// Sends COMMAND_LONG `command` to `(system, component)` and nothing more: what was heard
+    /// before stays to be read.
+    pub fn send_command(&self, system: u8, component: u8, command: MavCmd, params: [f32; 7]) {
+        self.send(&MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            target_system: system,
+            target_component: component,
+            command,
+            param1: params[0],
+            param2: params[1],
+            param3: params[2],
+            param4: params[3],
+            param5: params[4],
+            param6: params[5],
+            param7: params[6],
+            confirmation: 0,
+        }));
     }
 }
 

@@ -13,6 +13,7 @@ pub mod klv;
 pub mod peers;
 pub mod relay;
 pub mod serve;
+pub mod thermal;
 pub mod viewer;
 
 use digiview::geometry::rotation::yaw_pitch;

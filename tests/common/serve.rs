@@ -265,18 +265,20 @@ impl CaptureConfig {
 /// the demo drawn at 960x540, its MAVLink link on a free UDP port (returned), `extra` flags
 /// beside, logging at `log` into a pipe ([`Serve::log`]) when given.
 pub fn with_stills(extra: &[&str], log: Option<&str>) -> (CaptureConfig, Serve, u16) {
-    with_stills_env(extra, log, &[])
+    with_stills_env(extra, log, &[], "")
 }
 
-/// As [`with_stills`], with `env` set for the process.
+/// As [`with_stills`], with `env` set for the process and `capture`'s lines added to the
+/// configuration's `[capture]` section.
 pub fn with_stills_env(
     extra: &[&str],
     log: Option<&str>,
     env: &[(&str, &str)],
+    capture: &str,
 ) -> (CaptureConfig, Serve, u16) {
     let config = CaptureConfig::new(
         "[cameras]\nwidth = 640\nheight = 480\npublic_host = \"127.0.0.1\"\n",
-        "min_free_mb = 1\n",
+        &format!("min_free_mb = 1\n{capture}"),
     );
     let port = super::autopilot::free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");

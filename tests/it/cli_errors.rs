@@ -231,8 +231,12 @@ fn serve_briefly(args: &[&str], limit: std::time::Duration) -> (Output, bool) {
 fn serve_fails_at_once_and_says_nothing_on_stdout_when_a_service_cannot_start() {
     let taken = std::net::TcpListener::bind("0.0.0.0:0").unwrap();
     let port = taken.local_addr().unwrap().port().to_string();
-    let cases: [(&[&str], &str); 3] = [
+    let cases: [(&[&str], &str); 4] = [
         (&["--rtsp-port", &port], "cannot serve RTSP on 0.0.0.0:"),
+        (
+            &["--rtsp-port", "0", "--thermal", "image:/no/such/heat.png"],
+            "thermal source: /no/such/heat.png: no such file",
+        ),
         // Sources that can never open are not retried for ever.
         (
             &["--rtsp-port", "0", "--source", "image:/no/such/fish.png"],
@@ -262,6 +266,21 @@ fn serve_fails_at_once_and_says_nothing_on_stdout_when_a_service_cannot_start() 
             "{args:?} announced a service"
         );
     }
+}
+
+/// A thermal lens lens.cal lacks is named with the lenses it has.
+#[test]
+fn a_thermal_lens_that_lens_cal_lacks_is_refused_with_the_lenses_it_has() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("thermal.toml");
+    std::fs::write(&config, "[thermal]\nsource = \"demo\"\nlens = \"NOPE\"\n").unwrap();
+    let args = ["--config", config.to_str().unwrap(), "--rtsp-port", "0"];
+    let (o, ended) = serve_briefly(&args, std::time::Duration::from_secs(20));
+    let err = stderr(&o);
+    assert!(ended && !o.status.success(), "{err}");
+    let want = "thermal lens \"NOPE\" is not in lens.cal; its lenses are CIL216, CIL018, LN007, \
+                BOSON320";
+    assert!(err.contains(want), "{err}");
 }
 
 /// A listen address in the config file is checked even where its flag replaces it (the

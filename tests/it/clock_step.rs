@@ -3,11 +3,13 @@
 //! clock untouched, as a clock set by NTP or GPS leaves it): the stream goes on, and the times
 //! DigiView gives never go back: the control protocol's frame times, the KLV metadata's,
 //! CAMERA_IMAGE_CAPTURED's time_utc, the recordings' names; the recording across both steps
-//! plays whole.
+//! (MPEG-TS) plays whole and its KLV time stamps, read by klvdata, follow the step forward and
+//! never go back.
 
 use crate::common;
 
 use common::gcs::{Gcs, cameras, http_get, image_capture};
+use common::klv::{read_ts, value};
 use common::serve::{Serve, with_stills_env};
 use common::viewer::Viewer;
 use digiview::control::client::Client;
@@ -113,7 +115,7 @@ fn recordings(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".mp4"))
+        .filter(|n| n.ends_with(".ts"))
         .collect();
     names.sort();
     names
@@ -193,7 +195,7 @@ fn the_clock_set_an_hour_forward_and_back_leaves_every_time_going_forward() {
         ("FAKETIME_NO_CACHE", "1"),
         ("FAKETIME_DONT_FAKE_MONOTONIC", "1"),
     ];
-    let (config, serve, port) = with_stills_env(&[], None, &env);
+    let (config, serve, port) = with_stills_env(&[], None, &env, "container = \"ts\"\n");
     let ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
     let gcs = Gcs::connect(port);
     let (system, ids) = cameras(&gcs);
@@ -234,7 +236,26 @@ fn the_clock_set_an_hour_forward_and_back_leaves_every_time_going_forward() {
     capture(&mut head.ctl, 0);
     let names = recordings(&config.captures);
     assert_eq!(names.len(), 2, "{names:?}");
-    let (n, _) = common::probe_frames(&config.captures.join(&names[0]));
+    let first = config.captures.join(&names[0]);
+    let (n, _) = common::probe_frames(&first);
     let fps = n as f64 / seconds;
     assert!(fps > 5.0, "{n} frames in {seconds:.1} s of recording");
+    // Its KLV, as klvdata reads it: the step forward followed once, never a step back.
+    let stamps: Vec<f64> = read_ts(&first).iter().map(|p| value(p, 2)).collect();
+    assert!(
+        stamps.len() as f64 > seconds * 2.0,
+        "{} KLV packets",
+        stamps.len()
+    );
+    let steps: Vec<f64> = stamps.windows(2).map(|w| (w[1] - w[0]) / 1e6).collect();
+    let back = steps.iter().copied().fold(f64::INFINITY, f64::min);
+    // (Two packets of one camera frame, drawn again for a new attitude, share its time.)
+    assert!(back >= 0.0, "a KLV time went back by {:.3} s", -back);
+    let forward = steps.iter().filter(|&&s| s > 60.0).count();
+    let largest = steps.iter().copied().fold(0.0, f64::max);
+    assert_eq!(forward, 1, "KLV time steps over a minute: {steps:?}");
+    assert!(
+        (3598.0..3602.0).contains(&largest),
+        "the step forward was {largest:.1} s"
+    );
 }

@@ -1,6 +1,7 @@
 //! A disk that fills during a recording, as the operator sees it: the recording stops and its
 //! file plays to its end; SYSTEM_STATUS says error 6 (capture) over the DigiView protocol,
-//! `/api/status` says why, a ground station gets the STATUSTEXT; new captures are refused
+//! `/api/status` says why, the page shows it, ground stations (the `mavlink` crate's and
+//! pymavlink's) get the STATUSTEXT; new captures are refused
 //! with the reason and leave no empty file; once space is freed, recording works again and
 //! the status is back to running. The disk is a real one: a tmpfs of a few MB, mounted for
 //! the test (CI runs as root, as this test needs), with a filler file taking most of it.
@@ -9,15 +10,19 @@ use crate::common;
 use common::wait_status;
 
 use common::autopilot::free_udp_port;
+use common::browser::Browser;
 use common::gcs::{Gcs, http_get, text};
+use common::peers::LinePeer;
 use common::serve::{CaptureConfig, Serve};
 use digiview::control::client::Client;
 use digiview::protocol::Param;
 use digiview::protocol::params::Capture;
 use mavlink::dialects::common::{MavMessage, MavSeverity};
+use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
+use tokio::runtime::Runtime;
 
 /// A tmpfs of `mb` MB mounted on a directory of the test's, unmounted when dropped.
 struct Tmpfs {
@@ -62,8 +67,8 @@ impl Drop for Tmpfs {
 }
 
 /// `serve` on the demo at 640x480, its captures on `disk` keeping `min_free_mb`, its
-/// MAVLink link on a free port with a ground station on it.
-fn serve(disk: &Tmpfs, min_free_mb: u32) -> (Serve, Client, Gcs, CaptureConfig) {
+/// MAVLink link on a free port (returned) with a ground station on it.
+fn serve(disk: &Tmpfs, min_free_mb: u32) -> (Serve, Client, Gcs, CaptureConfig, u16) {
     let config = CaptureConfig::new(
         "[encoder]\nbitrate_kbps = 6000\n",
         &format!("min_free_mb = {min_free_mb}\n"),
@@ -93,7 +98,7 @@ fn serve(disk: &Tmpfs, min_free_mb: u32) -> (Serve, Client, Gcs, CaptureConfig) 
         matches!(m, MavMessage::HEARTBEAT(_)).then_some(())
     })
     .expect("DigiView's heartbeat");
-    (serve, ctl, gcs, config)
+    (serve, ctl, gcs, config, port)
 }
 
 fn capture(ctl: &mut Client, flags: u8) -> Result<(), String> {
@@ -157,12 +162,31 @@ fn api_capture(serve: &Serve) -> serde_json::Value {
     serde_json::from_slice::<serde_json::Value>(&body).unwrap()["capture"].clone()
 }
 
+/// The page's status line and its capture row (the text, and whether it is shown as a
+/// fault), once the status line starts with `status`.
+fn page_shows(rt: &Runtime, b: &Browser, status: &str) -> serde_json::Value {
+    rt.block_on(b.until_with(
+        &format!("the page saying {status:?}"),
+        Duration::from_secs(5),
+        "const s = document.getElementById('status').textContent;
+         if (!s.startsWith(arguments[0])) return null;
+         const row = [...document.querySelectorAll('#figures dt')]
+           .find((d) => d.textContent === 'capture');
+         const dd = row ? row.nextElementSibling : null;
+         return {status: s, capture: dd && dd.textContent, bad: dd && dd.classList.contains('bad')};",
+        vec![json!(status)],
+    ))
+}
+
 #[test]
 fn a_disk_that_fills_stops_the_recording_playable_says_why_and_records_again_once_freed() {
     let disk = Tmpfs::mount(4);
     let filler = disk.fill(2);
     // Nothing kept free: the disk itself runs out under the recording.
-    let (serve, mut ctl, gcs, _config) = serve(&disk, 0);
+    let (serve, mut ctl, gcs, _config, port) = serve(&disk, 0);
+    // A second ground station, written with pymavlink, hears the same words.
+    let (mut station, ready) = LinePeer::start("statustext_station.py", &[&port.to_string()]);
+    assert_eq!(ready["ready"], true, "{ready}");
     capture(&mut ctl, 2).unwrap();
     wait_status(&mut ctl, (3, 6), Duration::from_secs(30));
     assert!(!recording(&mut ctl), "still recording on a full disk");
@@ -174,9 +198,23 @@ fn a_disk_that_fills_stops_the_recording_playable_says_why_and_records_again_onc
         ),
         MavSeverity::MAV_SEVERITY_ERROR
     );
+    let heard = station.ask(&json!({"wait": "DigiView: the recording stopped", "for": 3}));
+    assert_eq!(
+        heard["text"], "DigiView: the recording stopped: disk full",
+        "{heard}"
+    );
+    assert_eq!(heard["severity"], "MAV_SEVERITY_ERROR", "{heard}");
     let why = api_capture(&serve);
     assert_eq!(why["brief"], "the recording stopped: disk full", "{why}");
     assert!(why["why"].as_str().unwrap().contains("is kept"), "{why}");
+    // The page, opened now, shows the fault and why, in red.
+    let rt = Runtime::new().unwrap();
+    let b = rt.block_on(Browser::start(1024, 768));
+    rt.block_on(b.client.goto(serve.http.as_deref().unwrap()))
+        .unwrap();
+    let page = page_shows(&rt, &b, "error (capture)");
+    assert_eq!(page["capture"], why["why"], "{page}");
+    assert_eq!(page["bad"], true, "{page}");
     let first = videos(&disk.dir);
     assert_eq!(first.len(), 1, "{first:?}");
     let frames = plays(&first[0]);
@@ -200,6 +238,12 @@ fn a_disk_that_fills_stops_the_recording_playable_says_why_and_records_again_onc
         told(&gcs, "DigiView: running again", Duration::from_secs(3)),
         MavSeverity::MAV_SEVERITY_INFO
     );
+    let heard = station.ask(&json!({"wait": "DigiView: running again", "for": 3}));
+    assert_eq!(heard["severity"], "MAV_SEVERITY_INFO", "{heard}");
+    // The page, kept open, says so without a reload: running, and no capture row.
+    let page = page_shows(&rt, &b, "running");
+    assert_eq!(page["capture"], serde_json::Value::Null, "{page}");
+    rt.block_on(b.close());
     std::thread::sleep(Duration::from_millis(1500));
     capture(&mut ctl, 0).unwrap();
     let now = videos(&disk.dir);
@@ -211,7 +255,7 @@ fn a_disk_that_fills_stops_the_recording_playable_says_why_and_records_again_onc
 fn with_space_kept_free_the_recording_ends_cleanly_before_the_disk_is_full() {
     let disk = Tmpfs::mount(5);
     let _filler = disk.fill(2);
-    let (serve, mut ctl, gcs, _config) = serve(&disk, 2);
+    let (serve, mut ctl, gcs, _config, _) = serve(&disk, 2);
     capture(&mut ctl, 2).unwrap();
     wait_status(&mut ctl, (3, 6), Duration::from_secs(30));
     told(

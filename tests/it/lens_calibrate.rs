@@ -312,7 +312,7 @@ fn a_double_sphere_lens_is_fitted_back_from_board_corners() {
     );
 }
 
-/// The whole loop on each shipped lens as the truth: boards rendered at poses spread over the
+/// The whole loop on each shipped fisheye lens as the truth: boards rendered at poses spread over the
 /// image circle, found by the detector, fitted with Kannala-Brandt: focal lengths within 0.5%,
 /// principal point within 1 px, RMS under 0.3 px, and within 1 px of the truth lens over the
 /// field of view the corners cover.
@@ -323,7 +323,14 @@ fn the_shipped_lenses_are_calibrated_back_from_rendered_boards() {
     let cal = shipped();
     let board = Board::parse("cols=6,rows=6,tag=60mm,spacing=0.3").unwrap();
     let finder = Finder::new(board);
-    for entry in &cal.entries {
+    // The fisheyes: the thermal core's narrow lens (a pinhole) is no Kannala-Brandt fit's.
+    let fisheyes = cal.entries.iter().filter(|e| {
+        !matches!(
+            e.lens().radial.model,
+            digiview::lens::models::Model::Pinhole(_)
+        )
+    });
+    for entry in fisheyes {
         let truth = entry.lens().for_frame(1280, 720, None);
         let t = std::time::Instant::now();
         let mut frames = vec![];

@@ -135,7 +135,11 @@ fn serve_runs_from_an_empty_directory_on_the_built_in_lens_cal() {
 fn lens_cal_is_looked_for_flag_first_then_environment_directory_user_config_built_in() {
     let place = Place::new();
     let (names, log) = lens_names(&place, &[]);
-    assert_eq!(names, ["CIL216", "CIL018", "LN007"], "built in: {log}");
+    assert_eq!(
+        names,
+        ["CIL216", "CIL018", "LN007", "BOSON320"],
+        "built in: {log}"
+    );
 
     let user = place.user_config().join("lens.cal");
     std::fs::write(&user, lens_cal_with("USER", 10)).unwrap();
@@ -211,7 +215,7 @@ fn importing_without_a_lens_cal_starts_the_users_own_from_the_built_in_one() {
         "{log}"
     );
     let (names, _) = lens_names(&place, &[]);
-    assert_eq!(names, ["CIL216", "CIL018", "LN007", "KAL"]);
+    assert_eq!(names, ["CIL216", "CIL018", "LN007", "BOSON320", "KAL"]);
 }
 
 #[test]

@@ -9,7 +9,7 @@
 use crate::common;
 
 use common::exif::{number, read_jpeg as exiftool};
-use common::gcs::{Gcs, accepted, cameras, http_get, image_capture, params};
+use common::gcs::{Gcs, cameras, http_get, image_capture, params};
 use common::serve::{CaptureConfig, Serve, with_stills};
 use mavlink::dialects::common::*;
 use std::process::Command;
@@ -139,32 +139,42 @@ fn each_still_says_where_when_and_how_its_frame_was_taken_as_exiftool_reads_it()
 /// IMAGE_START_CAPTURE for one image carries a sequence number (param 4) so that a command sent
 /// again for want of an ACK (PX4's command sender resends after 0.5 s) is not a second
 /// picture: the same number again is accepted and taken once; the next number is a new one.
+/// Nothing heard is dropped between the two sends: a CAMERA_IMAGE_CAPTURED may come at any
+/// time after the first ACK.
 #[test]
 fn one_image_asked_for_again_with_its_sequence_number_is_taken_once() {
     let (config, _serve, gcs) = serve_with_stills(&[]);
     let (system, _) = cameras(&gcs);
-    let is_captured = |m: &MavMessage| matches!(m, MavMessage::CAMERA_IMAGE_CAPTURED(_));
-    // The CAMERA_IMAGE_CAPTURED that came with the ACK (within 0.5 s of it).
-    let shoot = |sequence: f32| {
-        let start = MavCmd::MAV_CMD_IMAGE_START_CAPTURE;
-        let answer = gcs.command(system, 100, start, params(&[0.0, 0.0, 1.0, sequence]));
-        accepted(answer, "one image")
-            .iter()
-            .filter(|m| is_captured(m))
-            .count()
+    let start = MavCmd::MAV_CMD_IMAGE_START_CAPTURE;
+    // Image `sequence` asked for twice, 0.5 s apart: the ACKs accepting it and the images
+    // captured, counted until both ACKs and one image came (15 s at most), then 3 s more.
+    let shoot_twice = |sequence: f32| {
+        let mut heard = (0, 0);
+        let count =
+            |(acks, images): &mut (usize, usize), h: &mavlink::MavHeader, m: &MavMessage| match m {
+                _ if h.component_id != 100 => {}
+                MavMessage::COMMAND_ACK(a) if a.command == start => {
+                    assert_eq!(a.result, MavResult::MAV_RESULT_ACCEPTED, "image {sequence}");
+                    *acks += 1;
+                }
+                MavMessage::CAMERA_IMAGE_CAPTURED(_) => *images += 1,
+                _ => {}
+            };
+        gcs.forget();
+        gcs.send_command(system, 100, start, params(&[0.0, 0.0, 1.0, sequence]));
+        std::thread::sleep(std::time::Duration::from_millis(500));
+        gcs.send_command(system, 100, start, params(&[0.0, 0.0, 1.0, sequence]));
+        gcs.wait_for(std::time::Duration::from_secs(15), |h, m| {
+            count(&mut heard, h, m);
+            (heard.0 == 2 && heard.1 >= 1).then_some(())
+        });
+        for (h, m) in gcs.collect(std::time::Duration::from_secs(3)) {
+            count(&mut heard, &h, &m);
+        }
+        heard
     };
-    let captured = |limit: u64| {
-        gcs.collect(std::time::Duration::from_secs(limit))
-            .into_iter()
-            .filter(|(h, m)| h.component_id == 100 && is_captured(m))
-            .count()
-    };
-    assert_eq!(
-        shoot(7.0) + shoot(7.0) + captured(3),
-        1,
-        "image 7 sent twice"
-    );
-    assert_eq!(shoot(8.0) + captured(3), 1, "image 8");
+    assert_eq!(shoot_twice(7.0), (2, 1), "image 7 sent twice: ACKs, images");
+    assert_eq!(shoot_twice(8.0), (2, 1), "image 8 sent twice: ACKs, images");
     let stills = std::fs::read_dir(&config.captures).unwrap().count();
     assert_eq!(stills, 2);
 }

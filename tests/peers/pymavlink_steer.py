@@ -22,28 +22,19 @@ import time
 
 from pymavlink import mavutil
 
+from ground_station import beat, connect
+
 
 def main():
-    link = mavutil.mavlink_connection(f"udpout:127.0.0.1:{sys.argv[1]}", source_system=255,
-                                      source_component=190, dialect="common")
-    m = link.mav
-
-    def beat():
-        m.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID,
-                         0, 0, 4)
-
-    beat()
-    first = link.recv_match(type="HEARTBEAT", blocking=True, timeout=10,
-                            condition="HEARTBEAT.get_srcComponent() == 100")
-    if first is None:
-        print(json.dumps({"ready": False}), flush=True)
+    link, system = connect(sys.argv[1])
+    if system is None:
         return 1
-    system = first.get_srcSystem()
+    m = link.mav
     print(json.dumps({"ready": True, "system": system}), flush=True)
     for line in sys.stdin:
         ask = json.loads(line)
         camera, command = ask["camera"], ask["command"]
-        beat()
+        beat(link)
         params = [math.nan if v is None else float(v) for v in ask["params"]]
         if ask["as"] == "long":
             p = params + [0.0] * (7 - len(params))

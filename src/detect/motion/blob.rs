@@ -3,6 +3,7 @@
 //! last scan, and the pixels it takes back that the edge slack dropped.
 
 use super::{DARK, THRESHOLD};
+use crate::image_ops::neighbours;
 use glam::DVec2;
 
 /// The fewest pixels a blob has.
@@ -185,25 +186,6 @@ pub(super) fn grow(mut blob: Blob, weak: &[bool], mask: &mut [bool], w: usize, h
         edge = next;
     }
     blob
-}
-
-/// The 8 pixels around pixel `i` of a w × h picture, those inside it.
-fn neighbours(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
-    let (x, y) = ((i % w) as i64, (i / w) as i64);
-    [
-        (-1, -1),
-        (0, -1),
-        (1, -1),
-        (-1, 0),
-        (1, 0),
-        (-1, 1),
-        (0, 1),
-        (1, 1),
-    ]
-    .into_iter()
-    .map(move |(dx, dy)| (x + dx, y + dy))
-    .filter(move |&(x, y)| x >= 0 && y >= 0 && x < w as i64 && y < h as i64)
-    .map(move |(x, y)| y as usize * w + x as usize)
 }
 
 /// The 8-connected blobs of `mask` with at least [`MIN_PIXELS`] pixels.

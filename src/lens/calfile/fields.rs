@@ -117,6 +117,30 @@ impl<'a> Fields<'a> {
             .ok_or_else(|| self.invalid(key, missing.to_string()))
     }
 
+    /// Exactly `N` finite coefficients under `key`, which model `model` needs.
+    pub fn coefficients<const N: usize>(
+        &self,
+        key: &'static str,
+        model: &str,
+    ) -> Result<[f64; N], LensError> {
+        let names: Vec<String> = (1..=N).map(|i| format!("{key}{i}")).collect();
+        let list = names.join(", ");
+        let given = self.numbers(key, &format!("model `{model}` needs `{key} = [{list}]`"))?;
+        let k: [f64; N] = given.as_slice().try_into().map_err(|_| {
+            self.invalid(
+                key,
+                format!(
+                    "needs exactly {N} coefficients, {list} (got {})",
+                    given.len()
+                ),
+            )
+        })?;
+        if k.iter().any(|x| !x.is_finite()) {
+            return Err(self.invalid(key, "coefficients must be finite".into()));
+        }
+        Ok(k)
+    }
+
     pub fn optional_numbers(&self, key: &'static str) -> Result<Option<Vec<f64>>, LensError> {
         Ok(self.get::<Vec<f64>>(key)?.map(|(v, _)| v))
     }

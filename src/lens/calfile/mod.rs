@@ -331,7 +331,7 @@ provenance = { kind = "calibrated", by = "test", date = "2026-11-21" }
         let e = err(&GOOD.replace("k = [0.01, 0.0, 0.0, 0.0]", "k = [0.01, 0.0]"));
         assert_eq!(
             e,
-            "x/lens.cal:13: k: needs exactly four coefficients (got 2)"
+            "x/lens.cal:13: k: needs exactly 4 coefficients, k1, k2, k3, k4 (got 2)"
         );
         let e = err(&GOOD.replace("fov = \"190deg\"", "fov = \"190 degrees\""));
         assert!(e.starts_with("x/lens.cal:8: fov: "), "{e}");

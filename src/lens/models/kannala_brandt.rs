@@ -32,16 +32,7 @@ impl RadialModel for KannalaBrandt {
     const NAME: &'static str = "kannala_brandt";
 
     fn read(fields: &Fields) -> Result<(Self, PixelAffine), LensError> {
-        let k = fields.numbers("k", "model `kannala_brandt` needs `k = [k1, k2, k3, k4]`")?;
-        let k: [f64; 4] = k.as_slice().try_into().map_err(|_| {
-            fields.invalid(
-                "k",
-                format!("needs exactly four coefficients (got {})", k.len()),
-            )
-        })?;
-        if k.iter().any(|x| !x.is_finite()) {
-            return Err(fields.invalid("k", "coefficients must be finite".into()));
-        }
+        let k = fields.coefficients("k", Self::NAME)?;
         Ok((KannalaBrandt { k }, fields.pinhole()?))
     }
 

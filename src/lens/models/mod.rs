@@ -188,6 +188,7 @@ registry! {
     KannalaBrandt(kannala_brandt),
     DoubleSphere(double_sphere),
     Ocam(ocam),
+    Pinhole(pinhole),
 }
 
 /// The radial model with its limits worked out once.

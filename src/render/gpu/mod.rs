@@ -5,18 +5,22 @@
 //! the output, `pipelines` builds and caches the passes' pipelines, `input` owns the
 //! input-side resources and the upload, `draw` the output target and the block map's buffer,
 //! `ring` the mapped buffers of frames in flight, and `renderer` ties them into the upload →
-//! render → readback path. Touches no sockets and no GStreamer.
+//! render → readback path; `thermal` colours a thermal sensor's counts and `layer` draws
+//! them over the output. Touches no sockets
+//! and no GStreamer.
 
 pub mod blocks;
 pub mod device;
 mod draw;
 mod input;
+pub mod layer;
 pub mod params;
 mod pipelines;
 pub mod planes;
 pub mod renderer;
 mod ring;
 pub mod shaders;
+pub mod thermal;
 #[cfg(test)]
 mod twins;
 

@@ -7,6 +7,7 @@ use super::GpuError;
 use crate::frame::PlaneLayout;
 use crate::geometry::Projection;
 use crate::geometry::shutter::KNOTS;
+use crate::layout::Rect;
 use crate::lens::Lens;
 use crate::render::plan::{FramePlan, PlannedView, ViewMap};
 use bytemuck::{Pod, Zeroable};
@@ -118,37 +119,40 @@ fn columns(m: DMat3) -> [[f32; 4]; 3] {
     [m.x_axis, m.y_axis, m.z_axis].map(|c| [c.x as f32, c.y as f32, c.z as f32, 0.0])
 }
 
+/// A rectified projection as the shaders take it: its KIND_*, the matrix `m` (a view-frame
+/// ray to the frame the shader projects in) as they apply it, and the projection's numbers
+/// (views.wgsl's `View::p`).
+pub fn projection_params(projection: Projection, m: DMat3) -> (u32, DMat3, [f64; 4]) {
+    match projection {
+        Projection::Rectilinear { width, height, fov } => (
+            KIND_RECTILINEAR,
+            m,
+            [
+                Projection::focal(width, fov),
+                width / 2.0,
+                height / 2.0,
+                0.0,
+            ],
+        ),
+        Projection::Panorama {
+            width,
+            height,
+            fov,
+            pitch,
+        } => (
+            KIND_PANORAMA,
+            m * DMat3::from_rotation_y(-pitch),
+            [fov / width, pitch, width / 2.0, height / 2.0],
+        ),
+    }
+}
+
 pub fn gpu_view(plan: &FramePlan, view: &PlannedView) -> GpuView {
-    let r = view.rect;
     let (kind, m, p) = match view.map {
         ViewMap::Rays {
             projection,
             world_from_view,
-        } => {
-            let m = plan.lens_from_world * world_from_view;
-            match projection {
-                Projection::Rectilinear { width, height, fov } => (
-                    KIND_RECTILINEAR,
-                    m,
-                    [
-                        Projection::focal(width, fov),
-                        width / 2.0,
-                        height / 2.0,
-                        0.0,
-                    ],
-                ),
-                Projection::Panorama {
-                    width,
-                    height,
-                    fov,
-                    pitch,
-                } => (
-                    KIND_PANORAMA,
-                    m * DMat3::from_rotation_y(-pitch),
-                    [fov / width, pitch, width / 2.0, height / 2.0],
-                ),
-            }
-        }
+        } => projection_params(projection, plan.lens_from_world * world_from_view),
         ViewMap::Fisheye { origin, scale } => (
             KIND_FISHEYE,
             DMat3::IDENTITY,
@@ -156,10 +160,16 @@ pub fn gpu_view(plan: &FramePlan, view: &PlannedView) -> GpuView {
         ),
         ViewMap::Black => (KIND_BLACK, DMat3::IDENTITY, [0.0; 4]),
     };
+    rays_view(view.rect, (kind, m, p), 0)
+}
+
+/// A rectangle of the output whose pixels map to rays as `(kind, m, p)` say
+/// ([`projection_params`]); `flag` is the pass's own (`kind.y`).
+pub fn rays_view(r: Rect, (kind, m, p): (u32, DMat3, [f64; 4]), flag: u32) -> GpuView {
     let [m0, m1, m2] = columns(m);
     GpuView {
         rect: [r.x, r.y, r.w, r.h],
-        kind: [kind, 0, 0, 0],
+        kind: [kind, flag, 0, 0],
         m0,
         m1,
         m2,

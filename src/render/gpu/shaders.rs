@@ -50,7 +50,8 @@ mod tests {
 
     #[test]
     fn every_pass_parses_and_validates_with_naga() {
-        for (name, source) in passes() {
+        let layer = ("layer", compose(super::super::layer::SOURCE));
+        for (name, source) in passes().into_iter().chain([layer]) {
             let module = naga::front::wgsl::parse_str(&source)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
             naga::valid::Validator::new(

@@ -4,6 +4,7 @@
 //! than as a wrong picture.
 
 use super::blocks::{MIXED, NO_VIEW};
+use super::layer::{GpuLayerEntry, GpuLayerParams, MAX_ENTRIES};
 use super::params::{
     GpuLens, GpuParams, GpuView, KIND_BLACK, KIND_FISHEYE, KIND_PANORAMA, KIND_RECTILINEAR,
     MAX_VIEWS, SHUTTER_BIT,
@@ -19,8 +20,10 @@ use naga::{Expression, Literal, Module, TypeInner};
 use std::mem::offset_of;
 
 fn modules() -> Vec<(&'static str, Module)> {
+    let layer = ("layer", super::shaders::compose(super::layer::SOURCE));
     passes()
         .into_iter()
+        .chain([layer])
         .map(|(name, source)| (name, naga::front::wgsl::parse_str(&source).unwrap()))
         .collect()
 }
@@ -44,7 +47,7 @@ fn constants() -> Vec<(String, f64)> {
 
 #[test]
 fn every_wgsl_constant_with_a_rust_twin_has_its_value() {
-    let twins: [(&str, f64); 18] = [
+    let twins: [(&str, f64); 20] = [
         ("FORMAT_RGBA", PixelFormat::Rgba.shader_code() as f64),
         ("FORMAT_I420", PixelFormat::I420.shader_code() as f64),
         ("FORMAT_NV12", PixelFormat::Nv12.shader_code() as f64),
@@ -55,6 +58,8 @@ fn every_wgsl_constant_with_a_rust_twin_has_its_value() {
         ("KIND_PANORAMA", KIND_PANORAMA as f64),
         ("KIND_FISHEYE", KIND_FISHEYE as f64),
         ("MAX_VIEWS", MAX_VIEWS as f64),
+        ("MAX_ENTRIES", MAX_ENTRIES as f64),
+        ("LAYER_PANORAMA", KIND_PANORAMA as f64),
         ("SHUTTER_BIT", SHUTTER_BIT as f64),
         ("SHUTTER_STEPS", SHUTTER_STEPS as f64),
         ("KNOTS", KNOTS as f64),
@@ -142,6 +147,12 @@ fn every_wgsl_struct_with_a_rust_twin_has_its_layout() {
         ]
     );
     same_layout!(GpuView, "View", [rect, kind, m0, m1, m2, p]);
+    same_layout!(
+        GpuLayerParams,
+        "LayerParams",
+        [output, output_planes, picture, lens]
+    );
+    same_layout!(GpuLayerEntry, "Entry", [view, share]);
     same_layout!(Region, "Region", [offset, stride, width, height]);
     same_layout!(IngestTargets, "Targets", [level1, level2, chroma1, imaged]);
     same_layout!(MipStep, "Step", [finer, coarser, channels]);
@@ -154,6 +165,7 @@ fn every_entry_point_has_the_workgroup_size_the_dispatches_assume() {
         ("downsample", [WORKGROUP, WORKGROUP, 1]),
         ("draw", [WORKGROUP, WORKGROUP, 1]),
         ("draw_mixed", [MIXED_WORKGROUP, 1, 1]),
+        ("layer", [WORKGROUP, WORKGROUP, 1]),
     ];
     let modules = modules();
     for (name, size) in want {

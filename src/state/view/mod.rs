@@ -14,7 +14,7 @@ pub use ops::{Op, Pointing, Seen, ViewError, Zoom, apply};
 
 use crate::geometry::view::{LockFlags, Steering};
 use crate::geometry::{Euler, GeoPoint};
-use crate::modes::{Control, Crop, NotAMode};
+use crate::modes::{Control, Crop, NotAMode, ThermalShow};
 use crate::units::de_angle;
 use serde::{Deserialize, Serialize};
 
@@ -37,6 +37,9 @@ pub struct Camera {
     /// The last CAM_ZOOM step applied.
     zoom: i8,
     crop: Crop,
+    /// How it shows the thermal camera, where there is one.
+    #[serde(default)]
+    thermal: ThermalShow,
     lock: LockFlags,
     control: Control,
     target: Option<GeoPoint>,
@@ -58,6 +61,7 @@ impl Camera {
             fov: 90f64.to_radians(),
             zoom: 0,
             crop: Crop::Rectilinear,
+            thermal: ThermalShow::Off,
             lock: LockFlags::ALL,
             control: Control::Directional,
             target: None,
@@ -85,6 +89,9 @@ impl Camera {
     }
     pub fn crop(&self) -> Crop {
         self.crop
+    }
+    pub fn thermal(&self) -> ThermalShow {
+        self.thermal
     }
     pub fn locks(&self) -> LockFlags {
         self.lock

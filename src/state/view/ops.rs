@@ -1,4 +1,5 @@
-//! The view operations: aim, point as a gimbal, zoom, lock, crop, choose a control mode,
+//! The view operations: aim, point as a gimbal, zoom, lock, crop, show the thermal camera,
+//! choose a control mode,
 //! look along a ray, target a place, release it, follow a click and stop. Each is a pure
 //! function of the view, the operation and what the vehicle and the detector see, and takes
 //! its values through the one table of rules (`crate::state::rules`), so a request means the
@@ -11,7 +12,7 @@ use super::zoom::{fov_at_level, fov_of_focal_length};
 use crate::geometry::GeoPoint;
 use crate::geometry::rotation::Euler;
 use crate::geometry::view::{LockFlags, aim, clamp_fov, zoomed_fov};
-use crate::modes::{Control, Crop, NotAMode};
+use crate::modes::{Control, Crop, NotAMode, ThermalShow};
 use crate::state::rules::{
     CAMERA_LOCK, CAMERA_PITCH, CAMERA_ROLL, CAMERA_TARGET_ALT, CAMERA_TARGET_LAT,
     CAMERA_TARGET_LON, CAMERA_YAW,
@@ -40,6 +41,8 @@ pub enum Op {
     /// The crop mode, by its number (one that names no mode draws the view black); the fov
     /// is brought into the new mode's range.
     Crop(u8),
+    /// How the view shows the thermal camera, by its number.
+    Thermal(u8),
     /// Turns the view's forward axis along a world ray (CAM_OFFSET SET), roll kept.
     LookAlong(DVec3),
     /// Aims the view at a place and follows it as the vehicle moves (coordinate control).
@@ -116,6 +119,8 @@ pub fn apply(c: &mut Camera, op: &Op, seen: &Seen) -> Result<(), ViewError> {
         Op::Locks(v) => c.lock = LockFlags(CAMERA_LOCK.take(v, c.lock.0 as f64) as u8),
         Op::Control(m) => return control(c, m),
         Op::Crop(m) => crop(c, m),
+        // The table's range is the displays' numbers.
+        Op::Thermal(m) => c.thermal = ThermalShow::try_from(m)?,
         Op::LookAlong(ray) => {
             look_along(c, ray, vehicle);
             steer_by_hand(c);

@@ -11,6 +11,7 @@
 //! same upload by [`Renderer::redraw`]: one upload for every output.
 
 use super::input::{Input, InputSetup};
+use super::layer::LayerPass;
 use super::pipelines::{PipelineKey, Pipelines};
 use super::planes::INGEST_BLOCK;
 use super::ring::{MapSlot, RING};
@@ -70,6 +71,8 @@ pub struct Renderer {
     levels_on_host: bool,
     next_id: u64,
     in_flight: VecDeque<InFlight>,
+    /// The thermal layer's passes, made with the first frame that has one.
+    layer: Option<LayerPass>,
 }
 
 impl Renderer {
@@ -93,6 +96,7 @@ impl Renderer {
             levels_on_host: gpu.is_software(),
             next_id: 0,
             in_flight: VecDeque::new(),
+            layer: None,
         })
     }
 
@@ -272,6 +276,33 @@ impl Renderer {
         self.main.encode_draw(encoder, &self.pipelines, &warm_up);
     }
 
+    /// Queues `plan`'s thermal layer, if it has one, over `output` (the main one: None).
+    fn encode_layer(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        plan: &FramePlan,
+        output: Option<OutputId>,
+    ) -> Result<(), GpuError> {
+        let Some(layer) = &plan.thermal else {
+            return Ok(());
+        };
+        if self.layer.is_none() {
+            self.layer = Some(LayerPass::new(&self.gpu)?);
+        }
+        let out = match output {
+            Some(id) => &self.more[id.0],
+            None => &self.main,
+        };
+        let target = out.target.as_ref().unwrap();
+        let pass = self.layer.as_mut().unwrap();
+        pass.encode(
+            &self.gpu,
+            encoder,
+            layer,
+            (&target.buffer, &target.layout, out.format),
+        )
+    }
+
     fn encode_upload(&self, encoder: &mut wgpu::CommandEncoder, slot: usize) {
         let input = self.input.as_ref().unwrap();
         input.encode_upload(encoder, slot, self.filter, &self.pipelines);
@@ -311,6 +342,7 @@ impl Renderer {
         let mut encoder = self.encoder();
         self.encode_upload(&mut encoder, slot);
         self.encode_draw(&mut encoder);
+        self.encode_layer(&mut encoder, plan, None)?;
         let target = self.main.target.as_ref().unwrap();
         target.encode_readback(&mut encoder, slot);
         self.submit(encoder);
@@ -381,9 +413,10 @@ impl Renderer {
         let mut drawn = Vec::with_capacity(jobs.len());
         // The frame drawn from: the newest pushed.
         let id = self.next_id.saturating_sub(1);
-        for &(output, _) in jobs {
-            let output = &mut self.more[output.0];
-            output.encode_draw(&mut encoder, &self.pipelines, &[]);
+        for &(out, plan) in jobs {
+            self.more[out.0].encode_draw(&mut encoder, &self.pipelines, &[]);
+            self.encode_layer(&mut encoder, plan, Some(out))?;
+            let output = &mut self.more[out.0];
             let slot = (output.drawn % RING as u64) as usize;
             output.drawn += 1;
             let target = output.target.as_ref().unwrap();
