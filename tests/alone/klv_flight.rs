@@ -6,7 +6,7 @@
 //! same attitude sample that rendered the frame).
 
 use crate::common;
-use common::autopilot::{SimAutopilot, clock_s, free_udp_port};
+use common::autopilot::{SimAutopilot, clock_zero_unix_s, free_udp_port};
 use common::klv::{read_ts, record_ts, value};
 use common::serve::Serve;
 use common::{DEG, four_view_state};
@@ -67,22 +67,26 @@ fn the_klv_heading_follows_a_yawing_autopilot_and_an_earth_locked_view_keeps_its
     let _sim = SimAutopilot::start(&format!("udpout:127.0.0.1:{link}"), yawing);
     std::thread::sleep(std::time::Duration::from_secs(3));
     let ts = dir.path().join("flight.ts");
+    let zero_before = clock_zero_unix_s();
     record_ts(&url, 6, &ts);
     // Capture times (UNIX µs) back onto the monotonic clock the autopilot's flight is a
-    // function of.
-    let unix_now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_secs_f64();
-    let offset = unix_now - clock_s();
+    // function of. A system clock stepped meanwhile (NTP) moves the one against the other:
+    // said beside a failure, as the cause a heading off by the step's 30°/s would have.
+    let offset = clock_zero_unix_s();
+    let stepped_ms = (offset - zero_before) * 1e3;
     let packets = read_ts(&ts);
     assert!(packets.len() >= 60, "{} packets", packets.len());
     let (mut worst_heading, mut worst_bearing) = (0.0f64, 0.0f64);
-    for p in &packets {
+    let (mut worst_at, mut mean_heading) = (0, 0.0);
+    for (i, p) in packets.iter().enumerate() {
         assert_eq!(p["checksum_ok"], true, "{p}");
         let t = p["values"]["2"].as_u64().unwrap() as f64 * 1e-6 - offset;
         let want = yawing(t).x.to_degrees();
-        worst_heading = worst_heading.max(turn(value(p, 5), want).abs());
+        let off = turn(value(p, 5), want);
+        mean_heading += off / packets.len() as f64;
+        if off.abs() > worst_heading {
+            (worst_heading, worst_at) = (off.abs(), i);
+        }
         // The view's pointing relative to the airframe, turned into the world with the
         // platform's angles as read: camera 0's own direction, whatever the heading.
         let euler = |a: f64, b: f64, c: f64| Euler::new(a * DEG, b * DEG, c * DEG);
@@ -96,7 +100,9 @@ fn the_klv_heading_follows_a_yawing_autopilot_and_an_earth_locked_view_keeps_its
     let last = value(&packets[packets.len() - 1], 5);
     eprintln!(
         "{} packets, heading {first:.1}° to {last:.1}°: off the autopilot by at most \
-         {worst_heading:.3}°; camera 0 off its own direction by at most {worst_bearing:.3}°",
+         {worst_heading:.3}° (packet {worst_at}), {mean_heading:+.3}° on average; camera 0 \
+         off its own direction by at most {worst_bearing:.3}°; the system clock moved \
+         {stepped_ms:+.1} ms against the monotonic one while recording",
         packets.len()
     );
     assert!(worst_heading <= 0.5, "heading off by {worst_heading:.3}°");

@@ -25,6 +25,27 @@ pub fn clock_s() -> f64 {
     digiview::clock::clock_us() as f64 / 1e6
 }
 
+/// The system clock's time of [`clock_s`]'s zero, seconds since 1970: the system clock read
+/// between two readings of [`clock_s`], taking the closest of a hundred brackets (a test
+/// thread preempted between two plain readings, on a loaded host, put them 30 ms apart, and
+/// every UNIX time turned back onto [`clock_s`] was that much late).
+pub fn clock_zero_unix_s() -> f64 {
+    let bracket = || {
+        let before = clock_s();
+        let wall = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64();
+        let after = clock_s();
+        (after - before, wall - (before + after) / 2.0)
+    };
+    (0..100)
+        .map(|_| bracket())
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .unwrap()
+        .1
+}
+
 pub struct SimAutopilot {
     pub start: Instant,
     /// While set, no ATTITUDE is sent (HEARTBEAT goes on).
