@@ -70,6 +70,11 @@ CASES = [
                                    (8, "B", 30), (9, "i", 0), (13, "i", -1571), (17, "i", 0),
                                    (21, "B", 1)]),
     ("GET CAM_EULER", GET, 6, [(0, "B", 3)]),
+    # Extensions: THERMAL (ironbow, a span of 290.5 to 340 K, a blend of 128/255, zoom 4x)
+    # and CAM_THERMAL (camera 1, picture in picture).
+    ("THERMAL", SET, 18, [(0, "B", 2), (1, "B", 1), (2, "H", 2905), (4, "H", 3400),
+                          (6, "B", 128), (7, "B", 4)]),
+    ("CAM_THERMAL", SET, 19, [(0, "B", 1), (1, "B", 2)]),
 ]
 
 if __name__ == "__main__":

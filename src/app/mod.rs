@@ -156,6 +156,7 @@ fn services(core: &Core, cfg: &Config, no_video: bool) -> Result<Services, Serve
         autopilot: link
             .as_ref()
             .map(|l| wiring::autopilot_status(l.status.clone())),
+        has_thermal: !no_video && !cfg.thermal.source.eq_ignore_ascii_case("off"),
         ..Controller::new(core.gate.clone(), core.report.clone(), capture)
     });
     Ok(Services {

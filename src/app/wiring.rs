@@ -86,6 +86,10 @@ impl crate::cameras::thermal::ThermalReader for Thermal {
         };
         Ok((v.hottest.map(point), v.coldest.map(point)))
     }
+
+    fn hfov(&self) -> f64 {
+        self.0.thermal.as_ref().map_or(0.0, |s| s.lens.hfov())
+    }
 }
 
 /// The head's thermal sensor as the MAVLink cameras read it, where it has one.

@@ -259,16 +259,24 @@ impl Cameras {
     ) -> VIDEO_STREAM_STATUS_DATA {
         let cam = &state.settings.cameras[i];
         let out = &state.settings.output;
+        // The view's own stream showing the thermal picture alone is the thermal camera's,
+        // as zoomed.
+        let alone = id == VIEW_STREAM && cam.thermal() == ThermalShow::Thermal;
+        let zoom = state.settings.thermal.zoom.max(1) as f64;
+        let fov = match self.thermal_hfov() {
+            Some(thermal) if alone => 2.0 * ((thermal / 2.0).tan() / zoom).atan(),
+            _ => cam.fov(),
+        };
         let (w, h, hfov) = match id {
-            VIEW_STREAM => (self.cfg.width, self.cfg.height, cam.fov().to_degrees()),
+            VIEW_STREAM => (self.cfg.width, self.cfg.height, fov.to_degrees()),
             // The composed frame shows many views: its hfov is that of the camera asked.
-            _ => (out.width, out.height, cam.fov().to_degrees()),
+            _ => (out.width, out.height, fov.to_degrees()),
         };
         let mut flags = VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_RUNNING;
         if self.has_thermal() {
             flags |= VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_THERMAL_RANGE_ENABLED;
             // The view's own stream is the thermal picture while the view shows it alone.
-            if id == VIEW_STREAM && cam.thermal() == ThermalShow::Thermal {
+            if alone {
                 flags |= VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_THERMAL;
             }
         }

@@ -1,10 +1,10 @@
 //! A camera's settings as the camera protocol exposes them: PARAM_EXT_* parameters (layout,
 //! overlay, lens, the view's crop mode, lock flags and control mode, the detection's sorting
-//! mode and whether it runs, how the view shows a thermal sensor where there is one, and the
-//! camera mode), described for ground stations by a camera definition file (the protocol's
-//! XML) that each camera offers over MAVLink FTP and the head serves over HTTP. Every
-//! parameter is read from and written to the live state, so a change over the DigiView protocol shows here and one
-//! made here shows there. The file's version is a checksum of its content: it changes
+//! mode and whether it runs, how the view shows a thermal sensor and how its picture is
+//! coloured where there is one, and the camera mode), described for ground stations by a
+//! camera definition file (the protocol's XML) that each camera offers over MAVLink FTP and
+//! the head serves over HTTP. Every parameter is read from and written to the live state, so
+//! a change over the DigiView protocol shows here and one made here shows there. The file's version is a checksum of its content: it changes
 //! whenever the content does (another lens.cal, another DigiView), and ground stations fetch
 //! it again.
 
@@ -13,7 +13,8 @@ use crate::autopilot::Outbox;
 use crate::modes::{LayoutMode, OverlayMode};
 use crate::policy::Peer;
 use crate::state::view::Op;
-use crate::state::{Invalid, Refused, Settings, State};
+use crate::state::{Invalid, Refused, Settings, State, ThermalGain};
+use crate::thermal::Palette;
 use mavlink::dialects::common::{
     MavMessage, MavParamExtType, PARAM_EXT_ACK_DATA, PARAM_EXT_VALUE_DATA, ParamAck,
 };
@@ -26,17 +27,19 @@ struct Setting {
     options: Vec<(u8, String)>,
 }
 
-/// The parameters, in PARAM_EXT index order; LENS's options are lens.cal's lenses; THERMAL
-/// only with a thermal sensor.
+/// Options 0, 1, 2 ... named `names`.
+fn named(names: &[&str]) -> Vec<(u8, String)> {
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (i as u8, n.to_string()))
+        .collect()
+}
+
+/// The parameters, in PARAM_EXT index order; LENS's options are lens.cal's lenses; THERMAL,
+/// PALETTE, IR_GAIN and IR_ZOOM only with a thermal sensor.
 fn settings(lenses: &[(u8, String)], thermal: bool) -> Vec<Setting> {
-    let named = |names: &[&str]| -> Vec<(u8, String)> {
-        names
-            .iter()
-            .enumerate()
-            .map(|(i, n)| (i as u8, n.to_string()))
-            .collect()
-    };
-    vec![
+    let mut all = vec![
         Setting {
             name: "LAYOUT",
             description: "Layout",
@@ -100,21 +103,50 @@ fn settings(lenses: &[(u8, String)], thermal: bool) -> Vec<Setting> {
             description: "Detection",
             options: named(&["Off", "On"]),
         },
+    ];
+    if thermal {
+        all.extend(thermal_settings());
+    }
+    // The camera protocol's own: MAVSDK and QGroundControl look for it in a definition.
+    all.push(Setting {
+        name: "CAM_MODE",
+        description: "Camera mode",
+        options: named(&["Photo", "Video"]),
+    });
+    all
+}
+
+/// The thermal sensor's: how the view shows it, and how its picture is coloured and zoomed.
+fn thermal_settings() -> [Setting; 4] {
+    [
         Setting {
             name: "THERMAL",
             description: "Thermal picture",
             options: named(&["Off", "Blended", "Picture in picture", "Thermal"]),
         },
-        // The camera protocol's own: MAVSDK and QGroundControl look for it in a definition.
         Setting {
-            name: "CAM_MODE",
-            description: "Camera mode",
-            options: named(&["Photo", "Video"]),
+            name: "PALETTE",
+            description: "Thermal palette",
+            options: named(&[
+                "White hot",
+                "Black hot",
+                "Ironbow",
+                "Rainbow",
+                "Arctic",
+                "Lava",
+            ]),
+        },
+        Setting {
+            name: "IR_GAIN",
+            description: "Thermal gain",
+            options: named(&["Automatic", "Fixed span"]),
+        },
+        Setting {
+            name: "IR_ZOOM",
+            description: "Thermal zoom",
+            options: (1..=8).map(|z| (z, format!("{z}x"))).collect(),
         },
     ]
-    .into_iter()
-    .filter(|s| thermal || s.name != "THERMAL")
-    .collect()
 }
 
 /// Whether `name` is one of the cameras' parameters.
@@ -133,6 +165,9 @@ fn value(s: &Settings, i: usize, name: &str) -> u8 {
         "LOCK" => c.locks().0,
         "CONTROL" => c.control().code(),
         "THERMAL" => c.thermal().code(),
+        "PALETTE" => s.thermal.palette.code(),
+        "IR_GAIN" => s.thermal.gain as u8,
+        "IR_ZOOM" => s.thermal.zoom,
         "SORTING" => s.detection.sorting_mode,
         _ => s.detection.run_ai as u8,
     }
@@ -163,6 +198,18 @@ fn change_of(name: &str, v: u8) -> Change {
         }),
         "LENS" => other(|s, v| {
             s.lens = v;
+            Ok(())
+        }),
+        "PALETTE" => other(|s, v| {
+            s.thermal.palette = Palette::try_from(v).map_err(|e| Invalid(e.to_string()))?;
+            Ok(())
+        }),
+        "IR_GAIN" => other(|s, v| {
+            s.thermal.gain = [ThermalGain::Auto, ThermalGain::Span][v.min(1) as usize];
+            Ok(())
+        }),
+        "IR_ZOOM" => other(|s, v| {
+            s.thermal.zoom = v;
             Ok(())
         }),
         "SORTING" => other(|s, v| {
@@ -370,6 +417,9 @@ mod tests {
                 "LOCK" => "camera.lock",
                 "CONTROL" => "camera.control",
                 "THERMAL" => "camera.thermal",
+                "PALETTE" => "thermal.palette",
+                "IR_GAIN" => "thermal.gain",
+                "IR_ZOOM" => "thermal.zoom",
                 "SORTING" => "detection.sorting_mode",
                 "DETECTION" => "detection.run_ai",
                 _ => continue,

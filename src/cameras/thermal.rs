@@ -28,6 +28,9 @@ pub trait ThermalReader: Send + Sync {
     /// View `camera`'s hottest and coldest point (None where it shows none of the thermal
     /// camera's field), or why nothing can be read.
     fn range(&self, camera: usize) -> Result<(Option<Point>, Option<Point>), String>;
+
+    /// The thermal camera's horizontal field of view, radians.
+    fn hfov(&self) -> f64;
 }
 
 const ZERO_CELSIUS: f64 = 273.15;
@@ -38,8 +41,13 @@ impl Cameras {
         let _ = self.thermal.set(reader);
     }
 
+    /// The thermal camera's horizontal field of view, radians (None without a sensor).
+    pub(super) fn thermal_hfov(&self) -> Option<f64> {
+        self.thermal.get().map(|r| r.hfov())
+    }
+
     /// Whether the views report a thermal range.
-    pub(super) fn has_thermal(&self) -> bool {
+    pub fn has_thermal(&self) -> bool {
         self.thermal.get().is_some()
     }
 

@@ -270,6 +270,7 @@ fn list_params(param: Option<&str>) -> Result<()> {
             Unit::Boxes => "bounding boxes (GET only)",
             Unit::Text => "text (GET only)",
             Unit::Seconds => "seconds",
+            Unit::Kelvin => "kelvin",
         };
         println!("  {:28} {unit}", f.name);
     }

@@ -10,7 +10,8 @@ use crate::geometry::rotation::yaw_pitch;
 use crate::geometry::view::relative_angles;
 use crate::protocol::Param;
 use crate::protocol::params::{
-    CamControlMode, CamCropMode, CamEuler, CamFov, CamLockFlags, CamOffset, CamTarget, CamZoom,
+    CamControlMode, CamCropMode, CamEuler, CamFov, CamLockFlags, CamOffset, CamTarget, CamThermal,
+    CamZoom,
 };
 use crate::render::FramePlan;
 use crate::state::view::{Op, Zoom};
@@ -55,6 +56,13 @@ pub fn crop_mode(c: &Camera, cam_id: u8) -> CamCropMode {
     }
 }
 
+pub fn thermal(c: &Camera, cam_id: u8) -> CamThermal {
+    CamThermal {
+        cam_id,
+        show: c.thermal().code(),
+    }
+}
+
 pub fn fov(c: &Camera, cam_id: u8) -> CamFov {
     CamFov {
         cam_id,
@@ -78,6 +86,7 @@ pub fn operation(c: &Controller, s: &State, param: &Param) -> Result<Option<Op>,
         Param::CamLockFlags(p) => Op::Locks(p.flags as f64),
         Param::CamControlMode(p) => Op::Control(p.mode),
         Param::CamCropMode(p) => Op::Crop(p.mode),
+        Param::CamThermal(p) => Op::Thermal(p.show),
         Param::CamFov(p) => Op::Zoom(Zoom::Fov(p.fov)),
         Param::CamOffset(p) => Op::LookAlong(pixel_ray(c, s, p.cam_id as usize, p.x, p.y)?),
         Param::CamTarget(p) if names_coordinates(p) => Op::Target(GeoPoint {

@@ -29,13 +29,17 @@ pub fn decode(data: &[u8]) {
 }
 
 impl Controller {
-    /// A controller on `state` alone (no video, anyone may set), as the rule tests and the
-    /// fuzzers drive it in-process.
+    /// A controller on `state` alone (no video, anyone may set, a thermal sensor assumed so
+    /// that THERMAL and CAM_THERMAL are set too), as the rule tests and the fuzzers drive it
+    /// in-process.
     pub fn direct(state: State, cal: &LensCal) -> Controller {
         let settings = LiveSettings::new(state.settings, cal).expect("valid settings");
         let sensed = Arc::new(Sensed::new(state.vehicle, state.tracked));
         let gate = Gate::new(Arc::new(settings), sensed, Arc::default());
-        Controller::new(Arc::new(gate), Arc::default(), Arc::new(NoVideo))
+        Controller {
+            has_thermal: true,
+            ..Controller::new(Arc::new(gate), Arc::default(), Arc::new(NoVideo))
+        }
     }
 }
 

@@ -134,6 +134,9 @@ pub struct Controller {
     pub capture: Arc<dyn Capturer>,
     /// The autopilot link's state, for AUTOPILOT (None: the link is off).
     pub autopilot: Option<Arc<dyn AutopilotStatus>>,
+    /// Whether the head has a thermal sensor (without one, THERMAL and CAM_THERMAL are
+    /// refused, saying how to start one).
+    pub has_thermal: bool,
 }
 
 impl Controller {
@@ -143,6 +146,7 @@ impl Controller {
             report,
             capture,
             autopilot: None,
+            has_thermal: false,
         }
     }
 
@@ -279,6 +283,8 @@ impl Controller {
             Param::CamTarget(q) => one(Param::CamTarget(camera::target(self, &s, q)?)),
             Param::CamSensor(_) => one(Param::CamSensor(system::sensor(&s.settings))),
             Param::GeneralSettings(_) => one(Param::GeneralSettings(system::general(&s.settings))),
+            Param::Thermal(_) => one(Param::Thermal(system::thermal(&s.settings))),
+            Param::CamThermal(_) => one(Param::CamThermal(camera::thermal(c, id))),
             // Answered per peer in `handle`; elsewhere each refusal carries its reason.
             Param::RefusalReason(_) => Err(Refusal::Data(
                 "REFUSAL is read over the control protocol; here each refusal says why".into(),
@@ -304,6 +310,11 @@ impl Controller {
         if let Param::Capture(p) = param {
             return system::set_capture(self.capture.as_ref(), p);
         }
+        if !self.has_thermal && thermal_asked(param) {
+            return Err(Refusal::Data(format!(
+                "{kind}: no thermal sensor; start serve with --thermal SOURCE (docs/thermal.md)"
+            )));
+        }
         let s = self.state();
         if let Some(op) = camera::operation(self, &s, param)? {
             return Ok(self.gate.steer(cam, op)?);
@@ -318,11 +329,22 @@ impl Controller {
             Param::Lens(p) => system::set_lens(lenses, s, p),
             Param::CamSensor(p) => system::set_sensor(report, s, p),
             Param::GeneralSettings(p) => system::set_general(lenses, s, p),
+            Param::Thermal(p) => system::set_thermal(s, p),
             other => Err(Refusal::Data(format!(
                 "{} is not set here",
                 other.param_type()
             ))),
         })
+    }
+}
+
+/// Whether a SET asks for a thermal sensor: THERMAL, and CAM_THERMAL showing it (showing it
+/// nowhere is taken without one).
+fn thermal_asked(p: &Param) -> bool {
+    match p {
+        Param::Thermal(_) => true,
+        Param::CamThermal(c) => c.show != 0,
+        _ => false,
     }
 }
 

@@ -1,17 +1,18 @@
 //! GET and SET of the whole-system parameter types: SYSTEM_STATUS, VIDEO_OUTPUT, CAPTURE,
-//! LENS, CAM_SENSOR and GENERAL_SETTINGS, with the seed's rules field by field.
+//! LENS, CAM_SENSOR, GENERAL_SETTINGS and THERMAL, with the seed's rules field by field.
 
 use super::Refusal;
 use crate::layout::{Rect, TILE_SIZE};
 use crate::lens::Lenses;
 use crate::modes::{LayoutMode, OverlayMode};
 use crate::protocol::params::{
-    CamSensor, Capture, GeneralSettings, Lens, SystemStatus, VideoOutput,
+    CamSensor, Capture, GeneralSettings, Lens, SystemStatus, Thermal, VideoOutput,
 };
 use crate::protocol::{BoundingBox, ViewBoxes};
 use crate::state::capture::Capturer;
 use crate::state::rules::*;
-use crate::state::{Report, Settings};
+use crate::state::{Report, Settings, ThermalGain};
+use crate::thermal::Palette;
 use tracing::warn;
 
 pub fn system_status(report: &Report) -> SystemStatus {
@@ -177,5 +178,37 @@ pub fn set_general(lenses: &Lenses, s: &mut Settings, p: &GeneralSettings) -> Re
     s.mount.pitch = p.mount_pitch;
     s.mount.roll = p.mount_roll;
     s.detection.run_ai = DETECTION_RUN.take(p.run_ai as f64, 0.0) != 0.0;
+    Ok(())
+}
+
+pub fn thermal(settings: &Settings) -> Thermal {
+    let t = &settings.thermal;
+    Thermal {
+        palette: t.palette.code(),
+        gain: t.gain as u8,
+        span_low: t.low,
+        span_high: t.high,
+        blend: t.blend,
+        zoom: t.zoom,
+    }
+}
+
+/// A palette or gain that does not exist, or a span outside 0..=2000 K or not rising, is
+/// refused (the span by `Settings::validate`, as from every entry); the blend and the zoom
+/// are clamped.
+pub fn set_thermal(s: &mut Settings, p: &Thermal) -> Result<(), Refusal> {
+    let refused = |rule: &Rule, v: f64| {
+        Refusal::Data(format!("{} {v} is outside {}", rule.label, rule.range()))
+    };
+    let t = &mut s.thermal;
+    t.palette = Palette::try_from(p.palette)?;
+    t.gain = match p.gain {
+        0 => ThermalGain::Auto,
+        1 => ThermalGain::Span,
+        g => return Err(refused(&THERMAL_GAIN, g as f64)),
+    };
+    (t.low, t.high) = (p.span_low, p.span_high);
+    t.blend = THERMAL_BLEND.take(p.blend, t.blend);
+    t.zoom = THERMAL_ZOOM.take(p.zoom as f64, t.zoom as f64) as u8;
     Ok(())
 }

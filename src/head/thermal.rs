@@ -18,7 +18,7 @@ use crate::scene::thermal::{thermal_frame, thermal_in_lens, world_from_thermal};
 use crate::source::thermal::{Stamped, ThermalConfig, ThermalSetup, ThermalSlot};
 use crate::source::{SourceSpec, backoff, retry_logged};
 use crate::state::State;
-use crate::thermal::{GainMode, GainTable, Palette, Spot};
+use crate::thermal::{GainMode, GainTable, Spot};
 use glam::{DMat3, DVec2};
 use serde::Serialize;
 use std::sync::atomic::Ordering;
@@ -34,6 +34,9 @@ pub struct Sensor {
     pub slot: Arc<ThermalSlot>,
     /// Why the source is down, while it is.
     error: Mutex<Option<String>>,
+    /// The newest frame's gain table, made once for the composed frame and every view's
+    /// stream: the frame's capture time and the gain it was made with.
+    gain: Mutex<Option<(u64, GainMode, Arc<GainTable>)>>,
 }
 
 impl Sensor {
@@ -63,7 +66,21 @@ impl Sensor {
             setup,
             slot: Arc::default(),
             error: Mutex::default(),
+            gain: Mutex::default(),
         })
+    }
+
+    /// `stamped`'s gain table under `mode`, made on the first asking.
+    fn gain(&self, stamped: &Stamped, mode: GainMode) -> Option<Arc<GainTable>> {
+        let mut kept = self.gain.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((at, m, table)) = kept.as_ref()
+            && (*at, *m) == (stamped.captured_us, mode)
+        {
+            return Some(table.clone());
+        }
+        let table = Arc::new(GainTable::new(&stamped.frame, mode, &self.setup.cal).ok()?);
+        *kept = Some((stamped.captured_us, mode, table.clone()));
+        Some(table)
     }
 
     fn set_error(&self, e: Option<String>) {
@@ -239,8 +256,9 @@ impl Head {
 
 impl Head {
     /// The newest thermal frame over `plan`'s views as their cameras ask (`views`: each
-    /// view's index in the plan and its camera's), coloured under the automatic gain in
-    /// white-hot. None without a sensor, before its first frame, or where no view shows it.
+    /// view's index in the plan and its camera's), coloured as the settings say
+    /// (`ThermalLook`). None without a sensor, before its first frame, or where no view
+    /// shows it.
     pub(super) fn thermal_layer(
         &self,
         state: &State,
@@ -256,10 +274,12 @@ impl Head {
             return None;
         }
         let stamped = sensor.slot.newest()?;
-        let frame = Arc::new(stamped.frame.clone());
-        let gain = GainTable::new(&frame, GainMode::default(), &sensor.setup.cal).ok()?;
+        let look = &state.settings.thermal;
+        let gain = sensor.gain(&stamped, look.gain_mode())?;
+        let frame = stamped.frame.clone();
         let lens = sensor.lens.for_frame(frame.width, frame.height, None);
-        let mut layer = ThermalLayer::new(frame, Arc::new(gain), Palette::default(), lens);
+        let mut layer = ThermalLayer::new(frame, gain, look.palette, lens);
+        (layer.blend, layer.zoom) = (look.blend, look.zoom as f64);
         let mount = thermal_in_lens(sensor.setup.mount);
         for (v, show) in shown {
             layer.add(plan, &plan.views[v], show, mount);

@@ -162,6 +162,17 @@ impl Lens {
         Some(DVec3::new(dir.x * s, dir.y * s, c))
     }
 
+    /// The horizontal field of view, radians: between the rays through the middles of the
+    /// frame's left and right edges (the whole field where those lie outside it).
+    pub fn hfov(&self) -> f64 {
+        let y = self.height as f64 / 2.0;
+        let edge = |x: f64| self.unproject(DVec2::new(x, y));
+        match (edge(0.0), edge(self.width as f64)) {
+            (Some(a), Some(b)) => a.angle_between(b),
+            _ => 2.0 * self.half_fov,
+        }
+    }
+
     /// Radius of the image circle in pixels (mean over both axes).
     pub fn circle_radius(&self) -> f64 {
         self.radial.r_of_theta(self.half_fov).unwrap_or(0.0) * self.affine.mean_scale()

@@ -217,3 +217,13 @@ fn the_cil216_circle_leaves_over_a_third_of_a_4k_frame_unimaged() {
     // Circle radius 1175 px about x = 1919.5: 744.5 .. 3094.5, plus 16, rounded out to 32.
     assert_eq!((columns, rows), (704..3136, 0..2160));
 }
+
+#[test]
+fn the_boson_lens_sees_its_published_50_degrees_across_and_a_fisheye_its_whole_field() {
+    let cal = super::calfile::LensCal::load(std::path::Path::new("lens-cal/lens.cal")).unwrap();
+    let boson = cal.by_id(3).unwrap().lens().for_frame(320, 256, None);
+    let hfov = boson.hfov().to_degrees();
+    assert!((hfov - 50.0).abs() < 1.0, "{hfov:.2}°");
+    let fisheye = cal.by_id(0).unwrap().lens().for_frame(3840, 2160, None);
+    assert_eq!(fisheye.hfov(), 2.0 * fisheye.half_fov);
+}

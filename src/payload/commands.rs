@@ -205,21 +205,19 @@ impl Payload {
     pub(super) fn camera_parameter(&self, out: &Outbox, (from, peer): From, msg: &MavMessage) {
         match msg {
             MavMessage::PARAM_EXT_REQUEST_LIST(_) => {
-                for (index, name) in params::LISTED.iter().enumerate() {
+                for (index, name) in self.listed().iter().enumerate() {
                     out.send(CAMERA, &self.param_value(name, index));
                 }
             }
             MavMessage::PARAM_EXT_REQUEST_READ(r) => {
                 let name = r.param_id.to_str().unwrap_or("").to_string();
                 let index = match r.param_index {
-                    -1 => params::LISTED.iter().position(|n| *n == name),
-                    n => usize::try_from(n)
-                        .ok()
-                        .filter(|&n| n < params::LISTED.len()),
+                    -1 => self.listed().iter().position(|n| *n == name),
+                    n => usize::try_from(n).ok().filter(|&n| n < self.listed().len()),
                 };
                 match index {
                     Some(i) => {
-                        out.send(CAMERA, &self.param_value(params::LISTED[i], i));
+                        out.send(CAMERA, &self.param_value(self.listed()[i], i));
                     }
                     None => self.to_camera(out, from, peer, msg),
                 }
@@ -250,7 +248,8 @@ impl Payload {
             Err(_) => Err(ParamAck::PARAM_ACK_FAILED),
             Ok(()) => {
                 let (_, widest) = self.cameras.view_fov(self.view);
-                let set = params::set(&mut self.inner().modes, &name, v, widest);
+                let thermal = self.cameras.has_thermal();
+                let set = params::set(&mut self.inner().modes, &name, v, (widest, thermal));
                 match set {
                     Ok(set) => self.apply(set).map_err(|why| {
                         self.gate.policy().refusals.note(peer, &what, &why);
@@ -267,8 +266,8 @@ impl Payload {
                 }
             }
         };
-        let shown = params::LISTED.iter().position(|n| *n == name);
-        let value = shown.map_or(v, |i| self.param_u32(params::LISTED[i]));
+        let shown = self.listed().iter().position(|n| *n == name);
+        let value = shown.map_or(v, |i| self.param_u32(self.listed()[i]));
         let ack = MavMessage::PARAM_EXT_ACK(PARAM_EXT_ACK_DATA {
             param_id: p.param_id,
             param_value: encode(value),
@@ -298,6 +297,11 @@ impl Payload {
         params::apply(&self.gate, self.view, set)
     }
 
+    /// The SDK's parameters this head lists (C_T_PALETTE only with a thermal sensor).
+    fn listed(&self) -> &'static [&'static str] {
+        params::listed(self.cameras.has_thermal())
+    }
+
     /// Parameter `name`'s value now.
     pub(super) fn param_u32(&self, name: &str) -> u32 {
         let fov = self.cameras.view_fov(self.view);
@@ -308,7 +312,7 @@ impl Payload {
     /// PARAM_EXT_VALUE of parameter `name`, listed at `index`.
     fn param_value(&self, name: &str, index: usize) -> MavMessage {
         MavMessage::PARAM_EXT_VALUE(PARAM_EXT_VALUE_DATA {
-            param_count: params::LISTED.len() as u16,
+            param_count: self.listed().len() as u16,
             param_index: index as u16,
             param_id: name.into(),
             param_value: encode(self.param_u32(name)),

@@ -2,13 +2,17 @@
 //! and what each is for a view: the gimbal mode onto the view's locks ("mapping" looks
 //! straight down), the zoom levels onto its field of view, OSD_MODE onto the overlay,
 //! TRACK_MODE onto the detection, C_V_AE and C_V_SP onto the fisheye's exposure (CAM_SENSOR's
-//! settings). Every change is a view operation or a settings change through the one gate.
-//! What means nothing for a virtual view (focus, defog, iris, flip, white balance, the
-//! rangefinder) or needs a sensor DigiView does not have (C_SOURCE's IR, the C_T_* thermal
-//! parameters) is refused with the reason, never taken silently.
+//! settings); with a thermal sensor, C_SOURCE onto how the view shows it, C_T_PALETTE onto
+//! its palette and C_T_ZOOM onto its zoom. Every change is a view operation or a settings change through the one
+//! gate. What means nothing for a virtual view (focus, defog, iris, flip, white balance, the
+//! rangefinder) or needs a sensor the head does not have (C_SOURCE's IR, C_T_PALETTE and
+//! C_T_ZOOM without a thermal sensor, the other C_T_* parameters) is refused with the
+//! reason, never taken silently.
 
+use crate::modes::ThermalShow;
 use crate::state::Gate;
 use crate::state::view::{Op, Pointing, Zoom};
+use crate::thermal::Palette;
 use std::f64::consts::FRAC_PI_2;
 
 /// GB_MODE's values as the view keeps them (4, reset, is an act: the view comes back ahead
@@ -36,8 +40,9 @@ const SHUTTER: [f64; 28] = [
 ];
 const FIRST_SHUTTER: u32 = 6;
 
-/// The parameters a list gives, in index order.
-pub const LISTED: [&str; 10] = [
+/// The parameters a list gives, in index order; with a thermal sensor, C_T_PALETTE and
+/// C_T_ZOOM after them ([`listed`]).
+const LISTED: [&str; 12] = [
     "GB_MODE",
     "C_SOURCE",
     "C_V_REC",
@@ -48,6 +53,24 @@ pub const LISTED: [&str; 10] = [
     "C_V_ZM_CB_LV",
     "C_V_AE",
     "C_V_SP",
+    "C_T_PALETTE",
+    "C_T_ZOOM",
+];
+
+/// The parameters a list gives, with a thermal sensor or without.
+pub fn listed(thermal: bool) -> &'static [&'static str] {
+    &LISTED[..LISTED.len() - 2 * !thermal as usize]
+}
+
+/// C_T_PALETTE's values (the FLIR-core numbering of the SDK's list) as DigiView's palettes;
+/// RainbowHC, Globow, Gradedfire and Hottest (3, 7, 8, 9) it does not have.
+const PALETTES: [(u32, Palette); 6] = [
+    (0, Palette::WhiteHot),
+    (1, Palette::BlackHot),
+    (2, Palette::Rainbow),
+    (4, Palette::Ironbow),
+    (5, Palette::Lava),
+    (6, Palette::Arctic),
 ];
 
 /// What the SDK set that is the profile's own (the rest is read from the state).
@@ -95,8 +118,14 @@ pub enum Set {
     Settings(Change),
 }
 
-/// What setting `name` to `v` does, for a view whose widest fov is `widest`.
-pub fn set(modes: &mut Modes, name: &str, v: u32, widest: f64) -> Result<Set, Refusal> {
+/// What setting `name` to `v` does, for a view whose widest fov is `widest`, on a head with
+/// a thermal sensor or without.
+pub fn set(
+    modes: &mut Modes,
+    name: &str,
+    v: u32,
+    (widest, thermal): (f64, bool),
+) -> Result<Set, Refusal> {
     let value = |ok: bool, what: &str| match ok {
         true => Ok(()),
         false => Err(Refusal::Value(format!("{name} = {v}: {what}"))),
@@ -107,6 +136,7 @@ pub fn set(modes: &mut Modes, name: &str, v: u32, widest: f64) -> Result<Set, Re
                 "GB_MODE = {v}: give 0 off, 1 lock, 2 follow, 3 mapping or 4 reset"
             ))
         }),
+        "C_SOURCE" | "C_T_ZOOM" | "C_T_PALETTE" if thermal => thermal_set(name, v),
         "C_SOURCE" => {
             value(
                 v == 1,
@@ -158,6 +188,18 @@ pub fn set(modes: &mut Modes, name: &str, v: u32, widest: f64) -> Result<Set, Re
                 widest / factor.unwrap_or(1.0),
             ))))
         }
+        "C_V_AE" | "C_V_SP" => exposure_set(name, v),
+        _ => Err(Refusal::Unknown(unknown(name, thermal))),
+    }
+}
+
+/// What C_V_AE or C_V_SP set to `v` does: the fisheye's exposure, automatic or manual.
+fn exposure_set(name: &str, v: u32) -> Result<Set, Refusal> {
+    let value = |ok: bool, what: &str| match ok {
+        true => Ok(()),
+        false => Err(Refusal::Value(format!("{name} = {v}: {what}"))),
+    };
+    match name {
         // Shutter priority (10) is manual here: the fisheye's exposure has no auto gain beside
         // a given shutter.
         "C_V_AE" => {
@@ -168,7 +210,8 @@ pub fn set(modes: &mut Modes, name: &str, v: u32, widest: f64) -> Result<Set, Re
                 Ok(())
             })))
         }
-        "C_V_SP" => {
+        // C_V_SP.
+        _ => {
             let i = v.checked_sub(FIRST_SHUTTER).map(|i| i as usize);
             let den = i.and_then(|i| SHUTTER.get(i)).copied();
             value(
@@ -182,7 +225,35 @@ pub fn set(modes: &mut Modes, name: &str, v: u32, widest: f64) -> Result<Set, Re
                 Ok(())
             })))
         }
-        _ => Err(Refusal::Unknown(unknown(name))),
+    }
+}
+
+/// What C_SOURCE, C_T_ZOOM or C_T_PALETTE set to `v` does with a thermal sensor: how the view
+/// shows it, its zoom, its palette.
+fn thermal_set(name: &str, v: u32) -> Result<Set, Refusal> {
+    let refused = |what: &str| Err(Refusal::Value(format!("{name} = {v}: {what}")));
+    let shows = [ThermalShow::Pip, ThermalShow::Off, ThermalShow::Thermal];
+    match name {
+        "C_SOURCE" => match shows.get(v as usize) {
+            Some(show) => Ok(Set::View(Op::Thermal(show.code()))),
+            None => refused(
+                "give 0 EO with the IR inset, 1 EO or 2 IR (no IR with an EO inset, no sync)",
+            ),
+        },
+        "C_T_ZOOM" if v <= 7 => Ok(Set::Settings(Box::new(move |s| {
+            s.thermal.zoom = v as u8 + 1;
+            Ok(())
+        }))),
+        "C_T_ZOOM" => refused("give 0 (1x) to 7 (8x)"),
+        _ => match PALETTES.iter().find(|(n, _)| *n == v) {
+            Some(&(_, palette)) => Ok(Set::Settings(Box::new(move |s| {
+                s.thermal.palette = palette;
+                Ok(())
+            }))),
+            None => {
+                refused("give 0 white hot, 1 black hot, 2 rainbow, 4 ironbow, 5 lava or 6 arctic")
+            }
+        },
     }
 }
 
@@ -220,9 +291,13 @@ fn zoom_levels(name: &str) -> &'static [f64] {
 }
 
 /// Why a name the profile does not take is refused, in the operator's words.
-fn unknown(name: &str) -> String {
-    let why = if name.starts_with("C_T_") || name == "C_V_IR" {
-        "DigiView has no thermal sensor"
+fn unknown(name: &str, thermal: bool) -> String {
+    let why = if (name.starts_with("C_T_") || name == "C_V_IR") && !thermal {
+        "DigiView has no thermal sensor: start serve with --thermal SOURCE"
+    } else if name.starts_with("C_T_") || name == "C_V_IR" {
+        "of the thermal parameters DigiView takes C_T_PALETTE and C_T_ZOOM; the thermal \
+         picture's other settings are on the DigiView protocol, MAVLink's camera settings \
+         and its page"
     } else if name == "RC_MODE" {
         "DigiView takes no RC input: its views are steered over MAVLink, the DigiView protocol and its page"
     } else if name.starts_with("C_V_") || name.starts_with("LRF") {
@@ -249,7 +324,16 @@ pub fn value(
             _ if s.cameras[i].locks().yaw() => GimbalMode::Lock as u32,
             _ => GimbalMode::Follow as u32,
         },
-        "C_SOURCE" => 1,
+        "C_SOURCE" => match s.cameras[i].thermal() {
+            ThermalShow::Pip => 0,
+            ThermalShow::Thermal => 2,
+            ThermalShow::Off | ThermalShow::Blend => 1,
+        },
+        "C_T_ZOOM" => s.thermal.zoom.saturating_sub(1) as u32,
+        "C_T_PALETTE" => PALETTES
+            .iter()
+            .find(|(_, p)| *p == s.thermal.palette)
+            .map_or(0, |(n, _)| *n),
         "C_V_REC" => modes.record_source,
         "OSD_MODE" => match s.output.overlay.code() {
             0 => 0,
@@ -298,6 +382,7 @@ pub fn apply(gate: &Gate, i: usize, set: Set) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::state::view::Field;
 
     #[test]
     fn each_zoom_level_reads_back_as_the_level_set() {
@@ -323,7 +408,8 @@ mod tests {
             if 1e6 / SHUTTER[(v - FIRST_SHUTTER) as usize] > longest {
                 continue;
             }
-            let Ok(Set::Settings(change)) = set(&mut Modes::default(), "C_V_SP", v, 1.0) else {
+            let Ok(Set::Settings(change)) = set(&mut Modes::default(), "C_V_SP", v, (1.0, false))
+            else {
                 panic!("C_V_SP {v} refused");
             };
             change(&mut s).unwrap();
@@ -338,14 +424,59 @@ mod tests {
             Err(Refusal::Unknown(w)) | Err(Refusal::Value(w)) => w,
             Ok(_) => "taken".into(),
         };
-        assert!(refused(set(&mut m, "C_V_DEFOG", 2, 1.0)).contains("defog"));
-        assert!(refused(set(&mut m, "C_T_PALETTE", 1, 1.0)).contains("thermal"));
-        assert!(refused(set(&mut m, "C_SOURCE", 2, 1.0)).contains("no IR"));
-        assert!(refused(set(&mut m, "GB_MODE", 9, 1.0)).contains("3 mapping"));
+        assert!(refused(set(&mut m, "C_V_DEFOG", 2, (1.0, false))).contains("defog"));
+        assert!(refused(set(&mut m, "C_T_PALETTE", 1, (1.0, false))).contains("thermal"));
+        assert!(refused(set(&mut m, "C_SOURCE", 2, (1.0, false))).contains("no IR"));
+        assert!(refused(set(&mut m, "GB_MODE", 9, (1.0, false))).contains("3 mapping"));
         assert_eq!(
             m.gimbal,
             GimbalMode::Follow,
             "a refused value changes nothing"
         );
+    }
+
+    /// With a thermal sensor, C_SOURCE picks how the view shows it, C_T_PALETTE its palette
+    /// and C_T_ZOOM its zoom; each reads back as set, and what DigiView does not draw is
+    /// refused.
+    #[test]
+    fn with_a_thermal_sensor_the_source_and_palette_are_taken_and_read_back() {
+        let mut m = Modes::default();
+        let mut s = crate::state::Settings::default();
+        for v in 0..=2 {
+            let Ok(Set::View(Op::Thermal(show))) = set(&mut m, "C_SOURCE", v, (1.0, true)) else {
+                panic!("C_SOURCE {v} refused");
+            };
+            let shown = s.cameras[0].clone().with(&[(Field::Thermal, show as f64)]);
+            s.cameras[0] = shown.unwrap();
+            assert_eq!(value(&m, "C_SOURCE", (1.0, 1.0), (&s, 0)), v);
+        }
+        assert!(matches!(
+            set(&mut m, "C_SOURCE", 3, (1.0, true)),
+            Err(Refusal::Value(_))
+        ));
+        for (v, palette) in PALETTES {
+            let Ok(Set::Settings(change)) = set(&mut m, "C_T_PALETTE", v, (1.0, true)) else {
+                panic!("C_T_PALETTE {v} refused");
+            };
+            change(&mut s).unwrap();
+            assert_eq!(s.thermal.palette, palette);
+            assert_eq!(value(&m, "C_T_PALETTE", (1.0, 1.0), (&s, 0)), v);
+        }
+        let why = match set(&mut m, "C_T_PALETTE", 3, (1.0, true)) {
+            Err(Refusal::Value(w)) => w,
+            _ => panic!("RainbowHC taken"),
+        };
+        assert!(why.contains("4 ironbow"), "{why}");
+        for v in 0..=7 {
+            let Ok(Set::Settings(change)) = set(&mut m, "C_T_ZOOM", v, (1.0, true)) else {
+                panic!("C_T_ZOOM {v} refused");
+            };
+            change(&mut s).unwrap();
+            assert_eq!(s.thermal.zoom as u32, v + 1);
+            assert_eq!(value(&m, "C_T_ZOOM", (1.0, 1.0), (&s, 0)), v);
+        }
+        assert!(set(&mut m, "C_T_ZOOM", 8, (1.0, true)).is_err());
+        assert!(listed(true).ends_with(&["C_T_PALETTE", "C_T_ZOOM"]));
+        assert!(!listed(false).contains(&"C_T_PALETTE"));
     }
 }

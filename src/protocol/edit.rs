@@ -24,7 +24,8 @@ pub fn reads_first(kind: ParamType, is_delta: bool) -> bool {
         ParamType::VideoOutput
         | ParamType::Detection
         | ParamType::CamSensor
-        | ParamType::GeneralSettings => true,
+        | ParamType::GeneralSettings
+        | ParamType::Thermal => true,
         ParamType::CamEuler => !is_delta,
         _ => false,
     }

@@ -1,10 +1,11 @@
-//! The eighteen parameter types of the control protocol as typed values, each declared once as
+//! The twenty parameter types of the control protocol as typed values, each declared once as
 //! its list of (field, encoding) in protocol.md's order, so the offsets, the codec, the units
 //! and the field names the command-line client accepts all come from that one list.
 
 use super::wire::{
-    Angle, BoundingBox, CoarseDegrees, DATA_LEN, Degrees, Fov, I8, I16, LayoutMode, Metres, Offset,
-    Ratio, Reader, Seconds, Text, TextValue, U8, U16, U32, Unit, ViewBoxes, Views, Wire, Writer,
+    Angle, BoundingBox, CoarseDegrees, DATA_LEN, Degrees, Fov, I8, I16, Kelvin, LayoutMode, Metres,
+    Offset, Ratio, Reader, Seconds, Text, TextValue, U8, U16, U32, Unit, ViewBoxes, Views, Wire,
+    Writer,
 };
 use serde::Serialize;
 
@@ -296,6 +297,29 @@ wire_struct!(
     }
 );
 
+wire_struct!(
+    /// The extension: how a thermal sensor's picture is coloured. `palette`: 0 white-hot, 1
+    /// black-hot, 2 ironbow, 3 rainbow, 4 arctic, 5 lava; `gain`: 0 automatic, 1 the span
+    /// from `span_low` to `span_high`; `blend`: the thermal colour's share of a blended pixel;
+    /// `zoom`: 1 to 8 times, the thermal picture shown whole or inset.
+    Thermal {
+        palette: U8,
+        gain: U8,
+        span_low: Kelvin,
+        span_high: Kelvin,
+        blend: Ratio,
+        zoom: U8,
+    }
+);
+wire_struct!(
+    /// The extension: how a view shows the thermal sensor. `show`: 0 not at all, 1 blended
+    /// onto the view, 2 picture in picture, 3 the thermal picture alone.
+    CamThermal {
+        cam_id: U8,
+        show: U8
+    }
+);
+
 macro_rules! params {
     ($($variant:ident = $n:literal, $wire_name:literal, $settable:literal;)*) => {
         /// The param_type byte.
@@ -411,12 +435,14 @@ params! {
     GeneralSettings = 15, "GENERAL_SETTINGS", true;
     Autopilot = 16, "AUTOPILOT", false;
     RefusalReason = 17, "REFUSAL", false;
+    Thermal = 18, "THERMAL", true;
+    CamThermal = 19, "CAM_THERMAL", true;
 }
 
 impl ParamType {
-    /// Per-camera types (6..=13) carry cam_id in data[0].
+    /// Per-camera types (6..=13, and the extension CAM_THERMAL) carry cam_id in data[0].
     pub fn per_camera(self) -> bool {
-        (6..=13).contains(&(self as u8))
+        matches!(self as u8, 6..=13 | 19)
     }
 
     /// Parses `CAM_EULER`, `cam_euler`, `cam-euler` or the number `6`.

@@ -35,6 +35,7 @@ pub fn show(unit: Unit, v: &Value) -> String {
         Unit::Ratio => format!("{n:.3}"),
         Unit::Offset => format!("{n:.4}"),
         Unit::Seconds => format!("{n:.3} s"),
+        Unit::Kelvin => format!("{n:.1} K"),
         Unit::Text => v.as_str().unwrap_or_default().to_string(),
         Unit::Boxes => match v {
             Value::Array(boxes) => boxes

@@ -59,6 +59,8 @@ pub enum Unit {
     Boxes,
     /// A duration or a clock's offset.
     Seconds,
+    /// A temperature.
+    Kelvin,
     /// UTF-8 text (GET only).
     Text,
 }
@@ -148,6 +150,10 @@ fixed!(
 fixed!(
     /// Seconds as i32 milliseconds (about ±24 days).
     Seconds, i32, 1000.0, Unit::Seconds
+);
+fixed!(
+    /// A temperature in kelvin as u16 tenths of a kelvin (0 to 6553.5 K).
+    Kelvin, u16, 10.0, Unit::Kelvin
 );
 fixed!(
     /// A ratio in [0, 1) as u8 / 255.

@@ -38,10 +38,20 @@ pub struct LayerEntry {
     /// the view frame: forward, right, down).
     pub projection: Projection,
     pub thermal_from_view: DMat3,
+    /// The projection's rays turned into the world (the view's for a blend, the thermal
+    /// camera's own for its picture).
+    pub world_from_entry: DMat3,
     /// The thermal colour's share of a pixel the thermal camera sees.
     pub alpha: f64,
     /// Pixels the thermal camera does not see are black (else the fisheye's).
     pub black_outside: bool,
+}
+
+impl LayerEntry {
+    /// The world ray its point `p` (from its top-left corner) stands for.
+    pub fn world_ray(&self, p: DVec2) -> DVec3 {
+        self.world_from_entry * self.projection.ray(p)
+    }
 }
 
 /// A thermal frame coloured and laid over a frame's views.
@@ -52,6 +62,10 @@ pub struct ThermalLayer {
     pub palette: Palette,
     /// The thermal lens at the frame's size.
     pub lens: Lens,
+    /// The thermal colour's share of a blended view's pixel ([`BLEND_ALPHA`] unless set).
+    pub blend: f64,
+    /// The thermal picture's zoom where it is shown whole or inset (1 unless set).
+    pub zoom: f64,
     pub entries: Vec<LayerEntry>,
 }
 
@@ -68,6 +82,8 @@ impl ThermalLayer {
             gain,
             palette,
             lens,
+            blend: BLEND_ALPHA,
+            zoom: 1.0,
             entries: Vec::new(),
         }
     }
@@ -83,6 +99,8 @@ impl ThermalLayer {
         thermal_in_lens: DMat3,
     ) {
         let rect = view.rect;
+        let world_from_thermal =
+            plan.lens_from_world.transpose() * thermal_in_lens * MOUNT_FROM_LENS.transpose();
         let entry = match (show, view.map) {
             (ThermalShow::Off, _) => return,
             (
@@ -97,7 +115,8 @@ impl ThermalLayer {
                 thermal_from_view: thermal_in_lens.transpose()
                     * plan.lens_from_world
                     * world_from_view,
-                alpha: BLEND_ALPHA,
+                world_from_entry: world_from_view,
+                alpha: self.blend,
                 black_outside: false,
             },
             (ThermalShow::Blend, _) => return,
@@ -107,19 +126,21 @@ impl ThermalLayer {
                 let h = (h as u32).clamp(2, rect.h);
                 let x = rect.x + rect.w.saturating_sub(w + PIP_MARGIN);
                 let y = rect.y + rect.h.saturating_sub(h + PIP_MARGIN);
-                self.own_picture(Rect::new(x, y, w.min(rect.w), h))
+                self.own_picture(Rect::new(x, y, w.min(rect.w), h), world_from_thermal)
             }
-            (ThermalShow::Thermal, _) => self.own_picture(rect),
+            (ThermalShow::Thermal, _) => self.own_picture(rect, world_from_thermal),
         };
         self.entries.push(entry);
     }
 
     /// The thermal picture filling `rect`: a pinhole on the thermal axis whose focal length
-    /// is the lens's, scaled so that the whole frame fits.
-    fn own_picture(&self, rect: Rect) -> LayerEntry {
+    /// is the lens's, scaled so that the whole frame fits, times the zoom;
+    /// `world_from_thermal` turns the thermal camera's axes (forward, right, down) into the
+    /// world.
+    fn own_picture(&self, rect: Rect, world_from_thermal: DMat3) -> LayerEntry {
         let (w, h) = (rect.w as f64, rect.h as f64);
         let scale = (w / self.lens.width as f64).min(h / self.lens.height as f64);
-        let focal = self.lens.affine.matrix.x_axis.x * scale;
+        let focal = self.lens.affine.matrix.x_axis.x * scale * self.zoom;
         LayerEntry {
             rect,
             projection: Projection::Rectilinear {
@@ -128,6 +149,7 @@ impl ThermalLayer {
                 fov: 2.0 * (0.5 * w / focal).atan(),
             },
             thermal_from_view: MOUNT_FROM_LENS.transpose(),
+            world_from_entry: world_from_thermal,
             alpha: 1.0,
             black_outside: true,
         }
@@ -140,6 +162,21 @@ impl ThermalLayer {
         let ray: DVec3 = entry.thermal_from_view * entry.projection.ray(p);
         let q = self.lens.project(ray)?;
         self.lens.in_frame(q).then_some(q)
+    }
+
+    /// The thermal picture filling `rect`, where the view there shows it alone: the entry,
+    /// and the thermal frame's extent in it (its top-left corner and size; the rest is the
+    /// black bars where the aspects differ, unless the zoom fills them).
+    pub fn alone_in(&self, rect: Rect) -> Option<(&LayerEntry, DVec2, DVec2)> {
+        let e = self
+            .entries
+            .iter()
+            .rev()
+            .find(|e| e.black_outside && e.rect == rect)?;
+        let whole = DVec2::new(rect.w as f64, rect.h as f64);
+        let frame = DVec2::new(self.lens.width as f64, self.lens.height as f64);
+        let size = (frame * (whole / frame).min_element() * self.zoom).min(whole);
+        Some((e, (whole - size) / 2.0, size))
     }
 
     /// The entry drawn at output pixel (x, y): the last one holding it.

@@ -103,7 +103,7 @@ impl ThermalConfig {
 /// A thermal frame and when it was captured ([`crate::clock::clock_us`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stamped {
-    pub frame: ThermalFrame,
+    pub frame: Arc<ThermalFrame>,
     pub captured_us: u64,
 }
 
@@ -116,7 +116,10 @@ pub struct ThermalSlot {
 
 impl ThermalSlot {
     pub fn put(&self, frame: ThermalFrame, captured_us: u64) {
-        let stamped = Arc::new(Stamped { frame, captured_us });
+        let stamped = Arc::new(Stamped {
+            frame: Arc::new(frame),
+            captured_us,
+        });
         *self.newest.lock().unwrap_or_else(|e| e.into_inner()) = Some(stamped);
         self.received.fetch_add(1, Ordering::Relaxed);
     }

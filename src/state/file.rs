@@ -4,7 +4,7 @@
 
 use super::{
     Angles, Camera, DetectionSettings, Invalid, MAX_CAMERAS, Output, Sensor, Settings, State,
-    Tracked, Vehicle,
+    ThermalLook, Tracked, Vehicle,
 };
 use crate::lens::LensCal;
 use crate::units::line_of;
@@ -31,6 +31,8 @@ pub(super) struct StateFile {
     mount: Angles,
     sensor: Sensor,
     detection: DetectionSettings,
+    /// How the thermal picture is coloured.
+    thermal: ThermalLook,
     tracked: Vec<Tracked>,
     time: f64,
 }
@@ -51,6 +53,7 @@ impl From<StateFile> for State {
                 mount: f.mount,
                 sensor: f.sensor,
                 detection: f.detection,
+                thermal: f.thermal,
             },
             vehicle: f.vehicle,
             tracked: f.tracked,
@@ -68,6 +71,7 @@ impl From<State> for StateFile {
             mount,
             sensor,
             detection,
+            thermal,
         } = s.settings;
         StateFile {
             output,
@@ -77,6 +81,7 @@ impl From<State> for StateFile {
             mount,
             sensor,
             detection,
+            thermal,
             tracked: s.tracked,
             time: s.time,
         }

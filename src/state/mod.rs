@@ -34,7 +34,7 @@ pub use report::{CaptureFailure, Failure, RenderedFrame, Report, RunStatus};
 pub use sensed::{DEFAULT_POSITION, IN_SIGHT, MAX_PREDICTION, Sensed, Tracked, Vehicle, moved_on};
 pub use settings::{
     Angles, FPS_RANGE, MAX_EXPOSURE_US, MAX_GAIN, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, Output,
-    Sensor, Settings,
+    Sensor, Settings, ThermalGain, ThermalLook,
 };
 pub use validate::{Invalid, Place};
 pub use view::Camera;

@@ -13,12 +13,13 @@ use super::MAX_CAMERAS;
 use super::detection::DetectionSettings;
 use super::sensed::{Tracked, Vehicle};
 use super::settings::{
-    Angles, FPS_RANGE, MAX_GAIN, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, Output, Sensor,
+    Angles, FPS_RANGE, MAX_GAIN, MAX_OUTPUT, MAX_SENSOR, MIN_OUTPUT, Output, Sensor, ThermalLook,
 };
 use super::view::Camera;
 use crate::geometry::view::fov_range;
 use crate::modes::{Control, Crop, LayoutMode, OverlayMode, ThermalShow};
 use crate::protocol::ParamType;
+use crate::thermal::Palette;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 /// What the protocol does with a value outside a field's range.
@@ -58,6 +59,7 @@ pub enum Of {
     /// The sensor crop's four numbers, where there is one.
     SensorCrop,
     Detection(fn(&DetectionSettings) -> f64),
+    Thermal(fn(&ThermalLook) -> f64),
     Vehicle(fn(&Vehicle) -> f64),
     /// Each tracked object's.
     Tracked(fn(&Tracked) -> f64),
@@ -77,6 +79,7 @@ impl std::fmt::Debug for Of {
             Of::Sensor(_) => "Sensor",
             Of::SensorCrop => "SensorCrop",
             Of::Detection(_) => "Detection",
+            Of::Thermal(_) => "Thermal",
             Of::Vehicle(_) => "Vehicle",
             Of::Tracked(_) => "Tracked",
             Of::TrackedVelocity => "TrackedVelocity",
@@ -273,6 +276,8 @@ const RATIO: (f64, f64) = (0.0, 0.989_999_999_999);
 /// Altitudes and heights: from below the Dead Sea to above any drone's ceiling.
 pub const HEIGHTS: (f64, f64) = (-1000.0, 20_000.0);
 const CAM: (f64, f64) = top(MAX_CAMERAS);
+/// A thermal span's ends: what the gain takes (`thermal::GainMode::checked`).
+const KELVIN: (f64, f64) = (0.0, 2000.0);
 const FOV: (f64, f64) = (fov_range(Crop::Rectilinear).0, TAU);
 /// A view's pitch: from straight down to straight up (docs/decisions.md, "One rule for a
 /// view's pitch").
@@ -321,7 +326,7 @@ mod named {
     pub const CAMERA_LOCK: Rule = set((CamLockFlags, "flags"), ("camera.lock", "lock flags"), (0.0, 7.0), "", LowBits, cam!(|c: &Camera| c.locks().0));
     pub const CAMERA_CONTROL: Rule = also(set((CamControlMode, "mode"), ("camera.control", "control mode"), top(Control::ALL.len()), "", Refuse, cam!(|c: &Camera| c.control().code())), "2 needs a target");
     pub const CAMERA_CROP: Rule = also(set((CamCropMode, "mode"), ("camera.crop", "crop mode"), U8, "", Ignore, cam!(|c: &Camera| c.crop().code())), "above 4 renders black");
-    pub const CAMERA_THERMAL: Rule = also(state(("camera.thermal", "thermal display"), top(ThermalShow::ALL.len()), "", cam!(|c: &Camera| c.thermal().code())), "with a thermal sensor");
+    pub const CAMERA_THERMAL: Rule = also(set((CamThermal, "show"), ("camera.thermal", "thermal display"), top(ThermalShow::ALL.len()), "", Refuse, cam!(|c: &Camera| c.thermal().code())), "with a thermal sensor");
     pub const CAMERA_FOV: Rule = also(set((CamFov, "fov"), ("camera.fov", "fov"), FOV, "rad", Clamp, cam!(Camera::fov)), "the crop mode's range");
     pub const CAMERA_TARGET_LAT: Rule = set((CamTarget, "t_latitude"), ("camera.target.lat", "target latitude"), (-90.0, 90.0), "°", Refuse, Of::Camera(|c| c.target().map(|t| t.lat)));
     pub const CAMERA_TARGET_LON: Rule = set((CamTarget, "t_longitude"), ("camera.target.lon", "target longitude"), (-180.0, 180.0), "°", Refuse, Of::Camera(|c| c.target().map(|t| t.lon)));
@@ -337,6 +342,12 @@ mod named {
     pub const MOUNT_YAW: Rule = set((GeneralSettings, "mount_yaw"), ("mount.yaw", "mount yaw"), (-PI, PI), "rad", Wrap, Of::Mount(|m| m.yaw));
     pub const MOUNT_PITCH: Rule = set((GeneralSettings, "mount_pitch"), ("mount.pitch", "mount pitch"), PITCH, "rad", Refuse, Of::Mount(|m| m.pitch));
     pub const MOUNT_ROLL: Rule = set((GeneralSettings, "mount_roll"), ("mount.roll", "mount roll"), (-PI, PI), "rad", Refuse, Of::Mount(|m| m.roll));
+    pub const THERMAL_PALETTE: Rule = set((Thermal, "palette"), ("thermal.palette", "thermal palette"), top(Palette::ALL.len()), "", Refuse, Of::Thermal(|t| t.palette.code() as f64));
+    pub const THERMAL_GAIN: Rule = set((Thermal, "gain"), ("thermal.gain", "thermal gain"), (0.0, 1.0), "", Refuse, Of::Thermal(|t| t.gain as u8 as f64));
+    pub const THERMAL_LOW: Rule = also(set((Thermal, "span_low"), ("thermal.low", "thermal span low"), KELVIN, "K", Refuse, Of::Thermal(|t| t.low)), "below the span's high");
+    pub const THERMAL_HIGH: Rule = also(set((Thermal, "span_high"), ("thermal.high", "thermal span high"), KELVIN, "K", Refuse, Of::Thermal(|t| t.high)), "above the span's low");
+    pub const THERMAL_BLEND: Rule = set((Thermal, "blend"), ("thermal.blend", "thermal blend"), RATIO, "", Clamp, Of::Thermal(|t| t.blend));
+    pub const THERMAL_ZOOM: Rule = set((Thermal, "zoom"), ("thermal.zoom", "thermal zoom"), (1.0, 8.0), "", Clamp, Of::Thermal(|t| t.zoom as f64));
     pub const DETECTION_RUN: Rule = set((GeneralSettings, "run_ai"), ("detection.run_ai", "detection run_ai"), U8, "", Flag, Of::Detection(|d| d.run_ai as u8 as f64));
     pub const VEHICLE_YAW: Rule = state(("vehicle.attitude.yaw", "vehicle attitude yaw"), (-TAU, TAU), "rad", Of::Vehicle(|v| v.attitude.yaw));
     pub const VEHICLE_PITCH: Rule = state(("vehicle.attitude.pitch", "vehicle attitude pitch"), PITCH, "rad", Of::Vehicle(|v| v.attitude.pitch));
@@ -377,7 +388,7 @@ pub const RULES: &[Rule] = &[
     wire(CamZoom, "cam_id", CAM, Refuse), CAMERA_ZOOM,
     wire(CamLockFlags, "cam_id", CAM, Refuse), CAMERA_LOCK,
     wire(CamControlMode, "cam_id", CAM, Refuse), CAMERA_CONTROL,
-    wire(CamCropMode, "cam_id", CAM, Refuse), CAMERA_CROP, CAMERA_THERMAL,
+    wire(CamCropMode, "cam_id", CAM, Refuse), CAMERA_CROP,
     wire(CamOffset, "cam_id", CAM, Refuse),
     wire(CamOffset, "x", (-0.5, 0.5), NotState), wire(CamOffset, "y", (-0.5, 0.5), NotState),
     wire(CamOffset, "frame_rel", U8, NotState),
@@ -390,6 +401,8 @@ pub const RULES: &[Rule] = &[
     SENSOR_WIDTH, SENSOR_HEIGHT, SENSOR_CROP,
     also(wire(GeneralSettings, "roi_height", (0.0, MAX_SENSOR as f64), NotState), "with roi_width"),
     SENSOR_FPS, MOUNT_YAW, MOUNT_PITCH, MOUNT_ROLL, DETECTION_RUN,
+    THERMAL_PALETTE, THERMAL_GAIN, THERMAL_LOW, THERMAL_HIGH, THERMAL_BLEND, THERMAL_ZOOM,
+    wire(CamThermal, "cam_id", CAM, Refuse), CAMERA_THERMAL,
     VEHICLE_YAW, VEHICLE_PITCH, VEHICLE_ROLL, VEHICLE_LAT, VEHICLE_LON, VEHICLE_ALT, VEHICLE_HEIGHT,
     TIME,
     TRACKED_YAW, TRACKED_PITCH, TRACKED_SIZE, TRACKED_ID, TRACKED_SCORE, TRACKED_VELOCITY,

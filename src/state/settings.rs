@@ -1,7 +1,8 @@
 //! What an operator sets: the output, the lens, the four views, the camera's mount and
-//! sensor, and the detection's settings. Validated whole by the one check (`validate`),
-//! whichever way it came in, and changed live only through [`LiveSettings`](super::LiveSettings)
-//! (a view's aim, zoom, target, locks and crop only through the view operations, `view`).
+//! sensor, the detection's settings and how a thermal sensor's picture is coloured. Validated
+//! whole by the one check (`validate`), whichever way it came in, and changed live only
+//! through [`LiveSettings`](super::LiveSettings) (a view's aim, zoom, target, locks, crop
+//! and thermal display only through the view operations, `view`).
 
 use super::MAX_CAMERAS;
 use super::detection::DetectionSettings;
@@ -9,6 +10,8 @@ use super::view::Camera;
 use crate::geometry::Euler;
 use crate::lens::Roi;
 use crate::modes::{LayoutMode, OverlayMode};
+use crate::thermal::palette::NameOrCode;
+use crate::thermal::{GainMode, Palette};
 use crate::units::de_angle;
 use serde::{Deserialize, Serialize};
 
@@ -119,6 +122,77 @@ impl Default for Sensor {
     }
 }
 
+/// How a thermal sensor's picture is coloured, in every view that shows it (THERMAL;
+/// `[thermal]` in a state file); each view picks how it shows it (`Camera::thermal`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ThermalLook {
+    pub palette: Palette,
+    pub gain: ThermalGain,
+    /// The span's coldest and hottest temperature, kelvin (`gain = "span"`).
+    pub low: f64,
+    pub high: f64,
+    /// The thermal colour's share of a blended view's pixel.
+    pub blend: f64,
+    /// The thermal picture's zoom (1 to 8 times) where a view shows it whole or inset: its
+    /// middle 1/zoom fills it. A blend stays registered, unzoomed.
+    pub zoom: u8,
+}
+
+/// How counts become levels (`thermal::gain`); a file gives `"auto"` or `"span"`, or the
+/// number THERMAL carries.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase", try_from = "NameOrCode")]
+pub enum ThermalGain {
+    /// Plateau equalisation of each frame.
+    #[default]
+    Auto = 0,
+    /// Levels spread evenly over the span: one colour is one temperature.
+    Span = 1,
+}
+
+impl TryFrom<NameOrCode> for ThermalGain {
+    type Error = String;
+
+    fn try_from(v: NameOrCode) -> Result<ThermalGain, String> {
+        match v {
+            NameOrCode::Code(0) => Ok(ThermalGain::Auto),
+            NameOrCode::Code(1) => Ok(ThermalGain::Span),
+            NameOrCode::Name(n) if n.eq_ignore_ascii_case("auto") => Ok(ThermalGain::Auto),
+            NameOrCode::Name(n) if n.eq_ignore_ascii_case("span") => Ok(ThermalGain::Span),
+            NameOrCode::Code(n) => Err(format!("thermal gain {n} is outside 0..=1")),
+            NameOrCode::Name(n) => Err(format!("thermal gain {n:?}: give \"auto\" or \"span\"")),
+        }
+    }
+}
+
+impl Default for ThermalLook {
+    /// White-hot under the automatic gain, half blended, unzoomed; a span of 0 to 100 °C.
+    fn default() -> Self {
+        ThermalLook {
+            palette: Palette::WhiteHot,
+            gain: ThermalGain::Auto,
+            low: 273.15,
+            high: 373.15,
+            blend: 0.5,
+            zoom: 1,
+        }
+    }
+}
+
+impl ThermalLook {
+    /// The gain as the colouring takes it.
+    pub fn gain_mode(&self) -> GainMode {
+        match self.gain {
+            ThermalGain::Auto => GainMode::default(),
+            ThermalGain::Span => GainMode::Span {
+                low_k: self.low,
+                high_k: self.high,
+            },
+        }
+    }
+}
+
 /// Everything an operator sets.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
@@ -129,6 +203,7 @@ pub struct Settings {
     pub mount: Angles,
     pub sensor: Sensor,
     pub detection: DetectionSettings,
+    pub thermal: ThermalLook,
 }
 
 impl Default for Settings {
@@ -144,6 +219,7 @@ impl Default for Settings {
             },
             sensor: Sensor::default(),
             detection: DetectionSettings::default(),
+            thermal: ThermalLook::default(),
         }
     }
 }

@@ -119,6 +119,13 @@ impl Settings {
                 ));
             }
         }
+        let t = &self.thermal;
+        if t.low >= t.high {
+            return invalid(format!(
+                "thermal span low {} K is not below its high {} K",
+                t.low, t.high
+            ));
+        }
         let s = &self.sensor;
         let longest = s.longest_exposure_us();
         if s.exposure_us > longest {
@@ -139,6 +146,7 @@ impl Settings {
                 Of::Mount(get) => f((rule, Place::Only, get(&self.mount)))?,
                 Of::Sensor(get) => f((rule, Place::Only, get(&self.sensor)))?,
                 Of::Detection(get) => f((rule, Place::Only, get(&self.detection)))?,
+                Of::Thermal(get) => f((rule, Place::Only, get(&self.thermal)))?,
                 Of::SensorCrop => {
                     for (k, v) in self.sensor.roi.unwrap_or_default().into_iter().enumerate() {
                         f((rule, Place::Part(k), v as f64))?;

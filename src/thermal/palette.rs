@@ -4,9 +4,9 @@
 
 use super::ThermalError;
 
-/// A palette, by the name users know it by.
+/// A palette, by the name users know it by (a file may give its number, THERMAL's).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[serde(rename_all = "kebab-case", try_from = "NameOrCode")]
 pub enum Palette {
     /// Black to white: hot is bright.
     #[default]
@@ -34,6 +34,11 @@ impl Palette {
         Palette::Arctic,
         Palette::Lava,
     ];
+
+    /// Its number on the wire (THERMAL's palette): its place in [`Palette::ALL`].
+    pub fn code(self) -> u8 {
+        Palette::ALL.iter().position(|&p| p == self).unwrap_or(0) as u8
+    }
 
     pub fn name(self) -> &'static str {
         match self {
@@ -106,6 +111,40 @@ impl Palette {
     }
 }
 
+/// A palette as a file gives it: its name or its number.
+#[derive(serde::Deserialize)]
+#[serde(untagged)]
+pub enum NameOrCode {
+    Code(u8),
+    Name(String),
+}
+
+impl TryFrom<NameOrCode> for Palette {
+    type Error = String;
+
+    fn try_from(v: NameOrCode) -> Result<Palette, String> {
+        match v {
+            NameOrCode::Code(n) => Palette::try_from(n).map_err(|e| e.to_string()),
+            NameOrCode::Name(s) => s.parse().map_err(|e: ThermalError| e.to_string()),
+        }
+    }
+}
+
+impl TryFrom<u8> for Palette {
+    type Error = crate::modes::NotAMode;
+
+    fn try_from(v: u8) -> Result<Palette, Self::Error> {
+        Palette::ALL
+            .get(v as usize)
+            .copied()
+            .ok_or(crate::modes::NotAMode {
+                what: "thermal palette",
+                value: v,
+                top: Palette::ALL.len() as u8 - 1,
+            })
+    }
+}
+
 impl std::str::FromStr for Palette {
     type Err = ThermalError;
 
@@ -153,6 +192,13 @@ mod tests {
         assert_eq!("ironbow".parse::<Palette>().unwrap(), Palette::Ironbow);
         assert_eq!("WhiteHot".parse::<Palette>().unwrap(), Palette::WhiteHot);
         assert_eq!("black_hot".parse::<Palette>().unwrap(), Palette::BlackHot);
+        for p in Palette::ALL {
+            assert_eq!(Palette::try_from(p.code()), Ok(p));
+        }
+        assert_eq!(
+            Palette::try_from(6).unwrap_err().to_string(),
+            "thermal palette 6 is outside 0..=5"
+        );
         let e = "iron".parse::<Palette>().unwrap_err().to_string();
         assert!(
             e.contains("\"iron\"") && e.contains("white-hot, black-hot, ironbow"),

@@ -23,6 +23,7 @@ mod payload_video;
 mod rolling_video;
 mod serve_video;
 mod services;
+mod thermal_look;
 mod thermal_stream;
 mod tracking;
 mod web_rings;

@@ -5,11 +5,13 @@
 //! engine's hot patch lies within 1 px of where the view sees the engine (the two mounts
 //! registered); as a picture-in-picture and as the view's whole picture, the decoded inset
 //! lies within 1 px of the CPU reference's, drawn from the thermal frame the demo draws; and
-//! the view's stream is flagged THERMAL (VIDEO_STREAM_INFORMATION) while the view shows the
-//! thermal picture alone.
+//! the view's stream is flagged THERMAL (VIDEO_STREAM_INFORMATION), its field of view the
+//! thermal camera's, while the view shows the thermal picture alone.
 
 use crate::common;
-use common::thermal::{aimed, engine_ray, engine_serve, mount_towards};
+use common::thermal::{
+    SIZE, aimed, decoded, engine_ray, engine_serve, luma, mount_towards, reference_layer,
+};
 
 use common::peers::LinePeer;
 use digiview::geometry::Euler;
@@ -18,58 +20,12 @@ use digiview::layout::Rect;
 use digiview::lens::Lenses;
 use digiview::modes::ThermalShow;
 use digiview::render::plan::FramePlan;
-use digiview::render::thermal_layer::ThermalLayer;
-use digiview::scene::GridWorld;
-use digiview::scene::thermal::{thermal_frame, thermal_in_lens};
-use digiview::state::State;
-use digiview::thermal::{Calibration, GainMode, GainTable, Palette};
+use digiview::state::{State, ThermalLook};
 use glam::DVec2;
 use image::RgbImage;
-use std::io::Read;
-use std::process::{Command, Stdio};
-use std::sync::Arc;
 use std::time::Duration;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
-const SIZE: (u32, u32) = (1280, 720);
-
-/// The last of 8 frames FFmpeg decodes from `url` (RTSP over TCP), as RGB.
-fn decoded(url: &str) -> RgbImage {
-    let mut child = Command::new("ffmpeg")
-        .args([
-            "-hide_banner",
-            "-nostdin",
-            "-rtsp_transport",
-            "tcp",
-            "-i",
-            url,
-        ])
-        .args(["-frames:v", "8", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("ffmpeg runs (scripts/setup.sh installs it)");
-    let mut bytes = Vec::new();
-    child
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_end(&mut bytes)
-        .unwrap();
-    assert!(
-        child.wait().unwrap().success(),
-        "ffmpeg could not decode {url}"
-    );
-    let frame = (SIZE.0 * SIZE.1 * 3) as usize;
-    assert!(bytes.len() >= frame, "no frame from {url}");
-    let last = bytes[bytes.len() - frame..].to_vec();
-    RgbImage::from_raw(SIZE.0, SIZE.1, last).unwrap()
-}
-
-fn luma(img: &RgbImage, x: u32, y: u32) -> f64 {
-    let p = img.get_pixel(x, y).0;
-    0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64
-}
 
 /// The centroid (pixel centres at +0.5) of the brightest patch of `value` in `rect` (x, y,
 /// w, h): each pixel weighted by how far it rises past 25 levels under the brightest.
@@ -86,18 +42,10 @@ fn hot_patch(value: impl Fn(u32, u32) -> f64, (x0, y0, w, h): (u32, u32, u32, u3
 }
 
 /// Entry 0 of the layer over `plan`'s view 0 `show`'s way, as the CPU reference draws it
-/// from the thermal frame the head's demo draws (the same world, lens, mount and state, the
-/// automatic gain, white-hot), over black: the picture and the entry's rect.
+/// (white-hot under the automatic gain, the head's default), over black: the picture and the
+/// entry's rect.
 fn reference(plan: &FramePlan, state: &State, show: ThermalShow, mount: Euler) -> (RgbImage, Rect) {
-    let lens = Lenses::new(&common::lens_cal())
-        .named("BOSON320")
-        .unwrap()
-        .clone();
-    let cal = Calibration::default();
-    let frame = thermal_frame(&GridWorld::demo(false), &lens, mount, state, &cal, 2);
-    let gain = GainTable::new(&frame, GainMode::default(), &cal).unwrap();
-    let mut layer = ThermalLayer::new(Arc::new(frame), Arc::new(gain), Palette::WhiteHot, lens);
-    layer.add(plan, &plan.views[0], show, thermal_in_lens(mount));
+    let layer = reference_layer(plan, state, show, mount, &ThermalLook::default());
     let mut picture = RgbImage::new(SIZE.0, SIZE.1);
     layer.draw_rgb(&mut picture);
     (picture, layer.entries[0].rect)
@@ -199,6 +147,18 @@ fn each_way_of_showing_the_thermal_camera_stands_where_the_mounts_put_it_in_the_
             (Some(alone), Some(false)),
             "{heard}"
         );
+        // Its field of view is the thermal camera's (the Boson's, about 50°) while it is that
+        // camera's picture, else the view's 90°.
+        let boson = Lenses::new(&common::lens_cal())
+            .named("BOSON320")
+            .unwrap()
+            .hfov();
+        let hfov = if alone {
+            boson.to_degrees().round()
+        } else {
+            90.0
+        };
+        assert_eq!(heard["hfov"]["1"], hfov, "{heard}");
         let (want, rect) = reference(&plan, &s, show, mount);
         // The measure sees a shift: the reference one pixel to the right reads as one.
         let moved = RgbImage::from_fn(SIZE.0, SIZE.1, |x, y| *want.get_pixel(x.max(1) - 1, y));

@@ -7,15 +7,26 @@ use super::autopilot::free_udp_port;
 use super::peers::LinePeer;
 use super::serve::Serve;
 use digiview::geometry::Euler;
+use digiview::lens::Lenses;
+use digiview::modes::ThermalShow;
+use digiview::render::plan::FramePlan;
+use digiview::render::thermal_layer::ThermalLayer;
 use digiview::scene::GridWorld;
 use digiview::scene::synth::eye;
-use digiview::scene::thermal::world_from_thermal;
-use digiview::state::State;
+use digiview::scene::thermal::{thermal_frame, thermal_in_lens, world_from_thermal};
 use digiview::state::view::{Camera, Field};
+use digiview::state::{State, ThermalLook};
+use digiview::thermal::{Calibration, GainTable};
 use glam::DVec3;
+use image::RgbImage;
 use serde_json::Value;
+use std::io::Read;
+use std::process::{Command, Stdio};
+use std::sync::Arc;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
+/// The views' own streams' size.
+pub const SIZE: (u32, u32) = (1280, 720);
 
 /// The world ray from the hovering vehicle to the engine bay's centre (the movers stand).
 pub fn engine_ray(state: &State) -> DVec3 {
@@ -77,4 +88,65 @@ pub fn engine_serve(mount: Euler, (yaw, pitch): (f64, f64)) -> (Serve, LinePeer,
     let (station, ready) = LinePeer::start("thermal_station.py", &[&link.to_string()]);
     assert_eq!(ready["ready"], true, "the station heard camera 100");
     (serve, station, ready)
+}
+
+/// The layer over `plan`'s view 0 `show`'s way as the CPU reference draws it from the thermal
+/// frame the head's demo draws (the same world, lens, mount and state), coloured as `look`
+/// says.
+pub fn reference_layer(
+    plan: &FramePlan,
+    state: &State,
+    show: ThermalShow,
+    mount: Euler,
+    look: &ThermalLook,
+) -> ThermalLayer {
+    let lens = Lenses::new(&super::lens_cal())
+        .named("BOSON320")
+        .unwrap()
+        .clone();
+    let cal = Calibration::default();
+    let frame = thermal_frame(&GridWorld::demo(false), &lens, mount, state, &cal, 2);
+    let gain = GainTable::new(&frame, look.gain_mode(), &cal).unwrap();
+    let mut layer = ThermalLayer::new(Arc::new(frame), Arc::new(gain), look.palette, lens);
+    (layer.blend, layer.zoom) = (look.blend, look.zoom as f64);
+    layer.add(plan, &plan.views[0], show, thermal_in_lens(mount));
+    layer
+}
+
+/// The last of 8 frames FFmpeg decodes from `url` (RTSP over TCP), as RGB.
+pub fn decoded(url: &str) -> RgbImage {
+    let mut child = Command::new("ffmpeg")
+        .args([
+            "-hide_banner",
+            "-nostdin",
+            "-rtsp_transport",
+            "tcp",
+            "-i",
+            url,
+        ])
+        .args(["-frames:v", "8", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("ffmpeg runs (scripts/setup.sh installs it)");
+    let mut bytes = Vec::new();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_end(&mut bytes)
+        .unwrap();
+    assert!(
+        child.wait().unwrap().success(),
+        "ffmpeg could not decode {url}"
+    );
+    let frame = (SIZE.0 * SIZE.1 * 3) as usize;
+    assert!(bytes.len() >= frame, "no frame from {url}");
+    let last = bytes[bytes.len() - frame..].to_vec();
+    RgbImage::from_raw(SIZE.0, SIZE.1, last).unwrap()
+}
+
+pub fn luma(img: &RgbImage, x: u32, y: u32) -> f64 {
+    let p = img.get_pixel(x, y).0;
+    0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64
 }

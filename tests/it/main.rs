@@ -56,3 +56,4 @@ mod view_filters;
 mod vmti;
 mod web;
 mod web_api;
+mod web_thermal;

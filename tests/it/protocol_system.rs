@@ -323,7 +323,7 @@ fn unknown_types_bad_versions_reply_types_and_bad_checksums_get_their_replies() 
         c.send_bytes(&f);
         c.recv().body
     };
-    for pt in [18u8, 99, 255] {
+    for pt in [20u8, 99, 255] {
         assert_eq!(
             answer(&mut c, raw_frame(0, 2, pt)),
             Body::Verdict(Verdict::Unknown, pt)

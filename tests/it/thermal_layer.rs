@@ -2,7 +2,8 @@
 //! (`ThermalLayer::draw_rgb`): blended onto a view, as a picture-in-picture and as a view's
 //! whole picture, in RGBA and in I420 (the encoder's format), held to 45 dB; and placed where
 //! the two mounts put it: a hot body's centre in the output within 1 px of where the ray of
-//! its thermal pixel, carried through the thermal mount and the view, lands.
+//! its thermal pixel, carried through the thermal mount and the view, lands. A view showing
+//! the thermal picture alone describes the thermal camera in its KLV.
 
 use crate::common;
 
@@ -18,9 +19,10 @@ use digiview::render::thermal_layer::ThermalLayer;
 use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::thermal::thermal_in_lens;
 use digiview::state::State;
+use digiview::stream::klv::ViewMetadata;
 use digiview::thermal::synth::{Background, Body, frame};
 use digiview::thermal::{Calibration, GainMode, GainTable, Palette};
-use glam::{DMat3, DVec2};
+use glam::{DMat3, DVec2, DVec3};
 use image::{Rgb, RgbImage};
 use std::sync::Arc;
 
@@ -225,4 +227,48 @@ fn a_view_that_shows_no_thermal_picture_is_drawn_as_without_a_layer() {
             }
         }
     }
+}
+
+/// A view showing the thermal picture alone describes the thermal camera in its KLV: its
+/// fields of view the thermal picture's, its pointing the thermal camera's axis (not the
+/// view's own aim), no tracked objects placed in it; a view with an inset keeps its own.
+#[test]
+fn a_view_showing_the_thermal_picture_alone_describes_the_thermal_camera_in_its_klv() {
+    let s = setup();
+    let plan = plan(&s, None);
+    let meta = |v: usize| {
+        ViewMetadata::of(
+            &plan,
+            &plan.views[v],
+            &s.state,
+            (0, None),
+            format!("cam {v}"),
+        )
+        .unwrap()
+    };
+    let alone = meta(3);
+    // The thermal picture: a pinhole with the lens's focal lengths over its frame.
+    let m = s.thermal.affine.matrix;
+    let across = |size: u32, focal: f64| (2.0 * (0.5 * size as f64 / focal).atan()).to_degrees();
+    let want = (
+        across(s.thermal.width, m.x_axis.x),
+        across(s.thermal.height, m.y_axis.y),
+    );
+    let euler = |d: &digiview::stream::klv::view::Degrees| {
+        Euler::new(d.yaw * DEG, d.pitch * DEG, d.roll * DEG)
+    };
+    let seen = euler(&alone.platform).matrix() * euler(&alone.relative).matrix() * DVec3::X;
+    let axis = plan.lens_from_world.transpose() * mount() * DVec3::Z;
+    let off = seen.angle_between(axis).to_degrees();
+    eprintln!(
+        "thermal view: fov {:.2}° x {:.2}° (the thermal picture's {:.2}° x {:.2}°), \
+         pointing {off:.4}° off the thermal axis",
+        alone.fov.0, alone.fov.1, want.0, want.1
+    );
+    assert!((alone.fov.0 - want.0).abs() < 0.05 && (alone.fov.1 - want.1).abs() < 0.05);
+    assert!(off < 0.01, "{off}° off the thermal camera's axis");
+    assert!(alone.objects.is_none() && alone.corners.is_some());
+    let inset = meta(0);
+    assert!((inset.fov.0 - 90.0).abs() < 0.05, "{:?}", inset.fov);
+    assert!(inset.objects.is_some());
 }

@@ -130,8 +130,9 @@ fn the_hottest_point_follows_the_engine_in_the_view_s_pixels_as_the_view_turns()
     assert!(thermal["frames"].as_u64().unwrap() > 0, "{status}");
 }
 
-/// Without a sensor: the web API says how to start one, and the cameras neither claim a
-/// thermal range nor answer for one, nor take IR as their source (pymavlink).
+/// Without a sensor: the web API says how to start one, the DigiView protocol refuses to
+/// colour or show a thermal picture (saying so), and the cameras neither claim a thermal
+/// range nor answer for one, nor take IR as their source (pymavlink).
 #[test]
 fn without_a_thermal_sensor_the_api_says_how_to_start_one() {
     let link = free_udp_port();
@@ -144,6 +145,20 @@ fn without_a_thermal_sensor_the_api_says_how_to_start_one() {
         read["error"].as_str().unwrap().contains("--thermal SOURCE"),
         "{read}"
     );
+    let addr = serve.addr.to_string();
+    for (args, taken) in [
+        (&["set", "thermal", "palette=2"][..], false),
+        (&["set", "cam_thermal", "cam=0", "show=2"], false),
+        (&["set", "cam_thermal", "cam=0", "show=0"], true),
+    ] {
+        let out = common::ctl(&addr, args);
+        let said = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.success(), taken, "{args:?}: {said}");
+        assert!(
+            taken || said.contains("no thermal sensor"),
+            "{args:?}: {said}"
+        );
+    }
     let (mut station, ready) = LinePeer::start("thermal_station.py", &[&link.to_string()]);
     assert_eq!(ready["ready"], true, "the station heard camera 100");
     assert_eq!(ready["flags"].as_u64().unwrap() & 4096, 0, "{ready}");

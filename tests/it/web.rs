@@ -476,7 +476,7 @@ async fn sets_without_permission_and_other_sites_pages_are_refused() {
 }
 
 /// Chromium at 1024x768 on the page at `http`, once the page has the state.
-async fn page_with_state(http: &str) -> Browser {
+pub(crate) async fn page_with_state(http: &str) -> Browser {
     let b = Browser::start(1024, 768).await;
     b.client.goto(http).await.unwrap();
     b.until(

@@ -12,8 +12,9 @@ CAMERA_THERMAL_RANGE that camera sent after it (null when none came); NaN goes o
 The first line says whether camera 100 was heard and the CAMERA_INFORMATION flags it gives.
 A line {"camera": 100, "thermal": V} sets that camera's THERMAL setting to V instead
 (PARAM_EXT_SET) and answers {"ack": PARAM_EXT_ACK's result, "value": the value in force};
-{"camera": 100, "streams": true} answers {"flags": {"1": .., "2": ..}}, each stream's
-VIDEO_STREAM_INFORMATION flags; {"camera": 100, "source": [P, S], "device": D} sends
+{"camera": 100, "setting": NAME, "value": V} sets the camera setting NAME alike;
+{"camera": 100, "streams": true} answers {"flags": {"1": .., "2": ..}, "hfov": {..}}, each
+stream's VIDEO_STREAM_INFORMATION flags and horizontal field of view (degrees); {"camera": 100, "source": [P, S], "device": D} sends
 MAV_CMD_SET_CAMERA_SOURCE and answers {"result": the COMMAND_ACK's result}.
 
 Usage: thermal_station.py PORT (DigiView's MAVLink port, udpin on 127.0.0.1).
@@ -55,11 +56,11 @@ def request(link, system, camera, message_id, reply):
     return result, answer
 
 
-def set_thermal(link, system, camera, value):
-    """PARAM_EXT_SET of the camera setting THERMAL, one byte as QGroundControl writes a
-    camera definition's option: the PARAM_EXT_ACK's result and value (None when none came
-    within 3 s)."""
-    link.mav.param_ext_set_send(system, camera, b"THERMAL", bytes([value]) + bytes(127),
+def set_setting(link, system, camera, name, value):
+    """PARAM_EXT_SET of the camera setting `name`, one byte as QGroundControl writes a camera
+    definition's option: the PARAM_EXT_ACK's result and value (None when none came within
+    3 s)."""
+    link.mav.param_ext_set_send(system, camera, name.encode(), bytes([value]) + bytes(127),
                                 mavutil.mavlink.MAV_PARAM_EXT_TYPE_UINT8)
     end = time.monotonic() + 3.0
     while time.monotonic() < end:
@@ -87,15 +88,16 @@ def set_source(link, system, camera, asked):
 
 def stream_flags(link, system, camera):
     """REQUEST_MESSAGE of VIDEO_STREAM_INFORMATION (269), every stream: each stream's flags
-    by its id, as heard within 3 s."""
+    and hfov by its id, as heard within 3 s."""
     link.mav.command_long_send(system, camera, REQUEST_MESSAGE, 0, 269, 0, 0, 0, 0, 0, 0)
-    flags = {}
+    flags, hfov = {}, {}
     end = time.monotonic() + 3.0
     while len(flags) < 2 and time.monotonic() < end:
         msg = link.recv_match(type="VIDEO_STREAM_INFORMATION", blocking=True, timeout=0.1)
         if msg is not None and msg.get_srcComponent() == camera:
             flags[str(msg.stream_id)] = msg.flags
-    return {"flags": flags}
+            hfov[str(msg.stream_id)] = msg.hfov
+    return {"flags": flags, "hfov": hfov}
 
 
 def main():
@@ -115,8 +117,9 @@ def main():
         if "streams" in asked:
             print(json.dumps(stream_flags(link, system, camera)), flush=True)
             continue
-        if "thermal" in asked:
-            print(json.dumps(set_thermal(link, system, camera, asked["thermal"])), flush=True)
+        if "thermal" in asked or "setting" in asked:
+            name, value = asked.get("setting", "THERMAL"), asked.get("value", asked.get("thermal"))
+            print(json.dumps(set_setting(link, system, camera, name, value)), flush=True)
             continue
         result, got = request(link, system, camera, 277, "CAMERA_THERMAL_RANGE")
         found = None if got is None else {k: number(getattr(got, k)) for k in FIELDS}

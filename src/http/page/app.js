@@ -65,7 +65,9 @@ function showStatus(s) {
     }
     if (v.exposure) rows.push(['exposure', v.exposure]);
     if (v.source_down) rows.push(['source down', v.source_down]);
+    if (v.thermal) rows.push(...thermalRows(v.thermal));
   }
+  controls.thermal(!!(v && v.thermal));
   rows.push(...linkRows(s.autopilot));
   rows.push(['version', s.version]);
   $('figures').replaceChildren(...rows.flatMap(([k, val, bad]) => {
@@ -76,6 +78,14 @@ function showStatus(s) {
     dd.classList.toggle('bad', !!bad);
     return [dt, dd];
   }));
+}
+
+// The thermal sensor: what it is, and why it is down while it is.
+function thermalRows(t) {
+  const size = t.size ? `, ${t.size[0]}x${t.size[1]}` : '';
+  const rows = [['thermal', `${t.source} (${t.lens}): ${t.frames} frames${size}`]];
+  if (t.error) rows.push(['thermal down', t.error, true]);
+  return rows;
 }
 
 // The MAVLink link: its state, who drives the views, and other senders of attitude (a warning).

@@ -7,6 +7,9 @@ const LAYOUTS = ['0 one square', '1 two squares stacked', '2 two panoramas stack
 const OVERLAYS = ['0 none', '1 one tile, top right', '2 column, right', '3 column, left',
   '4 row, top', '5 row, bottom'];
 const SORTING = ['0 by score', '1 by age', '2 by score, tiles kept'];
+const PALETTES = ['0 white hot', '1 black hot', '2 ironbow', '3 rainbow', '4 arctic', '5 lava'];
+const GAINS = ['0 automatic', '1 fixed span'];
+const SHOWS = ['0 off', '1 blended', '2 picture in picture', '3 thermal alone'];
 const deg = (r) => (r * 180) / Math.PI;
 
 // [field, label, kind, options]; kind: int, num, deg, bool, choice, ratio.
@@ -39,6 +42,11 @@ const FORMS = {
     ['missed_detection_penalty', 'penalty, scan', 'int'],
     ['missed_redetection_penalty', 'penalty, track', 'int'],
   ]],
+  thermal: ['THERMAL', [
+    ['palette', 'palette', 'choice', PALETTES], ['gain', 'gain', 'choice', GAINS],
+    ['span_low', 'span from K', 'num'], ['span_high', 'span to K', 'num'],
+    ['blend', 'blend share', 'ratio'], ['zoom', 'zoom (1 to 8×)', 'int'],
+  ]],
 };
 
 // The camera form: [param, field, label, kind, options].
@@ -51,6 +59,7 @@ const CAMERA = [
   ['CAM_TARGET', 't_latitude', 'target latitude °', 'num'],
   ['CAM_TARGET', 't_longitude', 'target longitude °', 'num'],
   ['CAM_TARGET', 't_altitude', 'target altitude m', 'num'],
+  ['CAM_THERMAL', 'show', 'thermal', 'choice', SHOWS],
 ];
 
 function input(kind, options) {
@@ -126,9 +135,9 @@ export class Controls {
       if (this.params) this.update(this.params);
     });
     const camera = document.getElementById('camera');
-    for (const [param, name, label, kind] of CAMERA) {
+    for (const [param, name, label, kind, options] of CAMERA) {
       const [l, id] = row(camera, `${param}-${name}`, label);
-      const el = input(kind, []);
+      const el = input(kind, options || []);
       el.id = id;
       camera.append(l, el);
       el.addEventListener('change', () => {
@@ -140,9 +149,19 @@ export class Controls {
         if (param === 'CAM_EULER') fields.is_delta = 0;
         this.set(param, fields);
       });
-      this.fields.push({ param, name, kind, el, perCamera: true });
+      this.fields.push({ param, name, kind, el, perCamera: true, label: l });
     }
     this.lensSelect = document.getElementById('lens-lens_id');
+    this.thermal(false);
+  }
+
+  // The thermal settings show only where the head has a thermal sensor.
+  thermal(on) {
+    document.getElementById('thermal-panel').hidden = !on;
+    for (const f of this.fields.filter((g) => g.param === 'CAM_THERMAL')) {
+      f.el.hidden = !on;
+      f.label.hidden = !on;
+    }
   }
 
   // A target is a point: all three coordinates go together (x = y = 0 means "these

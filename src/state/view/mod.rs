@@ -129,6 +129,7 @@ impl Camera {
             Field::Crop => self.crop = Crop::from(v as u8),
             Field::Lock => self.lock = LockFlags(v as u8),
             Field::Control => self.control = Control::try_from(v as u8)?,
+            Field::Thermal => self.thermal = ThermalShow::try_from(v as u8)?,
         }
         Ok(())
     }
@@ -159,6 +160,7 @@ pub enum Field {
     Crop,
     Lock,
     Control,
+    Thermal,
 }
 
 impl Field {
@@ -171,6 +173,7 @@ impl Field {
         Field::Crop,
         Field::Lock,
         Field::Control,
+        Field::Thermal,
     ];
 
     /// Its name in a flag and a state file.
@@ -193,6 +196,7 @@ impl Field {
             Field::Crop => &CAMERA_CROP,
             Field::Lock => &CAMERA_LOCK,
             Field::Control => &CAMERA_CONTROL,
+            Field::Thermal => &CAMERA_THERMAL,
         }
     }
 

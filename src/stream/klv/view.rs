@@ -3,7 +3,8 @@
 //! pointing relative to the airframe (an earth-locked view turned back into the airframe's
 //! axes with that same sample), its fields of view, and where its centre and corners meet
 //! the ground (the plane at the home altitude, as DETECTED_ROI and CAM_TARGET use), and the
-//! tracked objects it shows, where.
+//! tracked objects it shows, where. A view showing the thermal picture alone describes the
+//! thermal camera's own footprint.
 
 use super::vmti::{Target, Vmti};
 use crate::geometry::Euler;
@@ -76,8 +77,31 @@ impl ViewMetadata {
         (time_us, frame): (u64, Option<(u32, u32)>),
         source: String,
     ) -> Option<ViewMetadata> {
+        let pose = (state, time_us, source);
+        // A view showing the thermal picture alone is the thermal camera's: its footprint
+        // is the thermal frame's, and the tracked objects are not placed in it.
+        if let Some((entry, origin, size)) =
+            plan.thermal.as_ref().and_then(|l| l.alone_in(view.rect))
+        {
+            let ray = |x: f64, y: f64| Some(entry.world_ray(origin + DVec2::new(x, y)).normalize());
+            return ViewMetadata::from_rays(ray, (size.x, size.y), pose);
+        }
         let (w, h) = (view.rect.w as f64, view.rect.h as f64);
         let ray = |x: f64, y: f64| plan.view_ray(view, DVec2::new(x, y)).map(DVec3::normalize);
+        let m = ViewMetadata::from_rays(ray, (w, h), pose)?;
+        Some(ViewMetadata {
+            objects: Some(objects(plan, view, state, frame)),
+            ..m
+        })
+    }
+
+    /// The metadata of a picture `w` × `h` whose point (x, y) looks along `ray(x, y)`, with
+    /// no tracked objects.
+    fn from_rays(
+        ray: impl Fn(f64, f64) -> Option<DVec3>,
+        (w, h): (f64, f64),
+        (state, time_us, source): (&State, u64, String),
+    ) -> Option<ViewMetadata> {
         let boresight = ray(w / 2.0, h / 2.0)?;
         let top = ray(w / 2.0, 0.0).unwrap_or(DVec3::NEG_Z);
         let angle = |a: Option<DVec3>, b: Option<DVec3>| match (a, b) {
@@ -88,8 +112,8 @@ impl ViewMetadata {
             angle(ray(0.0, h / 2.0), ray(w, h / 2.0)),
             angle(Some(top), ray(w / 2.0, h)),
         );
-        // The view's axes in the world (forward, right, down), its image's up taken from
-        // the ray at the middle of its top edge.
+        // The picture's axes in the world (forward, right, down), its up taken from the ray
+        // at the middle of its top edge.
         let down = -(top - boresight * top.dot(boresight)).normalize_or_zero();
         let world_from_view = DMat3::from_cols(boresight, down.cross(boresight), down);
         let vehicle = state.vehicle.attitude.euler();
@@ -110,7 +134,7 @@ impl ViewMetadata {
                 .iter()
                 .all(Option::is_some)
                 .then(|| corners.map(|c| c.expect("all met the ground"))),
-            objects: Some(objects(plan, view, state, frame)),
+            objects: None,
         })
     }
 }
