@@ -205,7 +205,7 @@ fn change_of(name: &str, v: u8) -> Change {
             Ok(())
         }),
         "IR_GAIN" => other(|s, v| {
-            s.thermal.gain = [ThermalGain::Auto, ThermalGain::Span][v.min(1) as usize];
+            s.thermal.gain = ThermalGain::try_from(v).map_err(|e| Invalid(e.to_string()))?;
             Ok(())
         }),
         "IR_ZOOM" => other(|s, v| {

@@ -197,16 +197,9 @@ pub fn thermal(settings: &Settings) -> Thermal {
 /// refused (the span by `Settings::validate`, as from every entry); the blend and the zoom
 /// are clamped.
 pub fn set_thermal(s: &mut Settings, p: &Thermal) -> Result<(), Refusal> {
-    let refused = |rule: &Rule, v: f64| {
-        Refusal::Data(format!("{} {v} is outside {}", rule.label, rule.range()))
-    };
     let t = &mut s.thermal;
     t.palette = Palette::try_from(p.palette)?;
-    t.gain = match p.gain {
-        0 => ThermalGain::Auto,
-        1 => ThermalGain::Span,
-        g => return Err(refused(&THERMAL_GAIN, g as f64)),
-    };
+    t.gain = ThermalGain::try_from(p.gain)?;
     (t.low, t.high) = (p.span_low, p.span_high);
     t.blend = THERMAL_BLEND.take(p.blend, t.blend);
     t.zoom = THERMAL_ZOOM.take(p.zoom as f64, t.zoom as f64) as u8;

@@ -126,15 +126,13 @@ pub fn set(
     v: u32,
     (widest, thermal): (f64, bool),
 ) -> Result<Set, Refusal> {
-    let value = |ok: bool, what: &str| match ok {
-        true => Ok(()),
-        false => Err(Refusal::Value(format!("{name} = {v}: {what}"))),
-    };
+    let value = |ok, what: &str| taken(ok, (name, v), what);
     match name {
         "GB_MODE" => gimbal_mode(modes, v).ok_or_else(|| {
-            Refusal::Value(format!(
-                "GB_MODE = {v}: give 0 off, 1 lock, 2 follow, 3 mapping or 4 reset"
-            ))
+            refusal(
+                (name, v),
+                "give 0 off, 1 lock, 2 follow, 3 mapping or 4 reset",
+            )
         }),
         "C_SOURCE" | "C_T_ZOOM" | "C_T_PALETTE" if thermal => thermal_set(name, v),
         "C_SOURCE" => {
@@ -193,12 +191,19 @@ pub fn set(
     }
 }
 
+/// The refusal of `name` = `v`, saying `what` is taken.
+fn refusal((name, v): (&str, u32), what: &str) -> Refusal {
+    Refusal::Value(format!("{name} = {v}: {what}"))
+}
+
+/// Nothing when `ok`; else [`refusal`].
+fn taken(ok: bool, set: (&str, u32), what: &str) -> Result<(), Refusal> {
+    if ok { Ok(()) } else { Err(refusal(set, what)) }
+}
+
 /// What C_V_AE or C_V_SP set to `v` does: the fisheye's exposure, automatic or manual.
 fn exposure_set(name: &str, v: u32) -> Result<Set, Refusal> {
-    let value = |ok: bool, what: &str| match ok {
-        true => Ok(()),
-        false => Err(Refusal::Value(format!("{name} = {v}: {what}"))),
-    };
+    let value = |ok, what: &str| taken(ok, (name, v), what);
     match name {
         // Shutter priority (10) is manual here: the fisheye's exposure has no auto gain beside
         // a given shutter.
@@ -231,7 +236,7 @@ fn exposure_set(name: &str, v: u32) -> Result<Set, Refusal> {
 /// What C_SOURCE, C_T_ZOOM or C_T_PALETTE set to `v` does with a thermal sensor: how the view
 /// shows it, its zoom, its palette.
 fn thermal_set(name: &str, v: u32) -> Result<Set, Refusal> {
-    let refused = |what: &str| Err(Refusal::Value(format!("{name} = {v}: {what}")));
+    let refused = |what: &str| Err(refusal((name, v), what));
     let shows = [ThermalShow::Pip, ThermalShow::Off, ThermalShow::Thermal];
     match name {
         "C_SOURCE" => match shows.get(v as usize) {

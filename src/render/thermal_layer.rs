@@ -99,8 +99,17 @@ impl ThermalLayer {
         thermal_in_lens: DMat3,
     ) {
         let rect = view.rect;
-        let world_from_thermal =
-            plan.lens_from_world.transpose() * thermal_in_lens * MOUNT_FROM_LENS.transpose();
+        // Every entry's rays, turned into the world and from there into the thermal lens.
+        let thermal_from_world = thermal_in_lens.transpose() * plan.lens_from_world;
+        let world_from_thermal = thermal_from_world.transpose() * MOUNT_FROM_LENS.transpose();
+        let entry = |rect, projection, world_from_entry, alpha, black_outside| LayerEntry {
+            rect,
+            projection,
+            thermal_from_view: thermal_from_world * world_from_entry,
+            world_from_entry,
+            alpha,
+            black_outside,
+        };
         let entry = match (show, view.map) {
             (ThermalShow::Off, _) => return,
             (
@@ -109,16 +118,7 @@ impl ThermalLayer {
                     projection,
                     world_from_view,
                 },
-            ) => LayerEntry {
-                rect,
-                projection,
-                thermal_from_view: thermal_in_lens.transpose()
-                    * plan.lens_from_world
-                    * world_from_view,
-                world_from_entry: world_from_view,
-                alpha: self.blend,
-                black_outside: false,
-            },
+            ) => entry(rect, projection, world_from_view, self.blend, false),
             (ThermalShow::Blend, _) => return,
             (ThermalShow::Pip, _) => {
                 let w = ((rect.w as f64 * PIP_SHARE).round() as u32).max(2);
@@ -126,32 +126,33 @@ impl ThermalLayer {
                 let h = (h as u32).clamp(2, rect.h);
                 let x = rect.x + rect.w.saturating_sub(w + PIP_MARGIN);
                 let y = rect.y + rect.h.saturating_sub(h + PIP_MARGIN);
-                self.own_picture(Rect::new(x, y, w.min(rect.w), h), world_from_thermal)
+                let inset = Rect::new(x, y, w.min(rect.w), h);
+                entry(
+                    inset,
+                    self.own_picture(inset),
+                    world_from_thermal,
+                    1.0,
+                    true,
+                )
             }
-            (ThermalShow::Thermal, _) => self.own_picture(rect, world_from_thermal),
+            (ThermalShow::Thermal, _) => {
+                entry(rect, self.own_picture(rect), world_from_thermal, 1.0, true)
+            }
         };
         self.entries.push(entry);
     }
 
-    /// The thermal picture filling `rect`: a pinhole on the thermal axis whose focal length
-    /// is the lens's, scaled so that the whole frame fits, times the zoom;
-    /// `world_from_thermal` turns the thermal camera's axes (forward, right, down) into the
-    /// world.
-    fn own_picture(&self, rect: Rect, world_from_thermal: DMat3) -> LayerEntry {
+    /// The projection of the thermal picture filling `rect`: a pinhole on the thermal axis
+    /// (forward, right, down) whose focal length is the lens's, scaled so that the whole
+    /// frame fits, times the zoom.
+    fn own_picture(&self, rect: Rect) -> Projection {
         let (w, h) = (rect.w as f64, rect.h as f64);
         let scale = (w / self.lens.width as f64).min(h / self.lens.height as f64);
         let focal = self.lens.affine.matrix.x_axis.x * scale * self.zoom;
-        LayerEntry {
-            rect,
-            projection: Projection::Rectilinear {
-                width: w,
-                height: h,
-                fov: 2.0 * (0.5 * w / focal).atan(),
-            },
-            thermal_from_view: MOUNT_FROM_LENS.transpose(),
-            world_from_entry: world_from_thermal,
-            alpha: 1.0,
-            black_outside: true,
+        Projection::Rectilinear {
+            width: w,
+            height: h,
+            fov: 2.0 * (0.5 * w / focal).atan(),
         }
     }
 

@@ -9,7 +9,7 @@ use super::detection::DetectionSettings;
 use super::view::Camera;
 use crate::geometry::Euler;
 use crate::lens::Roi;
-use crate::modes::{LayoutMode, OverlayMode};
+use crate::modes::{LayoutMode, NotAMode, OverlayMode};
 use crate::thermal::palette::NameOrCode;
 use crate::thermal::{GainMode, Palette};
 use crate::units::de_angle;
@@ -151,16 +151,31 @@ pub enum ThermalGain {
     Span = 1,
 }
 
+/// Its number, THERMAL's gain.
+impl TryFrom<u8> for ThermalGain {
+    type Error = NotAMode;
+
+    fn try_from(v: u8) -> Result<ThermalGain, NotAMode> {
+        match v {
+            0 => Ok(ThermalGain::Auto),
+            1 => Ok(ThermalGain::Span),
+            _ => Err(NotAMode {
+                what: "thermal gain",
+                value: v,
+                top: 1,
+            }),
+        }
+    }
+}
+
 impl TryFrom<NameOrCode> for ThermalGain {
     type Error = String;
 
     fn try_from(v: NameOrCode) -> Result<ThermalGain, String> {
         match v {
-            NameOrCode::Code(0) => Ok(ThermalGain::Auto),
-            NameOrCode::Code(1) => Ok(ThermalGain::Span),
+            NameOrCode::Code(n) => ThermalGain::try_from(n).map_err(|e| e.to_string()),
             NameOrCode::Name(n) if n.eq_ignore_ascii_case("auto") => Ok(ThermalGain::Auto),
             NameOrCode::Name(n) if n.eq_ignore_ascii_case("span") => Ok(ThermalGain::Span),
-            NameOrCode::Code(n) => Err(format!("thermal gain {n} is outside 0..=1")),
             NameOrCode::Name(n) => Err(format!("thermal gain {n:?}: give \"auto\" or \"span\"")),
         }
     }
