@@ -7,12 +7,16 @@
 //! played through Media Source Extensions), read from the page's canvas as each frame is
 //! drawn. Run by scripts/latency.sh:
 //!
-//!     cargo run --release --example glass_to_glass -- [--size 1280x720] [--frames 300] [--page|--mse]
-//!         [--decoder avdec_h264]
+//!     cargo run --release --example glass_to_glass -- [--size 1280x720] [--frames 300]
+//!         [--page|--mse|--ffmpeg [--udp]|--opencv] [--decoder avdec_h264]
 //!
 //! The RTSP client decodes with `--decoder` (default `avdec_h264`, FFmpeg's, as most ground
 //! stations' players); `decodebin` picks the best installed (NVDEC's `nvh264dec` on an NVIDIA
-//! GPU).
+//! GPU). With `--ffmpeg` the client is the `ffmpeg` program with `-fflags nobuffer -flags
+//! low_delay -threads 1`, over TCP or with `--udp` over UDP, writing grey frames to a pipe
+//! flushed after each; with `--opencv`, OpenCV's capture (FFmpeg's RTSP client and decoder
+//! as a library, as ffplay, mpv and ground stations' Python use it: `scripts/cv_frames.py`
+//! in the project's .venv), the same options and one decoding thread.
 
 use digiview::clock::clock_us;
 use digiview::lens::LensCal;
@@ -73,11 +77,124 @@ fn main() {
     let config = dir.path().join("digiview.toml");
     std::fs::write(&config, "health_interval_s = 5\n").unwrap();
 
+    let cells = barcode_cells(&state, w);
+
+    let Head {
+        mut serve,
+        url,
+        page,
+        stages,
+    } = Head::start(&state_file, &config);
+    let (client, (mut latencies, unread)) = if page_mode {
+        let (client, page) = match mse {
+            true => ("page, MSE", format!("{page}?preview=mse")),
+            false => ("page, WebCodecs", page),
+        };
+        (client.to_string(), page_latencies(&page, &cells, w, frames))
+    } else if std::env::args().any(|a| a == "--ffmpeg" || a == "--opencv") {
+        let udp = std::env::args().any(|a| a == "--udp");
+        let transport = if udp { "udp" } else { "tcp" };
+        let (client, command) = match std::env::args().any(|a| a == "--opencv") {
+            true => ("OpenCV's capture".to_string(), opencv(&url)),
+            false => (
+                format!("the ffmpeg program over {transport}"),
+                ffmpeg(&url, transport),
+            ),
+        };
+        (
+            format!("RTSP, {client}"),
+            piped_latencies(command, &cells, (w, h), frames),
+        )
+    } else {
+        let decoder = arg("--decoder", "avdec_h264");
+        let l = rtsp_latencies(&url, &decoder, &cells, w, frames);
+        (format!("RTSP, {decoder}"), l)
+    };
+    let _ = serve.kill();
+    let _ = serve.wait();
+    latencies.sort_by(f64::total_cmp);
+    let q = |f: f64| latencies[((latencies.len() - 1) as f64 * f) as usize];
+    println!(
+        "glass-to-glass ({client}) at {w}x{h}, {} frames: median {:.0} ms, p10 {:.0}, p90 {:.0}, \
+         min {:.0}, max {:.0} ({unread} unreadable)",
+        latencies.len(),
+        q(0.5),
+        q(0.1),
+        q(0.9),
+        latencies[0],
+        latencies[latencies.len() - 1]
+    );
+    println!("head's {}", stages.lock().unwrap());
+}
+
+/// `digiview serve` on the stamped demo, its RTSP and page addresses, and the last line of
+/// its log saying where the frames' time went.
+struct Head {
+    serve: std::process::Child,
+    url: String,
+    page: String,
+    stages: std::sync::Arc<std::sync::Mutex<String>>,
+}
+
+impl Head {
+    fn start(state_file: &std::path::Path, config: &std::path::Path) -> Head {
+        // target/release/examples/glass_to_glass → target/release/digiview
+        let exe = std::env::current_exe().unwrap();
+        let digiview = exe
+            .parent()
+            .and_then(|d| d.parent())
+            .unwrap()
+            .join("digiview");
+        let mut serve = Command::new(digiview)
+            .args(["serve", "--control", "127.0.0.1:0", "--rtsp-port", "0"])
+            .args(["--http", "127.0.0.1:0"])
+            .args(["--demo-hover", "--demo-stamp", "--demo-size", "1280x720"])
+            .args(["--state", state_file.to_str().unwrap()])
+            .args(["--config", config.to_str().unwrap()])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("digiview serve starts");
+        // Its log: the lines saying where the frames' time went, the last kept.
+        let stages = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        {
+            let (stages, log) = (stages.clone(), serve.stderr.take().unwrap());
+            std::thread::spawn(move || {
+                for line in std::io::BufReader::new(log).lines().map_while(Result::ok) {
+                    if let Some(i) = line.find("latency over") {
+                        *stages.lock().unwrap() = line[i..].to_string();
+                    }
+                }
+            });
+        }
+        // serve announces its control, RTSP and HTTP addresses, one line each, HTTP last.
+        let (mut url, mut page) = (String::new(), String::new());
+        for line in std::io::BufReader::new(serve.stdout.take().unwrap()).lines() {
+            let line = line.expect("serve announces its addresses");
+            if let Some(u) = line.strip_prefix("rtsp serving ") {
+                url = u.to_string();
+            }
+            if let Some(u) = line.strip_prefix("http serving ") {
+                page = u.to_string();
+                break;
+            }
+        }
+        Head {
+            serve,
+            url,
+            page,
+            stages,
+        }
+    }
+}
+
+/// For every output pixel of the one view, the barcode bit it shows (cell interiors only):
+/// the pixels' indices in a `w`-wide frame, by bit.
+fn barcode_cells(state: &State, w: u32) -> Vec<Vec<usize>> {
     let cal = LensCal::load(std::path::Path::new("lens-cal/lens.cal")).unwrap();
     let lens = cal.entries[0].lens().for_frame(DEMO.0, DEMO.1, None);
-    let plan = FramePlan::new(&state, &lens).unwrap();
+    let plan = FramePlan::new(state, &lens).unwrap();
     let centre = plan.lens.centre();
-    // For every output pixel, the barcode bit it shows (cell interiors only).
     let view = &plan.views[0];
     let mut cells: Vec<Vec<usize>> = vec![vec![]; 32];
     for y in 0..view.rect.h {
@@ -101,74 +218,7 @@ fn main() {
         cells.iter().all(|c| c.len() > 4),
         "the barcode is not in view"
     );
-
-    // target/release/examples/glass_to_glass → target/release/digiview
-    let exe = std::env::current_exe().unwrap();
-    let digiview = exe
-        .parent()
-        .and_then(|d| d.parent())
-        .unwrap()
-        .join("digiview");
-    let mut serve = Command::new(digiview)
-        .args(["serve", "--control", "127.0.0.1:0", "--rtsp-port", "0"])
-        .args(["--http", "127.0.0.1:0"])
-        .args(["--demo-hover", "--demo-stamp", "--demo-size", "1280x720"])
-        .args(["--state", state_file.to_str().unwrap()])
-        .args(["--config", config.to_str().unwrap()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("digiview serve starts");
-    // Its log: the lines saying where the frames' time went, the last kept.
-    let stages = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
-    {
-        let (stages, log) = (stages.clone(), serve.stderr.take().unwrap());
-        std::thread::spawn(move || {
-            for line in std::io::BufReader::new(log).lines().map_while(Result::ok) {
-                if let Some(i) = line.find("latency over") {
-                    *stages.lock().unwrap() = line[i..].to_string();
-                }
-            }
-        });
-    }
-    // serve announces its control, RTSP and HTTP addresses, one line each, HTTP last.
-    let (mut url, mut page) = (String::new(), String::new());
-    for line in std::io::BufReader::new(serve.stdout.take().unwrap()).lines() {
-        let line = line.expect("serve announces its addresses");
-        if let Some(u) = line.strip_prefix("rtsp serving ") {
-            url = u.to_string();
-        }
-        if let Some(u) = line.strip_prefix("http serving ") {
-            page = u.to_string();
-            break;
-        }
-    }
-    let (client, (mut latencies, unread)) = if page_mode {
-        let (client, page) = match mse {
-            true => ("page, MSE", format!("{page}?preview=mse")),
-            false => ("page, WebCodecs", page),
-        };
-        (client.to_string(), page_latencies(&page, &cells, w, frames))
-    } else {
-        let decoder = arg("--decoder", "avdec_h264");
-        let l = rtsp_latencies(&url, &decoder, &cells, w, frames);
-        (format!("RTSP, {decoder}"), l)
-    };
-    let _ = serve.kill();
-    let _ = serve.wait();
-    latencies.sort_by(f64::total_cmp);
-    let q = |f: f64| latencies[((latencies.len() - 1) as f64 * f) as usize];
-    println!(
-        "glass-to-glass ({client}) at {w}x{h}, {} frames: median {:.0} ms, p10 {:.0}, p90 {:.0}, \
-         min {:.0}, max {:.0} ({unread} unreadable)",
-        latencies.len(),
-        q(0.5),
-        q(0.1),
-        q(0.9),
-        latencies[0],
-        latencies[latencies.len() - 1]
-    );
-    println!("head's {}", stages.lock().unwrap());
+    cells
 }
 
 /// The stamp's value from a frame's luma: each cell's mean against mid-grey.
@@ -264,6 +314,79 @@ fn rtsp_latencies(
             arrivals.push(l - (now_ms as f64 - at as f64 / 1000.0));
         }
     }
+    say_where_the_time_went(&pipeline, arrivals, &latencies);
+    let _ = pipeline.set_state(gst::State::Null);
+    (latencies, unread)
+}
+
+/// The `ffmpeg` program as a user tuned for low latency runs it, writing grey frames to its
+/// stdout. The pipe is flushed after every frame (`-flush_packets 1`), or a frame's tail
+/// would wait in FFmpeg's 32 KiB output buffer for the next frame: a hold of the
+/// measurement, not of a player.
+fn ffmpeg(url: &str, transport: &str) -> Command {
+    let mut c = Command::new("ffmpeg");
+    c.args(["-nostdin", "-loglevel", "error"])
+        .args([
+            "-fflags",
+            "nobuffer",
+            "-flags",
+            "low_delay",
+            "-threads",
+            "1",
+        ])
+        .args(["-rtsp_transport", transport, "-i", url])
+        .args(["-an", "-fps_mode", "passthrough", "-flush_packets", "1"])
+        .args(["-f", "rawvideo", "-pix_fmt", "gray", "pipe:1"]);
+    c
+}
+
+/// OpenCV's capture in the project's Python environment (scripts/setup.sh), writing grey
+/// frames to its stdout.
+fn opencv(url: &str) -> Command {
+    let mut c = Command::new(".venv/bin/python");
+    c.args(["scripts/cv_frames.py", url]);
+    c
+}
+
+/// Each frame's latency when its last byte comes out of `command`'s stdout (grey frames of
+/// `w` x `h`, one after another).
+fn piped_latencies(
+    mut command: Command,
+    cells: &[Vec<usize>],
+    (w, h): (u32, u32),
+    frames: usize,
+) -> (Vec<f64>, usize) {
+    use std::io::Read;
+    let mut client = command
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("the client starts (ffmpeg; .venv from scripts/setup.sh)");
+    let mut out = client.stdout.take().unwrap();
+    let mut frame = vec![0u8; (w * h) as usize];
+    let (mut latencies, mut unread) = (vec![], 0);
+    // The first seconds are start-up, as for GStreamer's client.
+    let start = std::time::Instant::now();
+    while latencies.len() < frames {
+        out.read_exact(&mut frame)
+            .expect("the client decodes the stream");
+        let now_ms = clock_us() / 1000;
+        if start.elapsed().as_secs_f64() < 3.0 {
+            continue;
+        }
+        let stamp = read_stamp(cells, w, |x, y| frame[(y * w + x) as usize] as f64);
+        match latency(now_ms, stamp) {
+            Some(l) => latencies.push(l),
+            None => unread += 1,
+        }
+    }
+    let _ = client.kill();
+    let _ = client.wait();
+    (latencies, unread)
+}
+
+/// On stderr: how long after capture the units were whole at the client and how long
+/// decoding took (medians), and which decoder ran (decodebin's pick, where it chose).
+fn say_where_the_time_went(pipeline: &gst::Pipeline, mut arrivals: Vec<f64>, latencies: &[f64]) {
     arrivals.sort_by(f64::total_cmp);
     if !arrivals.is_empty() {
         eprintln!(
@@ -271,14 +394,13 @@ fn rtsp_latencies(
              decoded and converted {:.1} ms after that (medians, {} frames)",
             arrivals[arrivals.len() / 2],
             {
-                let mut d = latencies.clone();
+                let mut d = latencies.to_vec();
                 d.sort_by(f64::total_cmp);
                 d[d.len() / 2] - arrivals[arrivals.len() / 2]
             },
             arrivals.len()
         );
     }
-    // The decoder that ran (decodebin's pick, where it was asked to choose).
     let decoders: Vec<String> = pipeline
         .iterate_recurse()
         .into_iter()
@@ -288,8 +410,6 @@ fn rtsp_latencies(
         .map(|f| f.name().to_string())
         .collect();
     eprintln!("glass_to_glass: decoded with {}", decoders.join(", "));
-    let _ = pipeline.set_state(gst::State::Null);
-    (latencies, unread)
 }
 
 /// The tuning page in headless Chromium: on each frame the preview draws, the page notes the

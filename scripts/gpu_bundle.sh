@@ -17,10 +17,10 @@ multiarch=$(gcc -dumpmachine 2>/dev/null || echo x86_64-linux-gnu)
 plugins=/usr/lib/$multiarch/gstreamer-1.0
 scanner=/usr/lib/$multiarch/gstreamer1.0/gstreamer-1.0/gst-plugin-scanner
 # The elements `serve` (image source, x264 or NVENC, RTSP, recordings, motion detection) and
-# the latency client (RTSP, a hardware or software H.264 decoder) use.
+# the latency client (RTSP, a hardware or software H.264 decoder) use; MPEG-TS for the KLV.
 wanted=(coreelements app videoconvertscale x264 x265 nvcodec openh264
   videoparsersbad rtp rtpmanager rtsp udp tcp isomp4 typefindfunctions playback png
-  imagefreeze multifile jpeg)
+  imagefreeze multifile jpeg mpegtsmux)
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -2,11 +2,13 @@
 # The figures docs/performance.md keeps for each machine, in one table, on whatever GPU this
 # machine has (lavapipe where it has none):
 # 1. `digiview bench`: 4K fisheye to the 1920x1080 four-view frame, NV12, I420 and RGBA in,
-#    mip and bilinear, two interleaved rounds;
+#    mip and bilinear, two interleaved rounds; NV12 turning at 90°/s without and with a
+#    25 ms rolling-shutter readout corrected;
 # 2. `digiview serve` on a 3840x2160 still (image source), 1920x1080 out, motion detection
 #    on: the health lines with nobody watching a view, then with all four views' streams
 #    (1280x720) pulled by RTSP clients, for the encoder `auto` picks and for x264, and for
-#    H.265 (`auto`: a hardware H.265 encoder, else x265);
+#    H.265 (`auto`: a hardware H.265 encoder, else x265); a 25 ms readout corrected and KLV
+#    published throughout;
 # 3. glass-to-glass latency at 1280x720 over RTSP (examples/glass_to_glass.rs), three runs.
 # Logs go to LOG_DIR (default: a new temporary folder); the table is printed last.
 #
@@ -38,7 +40,8 @@ if command -v nvidia-smi >/dev/null; then
 fi
 row codecs "$(gst-inspect-1.0 2>/dev/null | grep -oE '(nv[a-z0-9]*h26[45](enc|dec)|x26[45]enc|openh264dec|avdec_h26[45]|vaapih26[45]enc)' | sort -u | tr '\n' ' ')"
 
-# 1. The renderer.
+# 1. The renderer; then NV12 with the vehicle turning at 90°/s, without and with a 25 ms
+# rolling-shutter readout corrected.
 for round in 1 2; do
   for fmt in nv12 i420 rgba; do
     for filter in mip bilinear; do
@@ -47,9 +50,17 @@ for round in 1 2; do
         echo "gpu_figures: bench $fmt $filter failed (bench.log)" >&2
     done
   done
+  for readout in 0 25; do
+    "$dv" bench --frames 300 --warmup 20 --json --input-format nv12 --turn yaw=90 \
+      --readout-ms "$readout" >"$logs/shutter-$readout-$round.json" 2>>"$logs/bench.log" ||
+      echo "gpu_figures: bench with readout $readout failed (bench.log)" >&2
+  done
 done
 
-# 2. The head on a 4K still, views unwatched and watched.
+# 2. The head on a 4K still, views unwatched and watched, with a 25 ms rolling shutter
+# corrected and the KLV metadata made for an MPEG-TS relay (UDP to this host).
+export SERVE_TOP='publish = ["udp://127.0.0.1:5600"]' SERVE_TABLES=$'[readout]\ntime_ms = 25'
+
 still=$logs/fisheye-3840x2160.png
 "$dv" synth --out "$still" >/dev/null 2>>"$logs/synth.log" || echo "gpu_figures: synth failed" >&2
 port=18554
@@ -101,7 +112,19 @@ for fmt in ("nv12", "i420", "rgba"):
         fps = [r["pipelined_fps"] for r in runs]
         print(f"| {fmt.upper()} {filt} | {spread(s('upload_ms'))} | {spread(s('render_ms'))} | "
               f"{spread(s('readback_ms'))} | {spread(s('total_ms'))} | {spread(fps)} |")
-print("\n| serve, 3840x2160 still to 1920x1080, detection on | encoder | out fps | render ms | encode ms | views fps | view render ms | dropped (renderer) |")
+print("\n| bench, NV12 mip turning at 90°/s | render ms | staged ms | pipelined fps |")
+print("|---|---:|---:|---:|")
+for readout in ("0", "25"):
+    runs = []
+    for f in sorted(glob.glob(f"{logs}/shutter-{readout}-*.json")):
+        try:
+            runs.append(json.load(open(f)))
+        except ValueError:
+            pass
+    s = lambda k: [r["staged"][k] for r in runs]
+    print(f"| readout {readout} ms | {spread(s('render_ms'))} | {spread(s('total_ms'))} | "
+          f"{spread([r['pipelined_fps'] for r in runs])} |")
+print("\n| serve, 3840x2160 still to 1920x1080, detection on, 25 ms readout, KLV | encoder | out fps | render ms | encode ms | views fps | view render ms | dropped (renderer) |")
 print("|---|---|---:|---:|---:|---:|---:|---:|")
 num = lambda pat, l: float(m.group(1)) if (m := re.search(pat, l)) else None
 last_stages = []

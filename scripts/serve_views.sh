@@ -2,6 +2,7 @@
 # One `digiview serve` on a still, in two phases, its log (stderr) appended to LOG: nobody
 # watching a view for 22 s, then "=== watched" and each of the four views' streams pulled by
 # one RTSP client for 32 s. 1920x1080 out, motion detection on, health lines every 5 s.
+# SERVE_TOP and SERVE_TABLES, where set, add top-level keys and tables to its configuration.
 # Used by scripts/views_cost.sh and scripts/gpu_figures.sh.
 #
 # Usage: scripts/serve_views.sh DIGIVIEW STILL LOG PORT [KIND [CODEC [CLIENT]]]
@@ -14,6 +15,7 @@ trap 'rm -f "$cfg"' EXIT
 cat >"$cfg" <<TOML
 source = "image:$still"
 health_interval_s = 5
+${SERVE_TOP:-}
 [encoder]
 kind = "$kind"
 codec = "$codec"
@@ -24,6 +26,7 @@ address = "127.0.0.1"
 port = $port
 [mavlink]
 endpoint = "off"
+${SERVE_TABLES:-}
 TOML
 # Appending, as the phase marker below is: both writers keep their lines.
 RUST_LOG=${RUST_LOG:-info} "$dv" serve --config "$cfg" --size 1920x1080 --http off >/dev/null 2>>"$log" &

@@ -6,6 +6,7 @@
 //! MISB ST 0601 metadata, which travels with the frame through the encoder to the MPEG-TS
 //! outputs (published and recorded).
 
+mod delimit;
 pub mod encoder;
 pub mod klv;
 pub mod preview;

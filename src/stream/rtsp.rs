@@ -104,6 +104,7 @@ pub struct Rtsp {
     clients: Arc<AtomicUsize>,
     port: u16,
     path: String,
+    codec: Codec,
 }
 
 impl Rtsp {
@@ -176,6 +177,7 @@ impl Rtsp {
             clients,
             port,
             path: cfg.path.clone(),
+            codec: cfg.codec,
         })
     }
 
@@ -196,7 +198,7 @@ impl Rtsp {
     /// Hands one access unit to the watching clients (nothing happens when none watch); a
     /// client that has not had a key frame yet gets none before one.
     pub fn push(&self, au: &gst::Buffer) {
-        push(&self.medias, au);
+        push(&self.medias, self.codec, au);
     }
 
     /// Whether anyone watches view `i`'s own stream.
@@ -216,7 +218,7 @@ impl Rtsp {
     /// As [`Rtsp::push`], for view `i`'s own stream.
     pub fn push_view(&self, i: usize, au: &gst::Buffer) {
         if let Some(v) = self.views.get(i) {
-            push(&v.medias, au);
+            push(&v.medias, self.codec, au);
         }
     }
 }
@@ -310,7 +312,13 @@ fn unsynchronised_sinks(media: &rtsp::RTSPMedia) {
 /// A client has had its key frame only once one was handed to it: one that comes while its
 /// media is not running yet is not sent, so the delta frames after it must wait for the next
 /// (FFmpeg reports them, without the SPS and PPS before them, as decode errors).
-fn push(medias: &Medias, au: &gst::Buffer) {
+/// Hands `au` to every media that has started or starts with it (a key frame), its access
+/// unit delimiter sent at its end (`delimit`).
+fn push(medias: &Medias, codec: Codec, au: &gst::Buffer) {
+    if lock(medias).is_empty() {
+        return;
+    }
+    let au = &super::delimit::delimited_buffer(codec, au);
     let key = !au.flags().contains(gst::BufferFlags::DELTA_UNIT);
     let ready: Vec<_> = lock(medias)
         .iter_mut()
@@ -382,7 +390,7 @@ mod tests {
         let started = || lock(&medias)[0].started;
 
         // Not running yet: the key frame cannot be handed over.
-        push(&medias, &unit(true));
+        push(&medias, Codec::H264, &unit(true));
         assert!(
             !started(),
             "a key frame its client never got counts as its start"
@@ -393,9 +401,9 @@ mod tests {
             assert!(t.elapsed().as_secs() < 5, "the pipeline never runs");
             std::thread::sleep(std::time::Duration::from_millis(5));
         }
-        push(&medias, &unit(false));
+        push(&medias, Codec::H264, &unit(false));
         assert!(!started(), "a delta frame went out before any key frame");
-        push(&medias, &unit(true));
+        push(&medias, Codec::H264, &unit(true));
         assert!(started(), "the next key frame starts the client");
         pipeline.set_state(gst::State::Null).unwrap();
     }

@@ -9,6 +9,24 @@ use gstreamer_video::prelude::*;
 use image::RgbImage;
 use std::time::Duration;
 
+/// rtspsrc (TCP, latency 0) → `chain` → an appsink, playing.
+pub fn play(url: &str, chain: &str) -> (gst::Pipeline, gst_app::AppSink) {
+    gst::init().unwrap();
+    let pipeline = gst::parse::launch(&format!(
+        "rtspsrc location={url} latency=0 protocols=tcp ! {chain} ! appsink name=sink sync=false"
+    ))
+    .unwrap()
+    .downcast::<gst::Pipeline>()
+    .unwrap();
+    let sink = pipeline
+        .by_name("sink")
+        .unwrap()
+        .downcast::<gst_app::AppSink>()
+        .unwrap();
+    pipeline.set_state(gst::State::Playing).unwrap();
+    (pipeline, sink)
+}
+
 /// A decoding RTSP client: rtspsrc → H.264 decoder → RGB frames with their timestamps.
 pub struct Viewer {
     pipeline: gst::Pipeline,
@@ -22,20 +40,10 @@ impl Viewer {
 
     /// A client whose depayloader, parser and decoder are `chain`.
     pub fn open_with(url: &str, chain: &str) -> Viewer {
-        gst::init().unwrap();
-        let pipeline = gst::parse::launch(&format!(
-            "rtspsrc location={url} latency=0 protocols=tcp ! {chain} ! videoconvert \
-             ! video/x-raw,format=RGB ! appsink name=sink sync=false"
-        ))
-        .unwrap()
-        .downcast::<gst::Pipeline>()
-        .unwrap();
-        let sink = pipeline
-            .by_name("sink")
-            .unwrap()
-            .downcast::<gst_app::AppSink>()
-            .unwrap();
-        pipeline.set_state(gst::State::Playing).unwrap();
+        let (pipeline, sink) = play(
+            url,
+            &format!("{chain} ! videoconvert ! video/x-raw,format=RGB"),
+        );
         Viewer { pipeline, sink }
     }
 

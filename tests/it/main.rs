@@ -44,6 +44,7 @@ mod publish;
 mod pymavlink;
 mod render_video;
 mod rolling_shutter;
+mod rtsp_wire;
 mod rules_table;
 mod services;
 mod stills_geotag;
