@@ -265,8 +265,10 @@ fn draw(@builtin(global_invocation_id) gid: vec3u) {
     // One view for the whole block, fetched once.
     let v = views[vi];
     let p = view_xy(v, bx, by);
-    let a = run_of(v, p);
-    let b = run_of(v, p + vec2f(0.0, 1.0));
+    let s = block_shutter(v, p);
+    let below = p + vec2f(0.0, 1.0);
+    let a = run_of(v, p, s, s.first);
+    let b = run_of(v, below, s, view_point_in(v, below, s));
     store_block(
         bx,
         by,
