@@ -280,8 +280,17 @@ impl Cameras {
                 flags |= VideoStreamStatusFlags::VIDEO_STREAM_STATUS_FLAGS_THERMAL;
             }
         }
+        // A view's own stream at the rate it really runs (a small machine draws the watched
+        // views less often than the composed frame), once measured.
+        let configured = out.fps as f32;
+        let framerate = match id {
+            VIEW_STREAM => self.gate.sensed().view_rate(i).map_or(configured, |r| {
+                (r * 10.0).round().min(configured * 10.0) / 10.0
+            }),
+            _ => configured,
+        };
         VIDEO_STREAM_STATUS_DATA {
-            framerate: out.fps as f32,
+            framerate,
             bitrate: streams.bitrate_kbps * 1000,
             flags,
             resolution_h: w as u16,

@@ -9,6 +9,7 @@
 //! lower rate, but a view is never left undrawn for longer than [`MAX_GAP`].
 
 use crate::stream::rtsp::VIEW_MOUNTS;
+use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 /// A watched view is drawn at least this often, whatever the budget.
@@ -96,6 +97,32 @@ impl ViewPacing {
     }
 }
 
+/// The span over which a view's own stream's rate is measured.
+pub const RATE_SPAN: Duration = Duration::from_secs(2);
+
+/// The rate a view's own stream really has: its frames over the last [`RATE_SPAN`].
+#[derive(Default)]
+pub(super) struct RateMeter {
+    frames: VecDeque<Instant>,
+}
+
+impl RateMeter {
+    /// A frame went out at `now`; the rate since the oldest one kept, frames per second, once
+    /// half a span is covered.
+    pub fn tick(&mut self, now: Instant) -> Option<f64> {
+        self.frames.push_back(now);
+        while self
+            .frames
+            .front()
+            .is_some_and(|t| now.duration_since(*t) > RATE_SPAN)
+        {
+            self.frames.pop_front();
+        }
+        let span = now.duration_since(*self.frames.front()?).as_secs_f64();
+        (span >= RATE_SPAN.as_secs_f64() / 2.0).then(|| (self.frames.len() - 1) as f64 / span)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -151,5 +178,22 @@ mod tests {
         p.frame_done(Duration::from_millis(64));
         assert_eq!(p.pick([true; 4], PERIOD, start + PERIOD), [false; 4]);
         assert_eq!(p.pick([true; 4], PERIOD, start + MAX_GAP), [true; 4]);
+    }
+
+    #[test]
+    fn a_streams_rate_is_its_frames_over_the_last_two_seconds() {
+        let mut m = RateMeter::default();
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        // Nothing said before a second is covered.
+        assert_eq!(m.tick(at(0)), None);
+        assert_eq!(m.tick(at(500)), None);
+        // 7 fps: a frame every 1/7 s for 3 s; the oldest dropped past 2 s.
+        let mut last = None;
+        for k in 0..=21u64 {
+            last = m.tick(at(1000 + k * 1000 / 7));
+        }
+        let rate = last.expect("a rate once a second is covered");
+        assert!((rate - 7.0).abs() < 0.2, "{rate}");
     }
 }

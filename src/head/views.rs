@@ -7,7 +7,7 @@
 //! is handed to its encoder.
 
 use super::capture::ViewStill;
-use super::view_pacing::ViewPacing;
+use super::view_pacing::{RateMeter, ViewPacing};
 use super::{Head, no_signal};
 use crate::frame::{PixelFormat, PlaneLayout};
 use crate::geometry::shutter::ShutterTable;
@@ -51,6 +51,8 @@ pub(super) struct ViewOutputs {
     outputs: [Option<OutputId>; VIEW_MOUNTS],
     encoders: [Option<Encoder>; VIEW_MOUNTS],
     failed: [Option<Instant>; VIEW_MOUNTS],
+    /// The rate each view's stream really runs at (VIDEO_STREAM_INFORMATION says it).
+    rates: [RateMeter; VIEW_MOUNTS],
 }
 
 impl ViewOutputs {
@@ -144,6 +146,8 @@ impl Head {
             if !watched && outs.encoders[i].take().is_some() {
                 // Nobody watches: no render, no encoder.
                 outs.pacing.forget(i);
+                outs.rates[i] = RateMeter::default();
+                self.gate.sensed().set_view_rate(i, None);
             }
         }
         let now = Instant::now();
@@ -246,7 +250,10 @@ impl Head {
         if let Err(e) = encoder.push_with(data, layout, pts, fps, side) {
             error!("camera {i}'s stream: {e}; starting its encoder again");
             outs.encoders[i] = None;
+            return;
         }
+        let rate = outs.rates[i].tick(Instant::now());
+        self.gate.sensed().set_view_rate(i, rate);
     }
 }
 

@@ -1,6 +1,7 @@
 //! What the vehicle sends and the detector sees: the vehicle's attitude and position as the
 //! autopilot link last gave them (the attitude history at capture times is the telemetry's,
-//! beside it), and the tracked objects. Written many times a second by the autopilot link and
+//! beside it), and the tracked objects; and what the frame loop measures that services
+//! report: the rate each view's own stream runs at. Written many times a second by the autopilot link and
 //! the detection stage, never through the settings: a sample is checked against its own
 //! rules and stored, nothing of the operator's settings copied or checked again.
 
@@ -14,6 +15,7 @@ use crate::geometry::{Euler, GeoPosition};
 use crate::units::de_angle;
 use arc_swap::ArcSwap;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -129,6 +131,8 @@ impl Default for Tracked {
 pub struct Sensed {
     vehicle: Mutex<Vehicle>,
     tracked: ArcSwap<Vec<Tracked>>,
+    /// Each view's own stream's rate, frames per second as f32 bits (0: not measured).
+    view_rates: [AtomicU32; super::MAX_CAMERAS],
 }
 
 impl Default for Sensed {
@@ -155,6 +159,7 @@ impl Sensed {
         Sensed {
             vehicle: Mutex::new(vehicle),
             tracked: ArcSwap::from_pointee(tracked),
+            view_rates: Default::default(),
         }
     }
 
@@ -197,5 +202,20 @@ impl Sensed {
 
     pub fn set_tracked(&self, list: Vec<Tracked>) {
         self.tracked.store(Arc::new(list));
+    }
+
+    /// The rate view `i`'s own stream runs at, as last measured; None while it is not drawn
+    /// or not yet measured.
+    pub fn view_rate(&self, i: usize) -> Option<f32> {
+        let bits = self.view_rates.get(i)?.load(Ordering::Relaxed);
+        (bits != 0).then(|| f32::from_bits(bits))
+    }
+
+    /// View `i`'s own stream's rate now (None: not drawn, or not yet measured).
+    pub fn set_view_rate(&self, i: usize, fps: Option<f64>) {
+        if let Some(r) = self.view_rates.get(i) {
+            let fps = fps.filter(|f| f.is_finite() && *f > 0.0);
+            r.store(fps.map_or(0, |f| (f as f32).to_bits()), Ordering::Relaxed);
+        }
     }
 }

@@ -175,6 +175,21 @@ pub fn three_tracked() -> Vec<Tracked> {
         .collect()
 }
 
+/// The `ffmpeg` program pulling `url` over RTSP with `transport` (tcp or udp), quiet on
+/// stdin; its output arguments are the caller's.
+pub fn ffmpeg_from(url: &str, transport: &str) -> std::process::Command {
+    let mut c = std::process::Command::new("ffmpeg");
+    c.args([
+        "-hide_banner",
+        "-nostdin",
+        "-rtsp_transport",
+        transport,
+        "-i",
+        url,
+    ]);
+    c
+}
+
 /// ffprobe pulling `url` over RTSP (TCP) and printing the first video stream's `entries`
 /// (for example `"width,height"`) as one CSV line.
 pub fn probe_rtsp(url: &str, entries: &str) -> std::process::Output {

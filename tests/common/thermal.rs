@@ -21,7 +21,7 @@ use glam::DVec3;
 use image::RgbImage;
 use serde_json::Value;
 use std::io::Read;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::sync::Arc;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
@@ -115,15 +115,7 @@ pub fn reference_layer(
 
 /// The last of 8 frames FFmpeg decodes from `url` (RTSP over TCP), as RGB.
 pub fn decoded(url: &str) -> RgbImage {
-    let mut child = Command::new("ffmpeg")
-        .args([
-            "-hide_banner",
-            "-nostdin",
-            "-rtsp_transport",
-            "tcp",
-            "-i",
-            url,
-        ])
+    let mut child = super::ffmpeg_from(url, "tcp")
         .args(["-frames:v", "8", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())

@@ -36,15 +36,7 @@ pub(crate) struct Pulled {
 /// stream's, not an artefact of rounding to a coarser output clock.
 pub(crate) fn pull(url: String, transport: &'static str) -> JoinHandle<Pulled> {
     std::thread::spawn(move || {
-        let mut child = Command::new("ffmpeg")
-            .args([
-                "-hide_banner",
-                "-nostdin",
-                "-rtsp_transport",
-                transport,
-                "-i",
-            ])
-            .arg(&url)
+        let mut child = common::ffmpeg_from(&url, transport)
             .args(["-frames:v", &FRAMES.to_string(), "-fps_mode", "passthrough"])
             .args(["-enc_time_base:v", "1:90000"])
             .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
