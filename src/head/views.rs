@@ -20,8 +20,8 @@ use crate::stream::Encoder;
 use crate::stream::encoder::Side;
 use crate::stream::klv::ViewMetadata;
 use crate::stream::rtsp::VIEW_MOUNTS;
-use std::sync::Arc;
 use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tracing::{error, info};
 
@@ -51,8 +51,6 @@ pub(super) struct ViewOutputs {
     outputs: [Option<OutputId>; VIEW_MOUNTS],
     encoders: [Option<Encoder>; VIEW_MOUNTS],
     failed: [Option<Instant>; VIEW_MOUNTS],
-    /// The rate each view's stream really runs at (VIDEO_STREAM_INFORMATION says it).
-    rates: [RateMeter; VIEW_MOUNTS],
 }
 
 impl ViewOutputs {
@@ -146,7 +144,6 @@ impl Head {
             if !watched && outs.encoders[i].take().is_some() {
                 // Nobody watches: no render, no encoder.
                 outs.pacing.forget(i);
-                outs.rates[i] = RateMeter::default();
                 self.gate.sensed().set_view_rate(i, None);
             }
         }
@@ -219,7 +216,15 @@ impl Head {
                 return;
             }
             let head = self.clone();
+            // The rate its stream really has, from the units that leave its encoder (one
+            // behind drops frames it was given): what VIDEO_STREAM_INFORMATION says.
+            let meter = Mutex::new(RateMeter::default());
             match Encoder::new(&self.cfg.encoder, fps, move |au| {
+                let rate = meter
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .tick(Instant::now());
+                head.gate.sensed().set_view_rate(i, rate);
                 head.rtsp.push_view(i, &au.buffer);
                 head.capture.on_view_access_unit(i, &au);
                 for p in &head.view_publishers[i] {
@@ -250,10 +255,7 @@ impl Head {
         if let Err(e) = encoder.push_with(data, layout, pts, fps, side) {
             error!("camera {i}'s stream: {e}; starting its encoder again");
             outs.encoders[i] = None;
-            return;
         }
-        let rate = outs.rates[i].tick(Instant::now());
-        self.gate.sensed().set_view_rate(i, rate);
     }
 }
 
