@@ -42,16 +42,7 @@ fn the_klv_heading_follows_a_yawing_autopilot_and_an_earth_locked_view_keeps_its
     // A camera's frames, as a still: the autopilot is then the vehicle's only attitude (the
     // demo source would report its own flight beside it).
     let fisheye = dir.path().join("fisheye.png");
-    let synth = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
-        .args(["synth", "--sensor", "1280x720", "--out"])
-        .arg(&fisheye)
-        .output()
-        .unwrap();
-    assert!(
-        synth.status.success(),
-        "{}",
-        String::from_utf8_lossy(&synth.stderr)
-    );
+    common::synth_still(&fisheye);
     let (link, out) = (free_udp_port(), free_udp_port());
     let url = format!("udp://127.0.0.1:{out}");
     let _serve = Serve::start_video(&[

@@ -26,6 +26,7 @@ mod services;
 mod thermal_look;
 mod thermal_stream;
 mod tracking;
+mod view_rates;
 mod web_rings;
 
 /// Held by every test here for its length: they run one at a time.

@@ -175,6 +175,21 @@ pub fn three_tracked() -> Vec<Tracked> {
         .collect()
 }
 
+/// A synthetic 1280x720 fisheye still at `path` (`digiview synth`), for an image source.
+pub fn synth_still(path: &std::path::Path) {
+    let synth = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args(["synth", "--sensor", "1280x720", "--out"])
+        .arg(path)
+        .env("DIGIVIEW_LENS_CAL", lens_cal_path())
+        .output()
+        .unwrap();
+    assert!(
+        synth.status.success(),
+        "{}",
+        String::from_utf8_lossy(&synth.stderr)
+    );
+}
+
 /// The `ffmpeg` program pulling `url` over RTSP with `transport` (tcp or udp), quiet on
 /// stdin; its output arguments are the caller's.
 pub fn ffmpeg_from(url: &str, transport: &str) -> std::process::Command {

@@ -296,3 +296,29 @@ pub fn with_stills_env(
     let serve = Serve::launch(&["--rtsp-port", "0"], &flags, log, env);
     (config, serve, port)
 }
+
+/// Waits (20 s at most) until SYSTEM_STATUS says `serve` runs, with no error: its picture
+/// is flowing, not its NO SIGNAL card.
+pub fn until_running(serve: &Serve) {
+    let mut ctl = digiview::control::client::Client::connect(
+        &serve.addr.to_string(),
+        false,
+        Duration::from_secs(5),
+    )
+    .unwrap();
+    let t = Instant::now();
+    loop {
+        let status = match ctl
+            .get_one(digiview::protocol::ParamType::SystemStatus.zeroed())
+            .unwrap()
+        {
+            digiview::protocol::Param::SystemStatus(s) => (s.status, s.error),
+            other => panic!("{other:?}"),
+        };
+        if status == (digiview::state::RunStatus::Running as u8, 0) {
+            return;
+        }
+        assert!(t.elapsed() < Duration::from_secs(20), "the head never runs");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}

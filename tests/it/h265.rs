@@ -4,11 +4,11 @@
 //! ground stations so (VIDEO_STREAM_INFORMATION's encoding).
 
 use crate::common;
-use crate::players::{SIZE, complaints, pull, still_and_render, until_running};
+use crate::players::{SIZE, complaints, pull, still_and_render};
 
 use common::autopilot::free_udp_port;
 use common::gcs::{Gcs, accepted, cameras, params};
-use common::serve::Serve;
+use common::serve::{Serve, until_running};
 use common::viewer::Viewer;
 use digiview::image_ops;
 use digiview::layout::Rect;

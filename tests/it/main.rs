@@ -54,7 +54,6 @@ mod thermal_serve;
 mod trust_mavlink;
 mod trust_web;
 mod view_filters;
-mod view_rates;
 mod vmti;
 mod web;
 mod web_api;

@@ -6,18 +6,15 @@
 
 use crate::common;
 
-use common::serve::Serve;
-use digiview::control::client::Client;
+use common::serve::{Serve, until_running};
 use digiview::image_ops;
 use digiview::layout::Rect;
-use digiview::protocol::{Param, ParamType};
-use digiview::state::RunStatus;
 use image::RgbImage;
 use std::io::Read;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 pub(crate) const SIZE: (u32, u32) = (640, 480);
 const FRAMES: usize = 90;
@@ -87,24 +84,6 @@ pub(crate) fn complaints(log: &str) -> Vec<&str> {
             .any(|w| l.contains(w))
         })
         .collect()
-}
-
-/// Waits (20 s at most) until SYSTEM_STATUS says `serve` runs, with no error: its picture
-/// is flowing, not its NO SIGNAL card.
-pub(crate) fn until_running(serve: &Serve) {
-    let mut ctl = Client::connect(&serve.addr.to_string(), false, Duration::from_secs(5)).unwrap();
-    let t = Instant::now();
-    loop {
-        let status = match ctl.get_one(ParamType::SystemStatus.zeroed()).unwrap() {
-            Param::SystemStatus(s) => (s.status, s.error),
-            other => panic!("{other:?}"),
-        };
-        if status == (RunStatus::Running as u8, 0) {
-            return;
-        }
-        assert!(t.elapsed() < Duration::from_secs(20), "the head never runs");
-        std::thread::sleep(Duration::from_millis(50));
-    }
 }
 
 fn digiview(dir: &Path, args: &[&str]) {

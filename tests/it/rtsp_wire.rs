@@ -6,8 +6,8 @@
 //! with OpenCV; docs/performance.md). A GStreamer client takes the RTP packets as they come.
 
 use crate::common;
-use crate::players::{still_and_render, until_running};
-use common::serve::Serve;
+use crate::players::still_and_render;
+use common::serve::{Serve, until_running};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use std::collections::BTreeMap;

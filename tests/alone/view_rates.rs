@@ -2,14 +2,14 @@
 //! machine the watched views are drawn less often than the composed frame (the composed stream
 //! comes first); VIDEO_STREAM_INFORMATION then says so, rather than the configured 30 fps.
 //! Four FFmpeg clients watch the four views' streams of `serve` on a still; each stream's
-//! rate by its own timestamps against what a ground station is told meanwhile.
+//! rate by its own timestamps against what a ground station is told meanwhile. Alone: other
+//! tests starting and stopping beside it change the views' rate within its seconds.
 
 use crate::common;
 
-use crate::players::{still_and_render, until_running};
 use common::autopilot::free_udp_port;
 use common::gcs::{Gcs, REQUEST, accepted, cameras, params};
-use common::serve::Serve;
+use common::serve::{Serve, until_running};
 use mavlink::dialects::common::*;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
@@ -50,10 +50,12 @@ fn advertised(gcs: &Gcs, system: u8, c: u8) -> f32 {
 #[test]
 fn video_stream_information_says_the_rate_each_watched_views_stream_really_has() {
     let dir = tempfile::tempdir().unwrap();
-    let (source, _) = still_and_render(dir.path());
+    let still = dir.path().join("fish.png");
+    common::synth_still(&still);
+    let source = format!("image:{}", still.display());
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
-    let serve = Serve::start_video(&["--source", &source, "--mavlink", &link]);
+    let serve = Serve::start_video(&["--source", &source, "--size", "640x480", "--mavlink", &link]);
     until_running(&serve);
     let gcs = Gcs::connect(port);
     let (system, _) = cameras(&gcs);
