@@ -100,14 +100,18 @@ for line in open(os.path.join(logs, "rows.tsv")):
     print(f"| {k} | {v} |")
 print("\n| bench (4K in, 1920x1080 I420 out, 300 frames) | upload ms | render ms | readback ms | staged ms | pipelined fps |")
 print("|---|---:|---:|---:|---:|---:|")
+def runs_of(pattern):
+    """The bench reports matching `pattern` in the logs (a failed run's empty file left out)."""
+    runs = []
+    for f in sorted(glob.glob(f"{logs}/{pattern}")):
+        try:
+            runs.append(json.load(open(f)))
+        except ValueError:
+            pass
+    return runs
 for fmt in ("nv12", "i420", "rgba"):
     for filt in ("mip", "bilinear"):
-        runs = []
-        for f in sorted(glob.glob(f"{logs}/bench-{fmt}-{filt}-*.json")):
-            try:
-                runs.append(json.load(open(f)))
-            except ValueError:
-                pass
+        runs = runs_of(f"bench-{fmt}-{filt}-*.json")
         s = lambda k: [r["staged"][k] for r in runs]
         fps = [r["pipelined_fps"] for r in runs]
         print(f"| {fmt.upper()} {filt} | {spread(s('upload_ms'))} | {spread(s('render_ms'))} | "
@@ -115,12 +119,7 @@ for fmt in ("nv12", "i420", "rgba"):
 print("\n| bench, NV12 mip turning at 90°/s | render ms | staged ms | pipelined fps |")
 print("|---|---:|---:|---:|")
 for readout in ("0", "25"):
-    runs = []
-    for f in sorted(glob.glob(f"{logs}/shutter-{readout}-*.json")):
-        try:
-            runs.append(json.load(open(f)))
-        except ValueError:
-            pass
+    runs = runs_of(f"shutter-{readout}-*.json")
     s = lambda k: [r["staged"][k] for r in runs]
     print(f"| readout {readout} ms | {spread(s('render_ms'))} | {spread(s('total_ms'))} | "
           f"{spread([r['pipelined_fps'] for r in runs])} |")

@@ -91,19 +91,22 @@ fn shutter_at(q: vec2f) -> vec4f {
 // SHUTTER_STEPS times with the rotation of the row it landed on. Black where any projection
 // falls outside the lens's fov, as there.
 fn shutter_project(d: vec3f) -> vec3f {
-    if (VIEW_KINDS & (1u << SHUTTER_BIT)) == 0u {
+    if !corrects_shutter() {
         return lens_project(d);
     }
     var q = lens_point(d);
-    if params.shutter_line.w > 0.0 {
-        var imaged = q.z;
-        for (var i = 0u; i < SHUTTER_STEPS; i++) {
-            q = lens_point(rotate(shutter_at(q.xy), d));
-            imaged = min(imaged, q.z);
-        }
-        q.z = imaged;
+    var imaged = q.z;
+    for (var i = 0u; i < SHUTTER_STEPS; i++) {
+        q = lens_point(rotate(shutter_at(q.xy), d));
+        imaged = min(imaged, q.z);
     }
-    return vec3f(q.xy, select(0.0, 1.0, q.z > 0.0 && in_frame(q.xy)));
+    return vec3f(q.xy, select(0.0, 1.0, imaged > 0.0 && in_frame(q.xy)));
+}
+
+// Whether the frame has a rolling shutter to correct (the code is left out of pipelines
+// built without SHUTTER_BIT).
+fn corrects_shutter() -> bool {
+    return (VIEW_KINDS & (1u << SHUTTER_BIT)) != 0u && params.shutter_line.w > 0.0;
 }
 
 // The rolling-shutter correction a block's pixels share: the rotation `rot` of knot
@@ -140,7 +143,7 @@ fn shutter_rotation(k: f32) -> vec4f {
 fn block_shutter(v: View, p: vec2f) -> Shutter {
     let d = view_ray(v, p);
     var s = Shutter(vec4f(0.0, 0.0, 0.0, 1.0), vec2f(0.0), 0.0, vec3f(0.0));
-    if (VIEW_KINDS & (1u << SHUTTER_BIT)) == 0u || params.shutter_line.w <= 0.0 {
+    if !corrects_shutter() {
         s.first = view_point_from(v, p, lens_project(d));
         return s;
     }
@@ -157,7 +160,7 @@ fn block_shutter(v: View, p: vec2f) -> Shutter {
 // `shutter_project` with the block's `Shutter`: projected once with its rotation, then
 // moved along g to the row it lands on.
 fn shutter_project_in(d: vec3f, s: Shutter) -> vec3f {
-    if (VIEW_KINDS & (1u << SHUTTER_BIT)) == 0u || params.shutter_line.w <= 0.0 {
+    if !corrects_shutter() {
         return lens_project(d);
     }
     return moved_to_its_row(lens_point(rotate(s.rot, d)), s);
@@ -208,8 +211,8 @@ const RUN_TOLERANCE: f32 = 0.005;
 // Where the row of 8 pixels from `p` in view `v` lands (`c0`, the first, given): projected
 // at columns 0, 2, 4 and 7 and, where all four are imaged and column 2 lies within
 // RUN_TOLERANCE of the parabola through the others, columns 1, 3, 5 and 6 put on that
-// parabola; else every pixel projected. Eight of a block's 16 projections go, and with them about a tenth of the draw's
-// time on lavapipe; measured against the exact projection over every lens model, crop mode
+// parabola; else every pixel projected. Eight of a block's 16 projections go, and with
+// them about a tenth of the draw's time on lavapipe; measured against the exact projection over every lens model, crop mode
 // and fields of view up to 300°, no pixel put on a parabola lands more than 0.005 fisheye
 // pixels from where it projects (tests/gpu_render.rs, docs/decisions.md).
 fn run_of(v: View, p: vec2f, s: Shutter, c0: vec3f) -> Run {

@@ -1,9 +1,10 @@
 //! What the vehicle sends and the detector sees: the vehicle's attitude and position as the
 //! autopilot link last gave them (the attitude history at capture times is the telemetry's,
 //! beside it), and the tracked objects; and what the frame loop measures that services
-//! report: the rate each view's own stream runs at. Written many times a second by the autopilot link and
-//! the detection stage, never through the settings: a sample is checked against its own
-//! rules and stored, nothing of the operator's settings copied or checked again.
+//! report: the rate each view's own stream runs at. Written many times a second by the
+//! autopilot link, the detection stage and the views' encoders, never through the settings:
+//! a sample is checked against its own rules and stored, nothing of the operator's settings
+//! copied or checked again.
 
 use super::Invalid;
 use super::rules::{

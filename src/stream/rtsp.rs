@@ -308,12 +308,11 @@ fn unsynchronised_sinks(media: &rtsp::RTSPMedia) {
     });
 }
 
-/// One access unit to every client of a mount that has had its key frame (or gets one now).
-/// A client has had its key frame only once one was handed to it: one that comes while its
-/// media is not running yet is not sent, so the delta frames after it must wait for the next
-/// (FFmpeg reports them, without the SPS and PPS before them, as decode errors).
-/// Hands `au` to every media that has started or starts with it (a key frame), its access
-/// unit delimiter sent at its end (`delimit`).
+/// One access unit to every client of a mount that has had its key frame (or gets one now),
+/// its access unit delimiter sent at its end (`delimit`). A client has had its key frame only
+/// once one was handed to it: one that comes while its media is not running yet is not sent,
+/// so the delta frames after it must wait for the next (FFmpeg reports them, without the SPS
+/// and PPS before them, as decode errors).
 fn push(medias: &Medias, codec: Codec, au: &gst::Buffer) {
     if lock(medias).is_empty() {
         return;

@@ -2,8 +2,8 @@
 //! (ffplay, mpv, OpenCV's capture, the `ffmpeg` program) ignores the RTP marker bit and closes
 //! a picture only at the next picture's first NAL unit; the head sends that unit, the access
 //! unit delimiter, in the picture's own last packet, so each picture is whole on arrival
-//! rather than a frame interval later (glass to glass 86 → 54 ms with `ffmpeg`, 56 → 21 ms
-//! with OpenCV; docs/performance.md). A GStreamer client takes the RTP packets as they come.
+//! rather than a frame interval later (glass to glass 87 → 53 ms with `ffmpeg`, 53 → 20 ms
+//! with OpenCV's capture on one decoding thread; docs/performance.md). A GStreamer client takes the RTP packets as they come.
 
 use crate::common;
 use crate::players::still_and_render;
