@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One `digiview serve` on a still, in two phases, its log (stderr) appended to LOG: nobody
 # watching a view for 22 s, then "=== watched" and each of the four views' streams pulled by
-# one RTSP client for 32 s. 1920x1080 out, motion detection on, health lines every 5 s.
+# one RTSP client for 32 s (FFmpeg's write each frame's timestamp to LOG.camN). 1920x1080 out,
+# motion detection on, health lines every 5 s.
 # SERVE_TOP and SERVE_TABLES, where set, add top-level keys and tables to its configuration.
 # Used by scripts/views_cost.sh and scripts/gpu_figures.sh.
 #
@@ -40,7 +41,9 @@ for cam in 0 1 2 3; do
     gst-launch-1.0 -q rtspsrc location="$uri" protocols=tcp latency=0 ! fakesink sync=false \
       >/dev/null 2>&1 &
   else
-    ffmpeg -nostdin -loglevel error -rtsp_transport tcp -i "$uri" -f null - >/dev/null 2>&1 &
+    # Each frame's timestamp (1/90000 s), for its stream's own rate: LOG.camN.
+    ffmpeg -nostdin -loglevel error -rtsp_transport tcp -i "$uri" -fps_mode passthrough \
+      -enc_time_base:v 1:90000 -f framemd5 "$log.cam$cam" >/dev/null 2>&1 &
   fi
   pids+=($!)
 done

@@ -3,7 +3,8 @@
 # (image source), 1920x1080 out, motion detection on, x264; first nobody watches a view, then
 # each of the four views' streams (1280x720) is pulled by one FFmpeg client. The health lines
 # of each phase (the first of each left out: start-up, clients joining) give the composed
-# stream's rate, the views' rate and each view's render time. With several binaries (before
+# stream's rate, the views' rate and each view's render time; each view's own stream's rate is
+# counted by its FFmpeg client from the frames' timestamps. With several binaries (before
 # and after a change), each round runs each binary once, in turn, since this machine's speed
 # wanders; the table gives medians and ranges over every health line of every round.
 #
@@ -35,11 +36,22 @@ def spread(xs):
         return "-"
     return f"{statistics.median(xs):.1f} ({min(xs):.1f}-{max(xs):.1f})"
 num = lambda pat, l: float(m.group(1)) if (m := re.search(pat, l)) else None
-print("| binary | phase | out fps | render ms | views fps | view render ms | dropped (renderer) | lines |")
-print("|---|---|---:|---:|---:|---:|---:|---:|")
+def stream_rates(log):
+    """Each view's own stream's rate by its timestamps, past its first 5 s: FFmpeg's frames."""
+    rates = []
+    for cam in sorted(glob.glob(log + ".cam*")):
+        pts = sorted(float(l.split(",")[2]) / 90000 for l in open(cam) if l[0] != "#" and l.count(",") >= 5)
+        pts = [t for t in pts if pts and t >= pts[0] + 5]
+        if len(pts) > 1:
+            rates.append((len(pts) - 1) / (pts[-1] - pts[0]))
+    return rates
+print("| binary | phase | out fps | render ms | views fps | view render ms | dropped (renderer) | each view's stream (FFmpeg) fps | lines |")
+print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
 for i, b in enumerate(bins, 1):
     phases = {"nobody watching": [], "four views watched": []}
+    streams = []
     for log in sorted(glob.glob(f"{work}/serve-{i}-*.log")):
+        streams += stream_rates(log)
         unwatched, watched = (open(log).read().split("=== watched") + [""])[:2]
         for name, part in (("nobody watching", unwatched), ("four views watched", watched)):
             phases[name] += [l for l in part.splitlines() if "health:" in l][1:]
@@ -47,5 +59,5 @@ for i, b in enumerate(bins, 1):
         col = lambda pat: [v for l in lines if (v := num(pat, l)) is not None]
         print(f"| {b} | {name} | {spread(col(r'out ([0-9.]+) fps'))} | {spread(col(r'render ([0-9.]+) ms'))} | "
               f"{spread(col(r'views alone ([0-9.]+) fps'))} | {spread(col(r'fps, ([0-9.]+) ms each'))} | "
-              f"{spread(col(r'dropped ([0-9]+) '))} | {len(lines)} |")
+              f"{spread(col(r'dropped ([0-9]+) '))} | {spread(streams) if 'watched' in name and 'nobody' not in name else '-'} | {len(lines)} |")
 EOF
