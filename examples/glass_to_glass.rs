@@ -21,7 +21,7 @@
 use digiview::clock::clock_us;
 use digiview::lens::LensCal;
 use digiview::modes::{LayoutMode, OverlayMode};
-use digiview::render::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::source::demo::stamp;
 use digiview::state::State;
 use glam::DVec2;

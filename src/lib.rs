@@ -6,6 +6,8 @@
 //! - **Shared data, at the bottom.** `units` (angles and sizes as people write them),
 //!   `geometry` (frames, attitudes, view orientation, the ground), `lens` (the lens models,
 //!   lens.cal, importers, calibration), `layout` (where views sit in the output frame),
+//!   `plan` (the frame plan: each view's rectangle and how its pixels map to rays and fisheye
+//!   pixels, the geometry every service and both renderers share),
 //!   `frame` (frames as bytes: pixel formats, plane layouts, YUV), `image_ops` (sampling and
 //!   image metrics), `thermal` (a thermal sensor's counts: temperatures, gain, palettes),
 //!   `gst` (the GStreamer plumbing sources and streams share), `clock` (the one time base),
@@ -21,8 +23,8 @@
 //!   autopilot link writes and the frame loop reads.
 //! - **The data's path.** `source` brings camera frames in (`exposure` sets the camera's
 //!   exposure and gain, and runs the auto exposure; `scene` synthesises worlds for the demo
-//!   and ground truth), `render` turns a fisheye frame into the output frame (`gpu`, and the
-//!   CPU reference), `stream` encodes, serves, records and publishes it.
+//!   and ground truth), `render` turns a fisheye frame into the output frame as its plan says
+//!   (`gpu`, and the CPU reference; only the frame loop, `bench` and the CLI use it), `stream` encodes, serves, records and publishes it.
 //! - **The services, beside each other.** `head`, the frame loop along the path (with its
 //!   detection stage, which runs `detect`'s detectors and tracker); `control`, the DigiView
 //!   protocol's request handling, server and client; `autopilot`, the MAVLink link the
@@ -55,6 +57,7 @@ pub mod layout;
 pub mod lens;
 pub mod modes;
 pub mod payload;
+pub mod plan;
 pub mod policy;
 pub mod protocol;
 pub mod render;

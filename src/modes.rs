@@ -109,7 +109,7 @@ numbered!(
 );
 
 numbered!(
-    /// How a view shows the thermal camera (`render::thermal_layer`; the camera setting
+    /// How a view shows the thermal camera (`plan::thermal`; the camera setting
     /// THERMAL).
     #[derive(Default)]
     ThermalShow, "thermal display" {

@@ -1,13 +1,17 @@
-//! No thread of `serve` fails silently. A service's thread runs under [`spawn`]: a panic is
-//! caught, logged with its message, reported (to the head's report, which makes it SYSTEM_STATUS
-//! error 5 and lists it in `/api/status`'s `services`), and the service is started again
-//! after [`PAUSE`]; one that fails [`MAX_FAILURES`] times within [`WINDOW`] is given up, and
-//! the assembly then stops `serve`, which exits non-zero saying why. At the bottom: every
-//! service's threads use it, it knows none of them, and it reports through [`FailureLog`], which
-//! the head's report (`crate::state::Report`) implements.
+//! No thread of `serve` fails silently: the one supervisor. A service's work (a thread of its
+//! own under [`spawn`], a stage of the video head under [`supervised`], an async task under
+//! [`keep_serving`]) is watched: a panic is caught, logged with its message, reported (to the
+//! head's report, which makes it SYSTEM_STATUS error 5 and lists it in `/api/status`'s
+//! `services`), and the work is started again after [`PAUSE`]; one that fails
+//! [`MAX_FAILURES`] times within [`WINDOW`] is given up, and `serve` then stops, exiting
+//! non-zero saying why. What fails and may come back (a camera, a relay, the autopilot's link)
+//! is tried again with the one [`Backoff`]. At the bottom: every service uses it, it knows
+//! none of them, and it reports through [`FailureLog`], which the head's report
+//! (`crate::state::Report`) implements.
 //!
-//! For tests of this very path, `DIGIVIEW_FAULT=NAME` makes the service of that thread name
-//! panic once, half a second after it first starts ([`Fault`]).
+//! For tests of this very path, `DIGIVIEW_FAULT=NAME` makes the service of that name panic
+//! half a second after it starts ([`Fault`]): once, or at every start for one that must be
+//! given up.
 
 use std::collections::VecDeque;
 use std::future::Future;
@@ -45,25 +49,30 @@ pub fn spawn(
     std::thread::Builder::new()
         .name(service.into())
         .spawn(move || {
-            let mut failures = Failures::default();
-            loop {
-                let why = match catch_unwind(AssertUnwindSafe(&mut work)) {
-                    Ok(()) => return,
-                    Err(panic) => panic_message(panic.as_ref()),
-                };
-                if failures.given_up(&*report, service, &why) {
-                    return;
-                }
-                let until = Instant::now() + PAUSE;
-                while Instant::now() < until {
-                    if stop.load(Ordering::Relaxed) {
-                        return;
-                    }
-                    std::thread::sleep(Duration::from_millis(20));
-                }
-                report.restarted(service);
-            }
+            let _ = supervised(&*report, service, &stop, &mut work);
         })
+}
+
+/// Runs `work` on this thread until it returns, starting it again after each panic (see the
+/// module's doc); what it returned, or the last panic's message once `service` is given up or
+/// `stop` was set meanwhile.
+pub fn supervised<T>(
+    report: &dyn FailureLog,
+    service: &'static str,
+    stop: &AtomicBool,
+    mut work: impl FnMut() -> T,
+) -> Result<T, String> {
+    let mut failures = Failures::default();
+    loop {
+        let why = match catch_unwind(AssertUnwindSafe(&mut work)) {
+            Ok(done) => return Ok(done),
+            Err(panic) => panic_message(panic.as_ref()),
+        };
+        if failures.given_up(report, service, &why) || !sleep_unless(stop, PAUSE) {
+            return Err(why);
+        }
+        report.restarted(service);
+    }
 }
 
 /// A service's failures within the last [`WINDOW`], for a supervisor of its own (an async
@@ -143,6 +152,66 @@ pub async fn keep_serving<S, B, BF, F, SF, E>(
     }
 }
 
+/// The waits between attempts at something that failed and may come back (a camera, a relay,
+/// the autopilot's link): the first wait, doubling up to the longest, and the first again
+/// once an attempt held. Every retry loop of `serve` waits by one of these.
+#[derive(Clone, Debug)]
+pub struct Backoff {
+    first: Duration,
+    longest: Duration,
+    /// Failed attempts since the last that held.
+    failures: u32,
+}
+
+impl Backoff {
+    pub const fn new(first: Duration, longest: Duration) -> Backoff {
+        Backoff {
+            first,
+            longest,
+            failures: 0,
+        }
+    }
+
+    /// Notes a failed attempt; the wait before the next.
+    pub fn failed(&mut self) -> Duration {
+        let wait = self.first.saturating_mul(1 << self.failures.min(20));
+        self.failures = self.failures.saturating_add(1);
+        wait.min(self.longest)
+    }
+
+    /// Failed attempts in a row, the last one noted included.
+    pub fn failures(&self) -> u32 {
+        self.failures
+    }
+
+    /// Whether the failure just noted is worth a line in the log: the first three in a row,
+    /// then one in sixty (a camera unplugged for an hour is not a thousand lines).
+    pub fn worth_logging(&self) -> bool {
+        let n = self.failures.saturating_sub(1);
+        n < 3 || n.is_multiple_of(60)
+    }
+
+    /// The attempt held: the next failure waits the first wait again.
+    pub fn held(&mut self) {
+        self.failures = 0;
+    }
+}
+
+/// Sleeps `wait`, or less once `stop` is set; whether it slept it all.
+pub fn sleep_unless(stop: &AtomicBool, wait: Duration) -> bool {
+    let until = Instant::now() + wait;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return false;
+        }
+        let left = until.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return true;
+        }
+        std::thread::sleep(left.min(Duration::from_millis(20)));
+    }
+}
+
 /// What a panic said.
 pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
     panic
@@ -156,6 +225,8 @@ pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
 pub struct Fault {
     armed: bool,
     after: Instant,
+    /// Fires at every start, not once per process.
+    every_start: bool,
 }
 
 /// A fault fires once per process: the service started again runs clean.
@@ -167,6 +238,15 @@ impl Fault {
         Fault {
             armed: std::env::var("DIGIVIEW_FAULT").is_ok_and(|s| s == service),
             after: Instant::now() + Duration::from_millis(500),
+            every_start: false,
+        }
+    }
+
+    /// As [`Fault::for_service`], firing at every start: the service is given up.
+    pub fn at_every_start(service: &str) -> Fault {
+        Fault {
+            every_start: true,
+            ..Fault::for_service(service)
         }
     }
 
@@ -180,10 +260,12 @@ impl Fault {
         self.after
     }
 
-    /// Panics once, when armed and half a second has passed since the fault was made.
+    /// Panics once (or at every start), when armed and half a second has passed since the
+    /// fault was made.
     #[track_caller]
     pub fn check(&self, service: &str) {
-        if self.armed && Instant::now() >= self.after && !FIRED.swap(true, Ordering::Relaxed) {
+        let due = self.armed && Instant::now() >= self.after;
+        if due && (self.every_start || !FIRED.swap(true, Ordering::Relaxed)) {
             panic!("fault injected into the {service} service (DIGIVIEW_FAULT)");
         }
     }
@@ -207,6 +289,32 @@ mod tests {
         fn restarted(&self, service: &'static str) {
             self.0.lock().unwrap().push(format!("{service} restarted"));
         }
+    }
+
+    #[test]
+    fn a_backoff_doubles_to_its_longest_logs_the_first_few_and_starts_again_once_held() {
+        let secs = Duration::from_secs;
+        let mut b = Backoff::new(Duration::from_millis(500), secs(4));
+        let waits: Vec<Duration> = (0..6).map(|_| b.failed()).collect();
+        let ms = |m| Duration::from_millis(m);
+        assert_eq!(
+            waits,
+            [ms(500), ms(1000), ms(2000), ms(4000), ms(4000), ms(4000)]
+        );
+        b.held();
+        assert_eq!(b.failed(), ms(500), "afresh once held");
+        let mut logged = vec![];
+        for _ in 0..200 {
+            b.failed();
+            if b.worth_logging() {
+                logged.push(b.failures());
+            }
+        }
+        assert_eq!(
+            logged,
+            [2, 3, 61, 121, 181],
+            "after the first, already logged"
+        );
     }
 
     #[test]

@@ -450,7 +450,7 @@ fn start_head(
         gate: core.gate.clone(),
         report: core.report.clone(),
         capture: core.capture.clone(),
-        rtsp: Arc::new(rtsp),
+        clients: Arc::new(rtsp),
         publishers,
         view_publishers,
         view_key_wanted,

@@ -34,24 +34,24 @@ struct Video(Arc<Head>);
 impl crate::http::Video for Video {
     fn status(&self) -> serde_json::Value {
         let mut status = serde_json::to_value(self.0.health()).unwrap_or_default();
-        if let (Some(sensor), Some(map)) = (&self.0.thermal, status.as_object_mut()) {
+        if let (Some(sensor), Some(map)) = (self.0.thermal(), status.as_object_mut()) {
             map.insert("thermal".into(), sensor.status());
         }
         status
     }
     fn preview(&self) -> Arc<Preview> {
-        self.0.preview.clone()
+        self.0.preview()
     }
     fn estimate_readout(&self, seconds: f64) -> Result<serde_json::Value, NotStarted> {
         use crate::head::readout_probe::StartError;
-        match self.0.readout_probe.start(seconds) {
+        match self.0.readout_probe().start(seconds) {
             Ok(status) => Ok(serde_json::to_value(status).unwrap_or_default()),
             Err(e @ StartError::Seconds(_)) => Err(NotStarted::Bad(e.to_string())),
             Err(e @ StartError::Busy(_)) => Err(NotStarted::Busy(e.to_string())),
         }
     }
     fn readout_estimate(&self) -> serde_json::Value {
-        serde_json::to_value(self.0.readout_probe.status()).unwrap_or_default()
+        serde_json::to_value(self.0.readout_probe().status()).unwrap_or_default()
     }
     fn thermal(
         &self,
@@ -88,13 +88,13 @@ impl crate::cameras::thermal::ThermalReader for Thermal {
     }
 
     fn hfov(&self) -> f64 {
-        self.0.thermal.as_ref().map_or(0.0, |s| s.lens.hfov())
+        self.0.thermal().map_or(0.0, |s| s.lens.hfov())
     }
 }
 
 /// The head's thermal sensor as the MAVLink cameras read it, where it has one.
 pub(super) fn thermal_reader(head: &Arc<Head>) -> Option<Arc<dyn ThermalReader>> {
-    head.thermal.as_ref()?;
+    head.thermal()?;
     Some(Arc::new(Thermal(head.clone())))
 }
 

@@ -20,7 +20,7 @@ use tracing::{info, warn};
 /// Opens the link, reads it until it fails, again with back-off (1 s doubling to 10 s, back
 /// to 1 s after a link that held 10 s).
 pub(super) fn receive(shared: &Arc<Shared>) {
-    let mut backoff = Duration::from_secs(1);
+    let mut backoff = supervise::Backoff::new(Duration::from_secs(1), Duration::from_secs(10));
     let mut vehicle = Vehicle::new(shared.cfg.system_id);
     while !shared.stop.load(Ordering::Relaxed) {
         let why = match port::Port::open(&shared.address) {
@@ -30,19 +30,19 @@ pub(super) fn receive(shared: &Arc<Shared>) {
                     return;
                 };
                 if opened.elapsed() > Duration::from_secs(10) {
-                    backoff = Duration::from_secs(1);
+                    backoff.held();
                 }
                 why
             }
             Err(e) => e.to_string(),
         };
+        let wait = backoff.failed();
         warn!(
             "mavlink {}: {why}; retrying in {} s",
             shared.address,
-            backoff.as_secs()
+            wait.as_secs()
         );
-        std::thread::sleep(backoff);
-        backoff = (backoff * 2).min(Duration::from_secs(10));
+        supervise::sleep_unless(&shared.stop, wait);
     }
 }
 

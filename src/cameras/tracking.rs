@@ -11,7 +11,7 @@ use super::commands::{Answer, Command};
 use crate::autopilot::Outbox;
 use crate::geometry::ground::{ground_point, to_ned};
 use crate::lens::LensError;
-use crate::render::FramePlan;
+use crate::plan::FramePlan;
 use crate::state::view::{Follow, Op, Shape};
 use crate::state::{State, moved_on};
 use glam::{DVec2, DVec3};

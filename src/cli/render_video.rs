@@ -7,9 +7,9 @@
 use super::output::{self, Output};
 use crate::frame::PixelFormat;
 use crate::lens::{LensCal, Lenses};
+use crate::plan::{Filter, FramePlan};
 use crate::render::gpu::renderer::RenderedFrame;
 use crate::render::gpu::{Gpu, Renderer};
-use crate::render::{Filter, FramePlan};
 use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
 use crate::stream::encoder::{AccessUnit, Side};

@@ -8,12 +8,12 @@ use crate::geometry::GeoPoint;
 use crate::geometry::ground::ground_point;
 use crate::geometry::rotation::yaw_pitch;
 use crate::geometry::view::relative_angles;
+use crate::plan::FramePlan;
 use crate::protocol::Param;
 use crate::protocol::params::{
     CamControlMode, CamCropMode, CamEuler, CamFov, CamLockFlags, CamOffset, CamTarget, CamThermal,
     CamZoom,
 };
-use crate::render::FramePlan;
 use crate::state::view::{Op, Zoom};
 use crate::state::{Camera, State};
 use glam::{DVec2, DVec3};

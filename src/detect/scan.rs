@@ -7,8 +7,8 @@ use super::AngularBox;
 use crate::geometry::Projection;
 use crate::geometry::rotation::direction;
 use crate::lens::Lens;
-use crate::render::plan::ViewMap;
-use crate::render::{FramePlan, PlannedView};
+use crate::plan::ViewMap;
+use crate::plan::{FramePlan, PlannedView};
 use glam::{DMat3, DVec2, DVec3};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
 

@@ -6,7 +6,7 @@ use super::Head;
 use crate::detect::external::{Batch, Place};
 use crate::detect::scan::{MOTION_VIEWS, visible};
 use crate::detect::{AngularBox, Detection};
-use crate::render::FramePlan;
+use crate::plan::FramePlan;
 use crate::state::State;
 use glam::DVec2;
 use tracing::warn;

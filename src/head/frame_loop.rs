@@ -5,7 +5,6 @@
 
 use super::detection::score::rings;
 use super::pacing::Pacer;
-use super::supervise::Fault;
 use super::views::{Framed, ViewOutputs};
 use super::{Head, HeadError, no_signal};
 use crate::clock::{Stamps, clock_us, unix_us};
@@ -14,12 +13,13 @@ use crate::geometry::lens_from_world;
 use crate::geometry::shutter::ShutterTable;
 use crate::head::capture::Still;
 use crate::lens::Lens;
+use crate::plan::{Filter, FramePlan};
 use crate::render::gpu::{Gpu, GpuError, Renderer};
-use crate::render::{Filter, FramePlan};
 use crate::state::{Failure, RenderedFrame, RunStatus, Settings, State, Tracked};
 use crate::stream::Encoder;
 use crate::stream::encoder::{AccessUnit, Side};
 use crate::stream::klv::ViewMetadata;
+use crate::supervise::Fault;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -93,24 +93,25 @@ impl Head {
     fn encoder(self: &Arc<Head>, fps: u32) -> Result<Encoder, HeadError> {
         let head = self.clone();
         let encoder = Encoder::new(&self.cfg.encoder, fps, move |au: AccessUnit| {
-            head.stats.units.fetch_add(1, Ordering::Relaxed);
-            head.rtsp.push(&au.buffer);
-            head.preview.push(&au);
-            head.capture.on_access_unit(&au);
-            for p in &head.publishers {
+            head.meters.stats.units.fetch_add(1, Ordering::Relaxed);
+            head.outputs.clients.push(&au.buffer);
+            head.outputs.preview.push(&au);
+            head.outputs.capture.on_access_unit(&au);
+            for p in &head.outputs.publishers {
                 if p.push(&au) {
-                    head.key_wanted.store(true, Ordering::Relaxed);
+                    head.outputs.key_wanted.store(true, Ordering::Relaxed);
                 }
             }
             if let Some(s) = au.stamps {
-                head.latency.record(Stamps {
+                head.meters.latency.record(Stamps {
                     sent: clock_us(),
                     ..s
                 });
             }
             if let Some(t) = au.encode_time {
-                head.stats.encoded.fetch_add(1, Ordering::Relaxed);
-                head.stats
+                head.meters.stats.encoded.fetch_add(1, Ordering::Relaxed);
+                head.meters
+                    .stats
                     .encode_us
                     .fetch_add(t.as_micros() as u64, Ordering::Relaxed);
             }
@@ -137,9 +138,9 @@ impl Head {
             last_frame: None,
             shown: None,
             healthy: None,
-            replaced_then: self.slot.stats().dropped,
+            replaced_then: self.input.slot.stats().dropped,
         };
-        let fault = Fault::for_stage("frames");
+        let fault = Fault::at_every_start("frames");
         while !self.stop.load(Ordering::Relaxed) {
             fault.check("frames");
             if let Some(turn) = self.next_turn(&mut l) {
@@ -163,14 +164,20 @@ impl Head {
             std::thread::sleep(early);
         }
         let fresh = self
+            .input
             .slot
             .take_until(l.start + l.pacer.wait_until(l.start.elapsed(), period));
         let taken = Instant::now();
-        let replaced_now = self.slot.stats().dropped;
+        let replaced_now = self.input.slot.stats().dropped;
         let replaced = std::mem::replace(&mut l.replaced_then, replaced_now) != replaced_now;
         // A frame just taken is signal, however long ago it was put (a loop a second late
         // drew "no signal" over a live camera's frame); the slot's silence starts at a take.
-        let signal = fresh.is_some() || self.slot.silence().is_some_and(|s| s < SIGNAL_TIMEOUT);
+        let signal = fresh.is_some()
+            || self
+                .input
+                .slot
+                .silence()
+                .is_some_and(|s| s < SIGNAL_TIMEOUT);
         if fresh.is_some() && self.source_error().is_some() {
             self.set_source_error(None);
             info!("source: frames again");
@@ -224,10 +231,11 @@ impl Head {
         let Some((data, layout, framed, klv)) = self.drawn(l, &mut turn) else {
             return Ok(());
         };
-        self.stats
+        self.meters
+            .stats
             .render_us
             .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
-        self.stats.out.fetch_add(1, Ordering::Relaxed);
+        self.meters.stats.out.fetch_add(1, Ordering::Relaxed);
         if let Some(s) = &mut turn.stamps {
             s.rendered = clock_us();
         }
@@ -321,7 +329,9 @@ impl Head {
         fps: u32,
         side: Side,
     ) -> Result<bool, HeadError> {
-        if self.key_wanted.swap(false, Ordering::Relaxed) | self.capture.take_key_request() {
+        if self.outputs.key_wanted.swap(false, Ordering::Relaxed)
+            | self.outputs.capture.take_key_request()
+        {
             l.encoder.force_key_unit();
         }
         let dropped_before = l.encoder.dropped;
@@ -332,7 +342,8 @@ impl Head {
             l.encoder = self.rebuild_encoder(fps)?;
             return Ok(false);
         }
-        self.stats
+        self.meters
+            .stats
             .encoder_dropped
             .fetch_add(l.encoder.dropped - dropped_before, Ordering::Relaxed);
         Ok(true)
@@ -354,14 +365,14 @@ impl Head {
     /// Hands the rendered frame (and the fisheye frame, if the capture wants it) over as a
     /// still when one was asked for.
     fn offer_still(&self, data: &[u8], layout: PlaneLayout, fisheye: Option<&Frame>) {
-        if !self.capture.take_still_request() {
+        if !self.outputs.capture.take_still_request() {
             return;
         }
-        let raw = match (fisheye, self.capture.wants_raw()) {
+        let raw = match (fisheye, self.outputs.capture.wants_raw()) {
             (Some(f), true) => Some((f.data.clone(), f.layout)),
             _ => None,
         };
-        self.capture.save_still(Still {
+        self.outputs.capture.save_still(Still {
             output: (data.to_vec(), layout),
             raw,
         });
@@ -419,11 +430,20 @@ impl Head {
         let layer = self.thermal_layer(&s, &plan, cameras.map(|i| (i, i)));
         let plan = plan.with_thermal(layer);
         let camera = (&lens, s.settings.mount.euler());
-        self.readout_probe
+        self.observers
+            .readout_probe
             .offer(frame, camera, self.cfg.readout, &self.telemetry);
-        let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
+        let truth = self
+            .observers
+            .demo_truth
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
         if let Some(truth) = truth.as_ref() {
-            let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
+            let mut shared = self
+                .observers
+                .demo_score
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
             if let Some(score) = shared.as_mut() {
                 rings(&mut score.rings, truth, (&plan, &s), frame.captured_us);
             }
@@ -440,7 +460,7 @@ impl Head {
         let klv = ViewMetadata::of_camera(&plan, &s, cam, time_us).map(|m| {
             let m = m.with_objects(self.cfg.klv_objects);
             let packet = m.packet().into();
-            *self.klv.lock().unwrap_or_else(|e| e.into_inner()) = Some(m);
+            *self.observers.klv.lock().unwrap_or_else(|e| e.into_inner()) = Some(m);
             packet
         });
         Ok(Rendered {

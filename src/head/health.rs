@@ -131,8 +131,8 @@ impl std::fmt::Display for Health {
 
 impl Head {
     fn sample(&self) -> Sample {
-        let s = &self.stats;
-        let slot = self.slot.stats();
+        let s = &self.meters.stats;
+        let slot = self.input.slot.stats();
         Sample {
             at: Instant::now(),
             clock_us: crate::clock::clock_us(),
@@ -162,16 +162,17 @@ impl Head {
             fps_in: (b.received - a.received) as f64 / secs,
             fps_out: out as f64 / secs,
             dropped_renderer: b.dropped - a.dropped,
-            dropped_encoder: self.stats.encoder_dropped.load(Ordering::Relaxed),
+            dropped_encoder: self.meters.stats.encoder_dropped.load(Ordering::Relaxed),
             render_ms: per(b.render_us - a.render_us, out),
             encode_ms: per(b.encode_us - a.encode_us, b.encoded - a.encoded),
-            rtsp_clients: self.rtsp.clients(),
-            page_viewers: self.preview.viewers(),
+            rtsp_clients: self.outputs.clients.clients(),
+            page_viewers: self.outputs.preview.viewers(),
             relays: {
                 let all = || {
-                    self.publishers
+                    self.outputs
+                        .publishers
                         .iter()
-                        .chain(self.view_publishers.iter().flatten())
+                        .chain(self.outputs.view_publishers.iter().flatten())
                 };
                 (all().filter(|p| p.connected()).count(), all().count())
             },
@@ -185,9 +186,15 @@ impl Head {
             ),
             crops: (b.crops - a.crops) as f64 / secs,
             tracked: self.state().tracked.len(),
-            latency: self.latency.since(a.clock_us),
-            klv: self.klv.lock().unwrap_or_else(|e| e.into_inner()).clone(),
+            latency: self.meters.latency.since(a.clock_us),
+            klv: self
+                .observers
+                .klv
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .clone(),
             demo_score: self
+                .observers
                 .demo_score
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
@@ -198,7 +205,8 @@ impl Head {
 
     /// The figures over the last second.
     pub fn health(&self) -> Health {
-        self.health
+        self.meters
+            .health
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clone()
@@ -215,7 +223,7 @@ impl Head {
             std::thread::sleep(Duration::from_millis(100));
             let now = self.sample();
             if now.at - last.at >= Duration::from_secs(1) {
-                *self.health.lock().unwrap_or_else(|e| e.into_inner()) =
+                *self.meters.health.lock().unwrap_or_else(|e| e.into_inner()) =
                     self.health_between(&last, &now);
                 last = now;
             }

@@ -25,15 +25,16 @@ pub mod health;
 pub mod latency;
 mod no_signal;
 pub mod pacing;
+mod parts;
 pub mod readout_probe;
 mod recording;
 mod source_thread;
-mod supervise;
 pub mod thermal;
 mod view_pacing;
 mod views;
 
 pub use detection::DetectorError;
+pub use parts::Clients;
 
 use crate::detect::DetectionConfig;
 use crate::exposure::ExposureConfig;
@@ -41,11 +42,11 @@ use crate::frame::FrameError;
 use crate::geometry::shutter::Readout;
 use crate::lens::LensError;
 use crate::render::gpu::GpuError;
+use crate::source::SourceSpec;
 use crate::source::demo::{DemoConfig, Flight};
-use crate::source::{FrameSlot, SourceSpec};
 use crate::state::{Gate, Report, Settings, State};
 use crate::stream::rtsp::VIEW_MOUNTS;
-use crate::stream::{EncoderConfig, Preview, Publisher, Rtsp, StreamError};
+use crate::stream::{EncoderConfig, Preview, Publisher, StreamError};
 use crate::telemetry::Telemetry;
 use capture::Capture;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -97,55 +98,22 @@ pub enum HeadError {
     Panicked(&'static str, String),
 }
 
-/// Shared by the head's threads.
+/// Shared by the head's threads: the live state it reads and writes, and its parts, each
+/// owned by the stage that uses it (`parts`).
 pub struct Head {
     pub cfg: HeadConfig,
     /// The settings and what is sensed; the detection stage keeps its followers through it.
     pub gate: Arc<Gate>,
     /// What the head reports: status, failures, the last frame.
     pub report: Arc<Report>,
-    pub capture: Arc<Capture>,
     pub telemetry: Arc<Telemetry>,
-    pub rtsp: Arc<Rtsp>,
-    /// The relays the stream is published to.
-    pub publishers: Vec<Publisher>,
-    /// Each view's own stream's relays, and whether one of them owes a key frame.
-    pub view_publishers: [Vec<Publisher>; VIEW_MOUNTS],
-    view_key_wanted: [Arc<AtomicBool>; VIEW_MOUNTS],
-    pub slot: Arc<FrameSlot>,
     pub stop: Arc<AtomicBool>,
-    /// Set by the RTSP server when a client joins: the encoder owes it a key frame.
-    pub key_wanted: Arc<AtomicBool>,
-    /// The web page's viewers of the stream.
-    pub preview: Arc<Preview>,
-    /// Why the source is down, while it is.
-    source_error: Mutex<Option<String>>,
-    stats: Stats,
-    /// Where the frames' time goes, stage by stage.
-    latency: latency::Latency,
-    /// The KLV metadata of the composed stream's last frame.
-    klv: Mutex<Option<crate::stream::klv::ViewMetadata>>,
-    /// Where the demo's movers are, while the demo runs; the tracker scored against them.
-    demo_truth: Mutex<Option<detection::score::DemoTruth>>,
-    demo_score: Mutex<Option<detection::score::Score>>,
-    /// The readout estimate, when one is asked for.
-    pub readout_probe: Arc<readout_probe::ReadoutProbe>,
-    /// The figures over the last second.
-    health: Mutex<health::Health>,
+    input: parts::Input,
+    outputs: parts::Outputs,
+    observers: parts::Observers,
+    meters: parts::Meters,
     exposure: exposure::ExposureStage,
-    /// The newest scan and the newest crops for the detection thread.
-    scans: detection::ScanSlot,
-    /// The ONNX detector, once loaded.
-    model: std::sync::OnceLock<detection::Model>,
-    /// What the external detector sends, once its socket listens.
-    external: std::sync::OnceLock<Arc<crate::detect::external::Inbox>>,
-    /// The newest frame's width and height (high and low 32 bits; 0 before the first).
-    frame_size: AtomicU64,
-    /// Where the demo's flight goes as an autopilot's would (None: straight into the
-    /// telemetry).
-    demo_autopilot: Option<DemoAutopilot>,
-    /// The thermal sensor beside the fisheye, if there is one.
-    pub thermal: Option<Arc<thermal::Sensor>>,
+    detection: detection::DetectionParts,
 }
 
 /// What the head reads, writes and feeds, built by the assembly.
@@ -153,7 +121,8 @@ pub struct HeadParts {
     pub gate: Arc<Gate>,
     pub report: Arc<Report>,
     pub capture: Arc<Capture>,
-    pub rtsp: Arc<Rtsp>,
+    /// The viewers of the streams: the RTSP server.
+    pub clients: Arc<dyn Clients>,
     /// The relays the stream is published to.
     pub publishers: Vec<Publisher>,
     /// Each view's own stream's relays, and their key-frame requests.
@@ -167,34 +136,13 @@ pub struct HeadParts {
     pub thermal: Option<Arc<thermal::Sensor>>,
 }
 
-/// Counters the frame loop keeps and the health log reads.
-#[derive(Default)]
-struct Stats {
-    out: AtomicU64,
-    encoder_dropped: AtomicU64,
-    render_us: AtomicU64,
-    encode_us: AtomicU64,
-    encoded: AtomicU64,
-    /// Access units out of the encoder since the start (the stream is really serving).
-    units: AtomicU64,
-    /// Views rendered alone (their own streams and stills), and the time it took.
-    views: AtomicU64,
-    view_us: AtomicU64,
-    /// Scans rendered (their time), and detected and tracked (theirs).
-    scan_us: AtomicU64,
-    scans: AtomicU64,
-    detect_us: AtomicU64,
-    /// Crops looked at again by the track step.
-    crops: AtomicU64,
-}
-
 impl Head {
     pub fn new(cfg: HeadConfig, parts: HeadParts) -> Arc<Head> {
         let HeadParts {
             gate,
             report,
             capture,
-            rtsp,
+            clients,
             publishers,
             view_publishers,
             view_key_wanted,
@@ -208,74 +156,57 @@ impl Head {
             cfg,
             gate,
             report,
-            capture,
             telemetry,
-            rtsp,
-            publishers,
-            view_publishers,
-            view_key_wanted,
-            slot: Arc::default(),
             stop: Arc::default(),
-            preview: Arc::new(Preview::new(key_wanted.clone())),
-            key_wanted,
-            source_error: Mutex::new(None),
-            stats: Stats::default(),
-            latency: latency::Latency::default(),
-            klv: Mutex::default(),
-            demo_truth: Mutex::default(),
-            demo_score: Mutex::default(),
-            readout_probe: Arc::default(),
-            health: Mutex::default(),
+            input: parts::Input {
+                slot: Arc::default(),
+                error: Mutex::new(None),
+                frame_size: AtomicU64::new(0),
+                demo_autopilot,
+                thermal,
+            },
+            outputs: parts::Outputs {
+                clients,
+                preview: Arc::new(Preview::new(key_wanted.clone())),
+                capture,
+                publishers,
+                view_publishers,
+                view_key_wanted,
+                key_wanted,
+            },
+            observers: parts::Observers::default(),
+            meters: parts::Meters::default(),
             exposure,
-            scans: detection::ScanSlot::default(),
-            model: std::sync::OnceLock::new(),
-            external: std::sync::OnceLock::new(),
-            frame_size: AtomicU64::new(0),
-            demo_autopilot,
-            thermal,
+            detection: detection::DetectionParts::default(),
         })
+    }
+
+    /// The thermal sensor beside the fisheye, if there is one.
+    pub fn thermal(&self) -> Option<&Arc<thermal::Sensor>> {
+        self.input.thermal.as_ref()
+    }
+
+    /// The web page's viewers of the stream.
+    pub fn preview(&self) -> Arc<Preview> {
+        self.outputs.preview.clone()
+    }
+
+    /// The readout estimate, when one is asked for.
+    pub fn readout_probe(&self) -> &readout_probe::ReadoutProbe {
+        &self.observers.readout_probe
     }
 
     /// Runs the source thread, the health log and the frame loop until `stop` is set.
     pub fn run(self: &Arc<Head>) -> Result<(), HeadError> {
-        let spec = self.cfg.source.clone();
-        let source = {
-            let head = self.clone();
-            thread("source", move || {
-                head.supervised("source", || {
-                    head.source_thread(spec.clone());
-                    Ok(())
-                })
-            })?
-        };
-        let health = {
-            let head = self.clone();
-            thread("health", move || {
-                head.supervised("health", || {
-                    head.health_thread();
-                    Ok(())
-                })
-            })?
-        };
-        let detection = {
-            let head = self.clone();
-            thread("detection", move || {
-                head.supervised("detection", || {
-                    head.detection_thread();
-                    Ok(())
-                })
-            })?
-        };
-        let thermal = match self.thermal.clone() {
-            Some(sensor) => {
-                let head = self.clone();
-                Some(thread("thermal", move || {
-                    head.supervised("thermal", || {
-                        head.thermal_thread(&sensor);
-                        Ok(())
-                    })
-                })?)
-            }
+        let source = self.stage("source", |h| h.source_thread(h.cfg.source.clone()))?;
+        let health = self.stage("health", |h| h.health_thread())?;
+        let detection = self.stage("detection", |h| h.detection_thread())?;
+        let thermal = match &self.input.thermal {
+            Some(_) => Some(self.stage("thermal", |h| {
+                if let Some(sensor) = &h.input.thermal {
+                    h.thermal_thread(sensor)
+                }
+            })?),
             None => None,
         };
         let exposure = self.start_exposure();
@@ -285,7 +216,7 @@ impl Head {
             let _ = t.join();
         }
         let thermal = thermal.map_or(Ok(()), |t| t.join().unwrap_or(Ok(())));
-        self.capture.finish();
+        self.outputs.capture.finish();
         // The first failure is the one to report: a stage that gave up stopped the others.
         let others = [source, health, detection].map(|t| t.join().unwrap_or(Ok(())));
         result
@@ -293,19 +224,48 @@ impl Head {
             .and(others.into_iter().collect::<Result<Vec<()>, _>>().map(drop))
     }
 
+    /// Runs `work` on a thread of its own named `stage`, under the one supervisor.
+    fn stage(
+        self: &Arc<Head>,
+        stage: &'static str,
+        work: fn(&Arc<Head>),
+    ) -> Result<std::thread::JoinHandle<Result<(), HeadError>>, HeadError> {
+        let head = self.clone();
+        thread(stage, move || {
+            head.supervised(stage, || {
+                work(&head);
+                Ok(())
+            })
+        })
+    }
+
+    /// Runs `work` until it returns, started again after each panic by the one supervisor
+    /// (`crate::supervise`); once it is given up, the head stops.
+    fn supervised<T>(
+        &self,
+        stage: &'static str,
+        work: impl FnMut() -> Result<T, HeadError>,
+    ) -> Result<T, HeadError> {
+        crate::supervise::supervised(&*self.report, stage, &self.stop, work).unwrap_or_else(|why| {
+            self.stop.store(true, Ordering::Relaxed);
+            Err(HeadError::Panicked(stage, why))
+        })
+    }
+
     /// Whether the encoder has put out a picture: what `serve` waits for before it says the
     /// stream is served.
     pub fn streaming(&self) -> bool {
-        self.stats.units.load(Ordering::Relaxed) > 0
+        self.meters.stats.units.load(Ordering::Relaxed) > 0
     }
 
     fn set_source_error(&self, e: Option<String>) {
-        *self.source_error.lock().unwrap_or_else(|e| e.into_inner()) = e;
+        *self.input.error.lock().unwrap_or_else(|e| e.into_inner()) = e;
     }
 
     /// Why the source is down, while it is.
     fn source_error(&self) -> Option<String> {
-        self.source_error
+        self.input
+            .error
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clone()
@@ -313,7 +273,7 @@ impl Head {
 
     /// The newest frame's size, or the sensor's in the settings before the first.
     fn frame_size_or_sensor(&self, state: &State) -> (u32, u32) {
-        let size = self.frame_size.load(Ordering::Relaxed);
+        let size = self.input.frame_size.load(Ordering::Relaxed);
         match ((size >> 32) as u32, size as u32) {
             (0, _) | (_, 0) => (state.settings.sensor.width, state.settings.sensor.height),
             wh => wh,
@@ -322,7 +282,11 @@ impl Head {
 
     /// Where the demo's movers are, while the demo is the source.
     fn demo_truth(&self) -> Option<detection::score::DemoTruth> {
-        let truth = self.demo_truth.lock().unwrap_or_else(|e| e.into_inner());
+        let truth = self
+            .observers
+            .demo_truth
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
         truth.clone()
     }
 }
@@ -353,10 +317,7 @@ impl Head {
 
     /// Waits `d`, or less once the head is stopping.
     fn pause(&self, d: std::time::Duration) {
-        let until = Instant::now() + d;
-        while Instant::now() < until && !self.stop.load(Ordering::Relaxed) {
-            std::thread::sleep(std::time::Duration::from_millis(20).min(d));
-        }
+        crate::supervise::sleep_unless(&self.stop, d);
     }
 }
 

@@ -11,7 +11,7 @@ use crate::geometry::Euler;
 use crate::scene::GridWorld;
 use crate::scene::synth::world_origin;
 use crate::source::demo::{DemoCamera, Flight};
-use crate::source::{Ended, SourceSpec, backoff, retry_logged};
+use crate::source::{Ended, SourceSpec, backoff};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use tracing::{error, info};
@@ -27,13 +27,13 @@ impl Head {
             }
             return;
         }
-        let mut attempt = 0;
+        let mut backoff = backoff();
         while !self.stop.load(Ordering::Relaxed) {
             let outcome = crate::source::open(
                 &spec,
                 self.cfg.source_fps,
                 self.cfg.source_loop,
-                self.slot.clone(),
+                self.input.slot.clone(),
             )
             .and_then(|s| {
                 info!("source: {spec}");
@@ -50,20 +50,20 @@ impl Head {
             };
             // A source that delivered a while before failing starts its back-off afresh.
             if self
+                .input
                 .slot
                 .silence()
                 .is_some_and(|s| s < Duration::from_secs(5))
             {
-                attempt = 0;
+                backoff.held();
             }
-            let wait = backoff(attempt);
-            if retry_logged(attempt) {
+            let wait = backoff.failed();
+            if backoff.worth_logging() {
                 error!(
                     "source {spec} failed ({} times): {e}; retrying in {wait:?}",
-                    attempt + 1
+                    backoff.failures()
                 );
             }
-            attempt += 1;
             self.set_source_error(Some(format!("camera gone: {e}")));
             self.pause(wait);
         }
@@ -75,14 +75,18 @@ impl Head {
         let (camera, flight) = self.demo_camera()?;
         let period = Duration::from_secs_f64(1.0 / d.fps as f64);
         let start = Instant::now();
-        *self.demo_truth.lock().unwrap_or_else(|e| e.into_inner()) = Some(DemoTruth {
+        *self
+            .observers
+            .demo_truth
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) = Some(DemoTruth {
             movers: camera.world().movers.clone(),
             origin: world_origin(&flight.hover),
             start_us: clock_us(),
         });
         // The flight goes to the frames through the MAVLink link, as a real autopilot's would,
         // where the link listens on this machine; else straight into the telemetry.
-        let _autopilot = match (&self.demo_autopilot, d.spin) {
+        let _autopilot = match (&self.input.demo_autopilot, d.spin) {
             (Some(send), false) => Some(send(&flight, start)),
             _ => None,
         };
@@ -98,7 +102,7 @@ impl Head {
                 // Fell behind (a busy machine): skip ahead rather than burst.
                 next = Instant::now() + period;
             }
-            if self.slot.pending() {
+            if self.input.slot.pending() {
                 // The renderer has not taken the last frame: a simulated camera need not
                 // spend the CPU the renderer needs on a frame that would be dropped.
                 continue;
@@ -172,7 +176,7 @@ impl Head {
             flight.pose_at(t + dt, clock_s + dt).0
         };
         let data = camera.frame(at, &position, t, (sensor, number), stamp);
-        self.slot.put(Frame {
+        self.input.slot.put(Frame {
             data,
             layout: *camera.layout(),
             captured_us,

@@ -5,18 +5,18 @@
 //! newest frame: the hottest and coldest point of what the view shows and the temperature at
 //! any of its pixels, in the view's own pixels (its own stream's and stills' size), the view
 //! as it is aimed now and the vehicle as it was when the thermal frame was captured; and the
-//! newest frame laid over the views that show it (`render::thermal_layer`).
+//! newest frame laid over the views that show it (`plan::thermal`).
 
 use super::Head;
 use crate::clock::clock_us;
 use crate::lens::{Lens, Lenses};
 use crate::modes::ThermalShow;
-use crate::render::plan::FramePlan;
-use crate::render::thermal_layer::ThermalLayer;
+use crate::plan::FramePlan;
+use crate::plan::thermal::ThermalLayer;
 use crate::scene::GridWorld;
 use crate::scene::thermal::{thermal_frame, thermal_in_lens, world_from_thermal};
 use crate::source::thermal::{Stamped, ThermalConfig, ThermalSetup, ThermalSlot};
-use crate::source::{SourceSpec, backoff, retry_logged};
+use crate::source::{SourceSpec, backoff};
 use crate::state::State;
 use crate::thermal::{GainMode, GainTable, Spot};
 use glam::{DMat3, DVec2};
@@ -148,7 +148,7 @@ impl Head {
             return self.thermal_demo(sensor);
         }
         let spec = &sensor.setup.spec;
-        let mut attempt = 0;
+        let mut backoff = backoff();
         while !self.stop.load(Ordering::Relaxed) {
             let outcome = crate::source::thermal::open(spec, sensor.setup.fps, sensor.slot.clone())
                 .and_then(|s| {
@@ -160,11 +160,10 @@ impl Head {
                 Ok(_) => return,
                 Err(e) => e,
             };
-            let wait = backoff(attempt);
-            if retry_logged(attempt) {
+            let wait = backoff.failed();
+            if backoff.worth_logging() {
                 error!("thermal source {spec} failed: {e}; retrying in {wait:?}");
             }
-            attempt += 1;
             sensor.set_error(Some(format!("thermal camera gone: {e}")));
             self.pause(wait);
         }
@@ -211,7 +210,7 @@ impl Head {
         camera: usize,
         spot: Option<DVec2>,
     ) -> Result<InView, ThermalAsk> {
-        let sensor = self.thermal.as_ref().ok_or(ThermalAsk::NoSensor)?;
+        let sensor = self.input.thermal.as_ref().ok_or(ThermalAsk::NoSensor)?;
         let stamped = sensor.slot.newest().ok_or(ThermalAsk::NoFrame)?;
         let state = self.state_at(stamped.captured_us);
         let count = state.settings.cameras.len();
@@ -265,7 +264,7 @@ impl Head {
         plan: &FramePlan,
         views: impl Iterator<Item = (usize, usize)>,
     ) -> Option<Arc<ThermalLayer>> {
-        let sensor = self.thermal.as_ref()?;
+        let sensor = self.input.thermal.as_ref()?;
         let shown: Vec<(usize, ThermalShow)> = views
             .filter_map(|(v, cam)| Some((v, state.settings.cameras.get(cam)?.thermal())))
             .filter(|&(_, show)| show != ThermalShow::Off)

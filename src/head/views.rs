@@ -12,8 +12,8 @@ use super::{Head, no_signal};
 use crate::frame::{PixelFormat, PlaneLayout};
 use crate::geometry::shutter::ShutterTable;
 use crate::lens::Lens;
+use crate::plan::{Filter, FramePlan};
 use crate::render::gpu::{GpuError, OutputId, Renderer};
-use crate::render::{Filter, FramePlan};
 use crate::state::State;
 use crate::state::capture::{CaptureError, Geotag};
 use crate::stream::Encoder;
@@ -93,7 +93,7 @@ impl Head {
     fn stills_now(&self, rendered: Rendered) -> Vec<ViewStill> {
         let patience_over = |s: &ViewStill| s.1.elapsed() >= STILL_PATIENCE;
         let (mut now, mut later) = (vec![], vec![]);
-        for s in self.capture.take_view_stills() {
+        for s in self.outputs.capture.take_view_stills() {
             let ready = match rendered {
                 Some(f) => asked_unix_us(s.1) <= f.unix_us || patience_over(&s),
                 None => patience_over(&s),
@@ -104,7 +104,7 @@ impl Head {
                 false => later.push(s),
             }
         }
-        self.capture.put_back_view_stills(later);
+        self.outputs.capture.put_back_view_stills(later);
         now
     }
 
@@ -136,9 +136,9 @@ impl Head {
         let mut stills = self.stills_now(rendered);
         // Watched, recorded by its camera or published: its stream is encoded.
         let watched: [bool; VIEW_MOUNTS] = std::array::from_fn(|i| {
-            self.rtsp.view_watched(i)
-                || self.capture.view_recording(i)
-                || !self.view_publishers[i].is_empty()
+            self.outputs.clients.view_watched(i)
+                || self.outputs.capture.view_recording(i)
+                || !self.outputs.view_publishers[i].is_empty()
         });
         for (i, watched) in watched.into_iter().enumerate() {
             if !watched && outs.encoders[i].take().is_some() {
@@ -165,10 +165,12 @@ impl Head {
                 let pictures = draw_views(outs, renderer, framed, (&wanted, &plans), objects);
                 let took = now.elapsed();
                 outs.pacing.drawn(&wanted, took, now);
-                self.stats
+                self.meters
+                    .stats
                     .view_us
                     .fetch_add(took.as_micros() as u64, Ordering::Relaxed);
-                self.stats
+                self.meters
+                    .stats
                     .views
                     .fetch_add(wanted.len() as u64, Ordering::Relaxed);
                 pictures
@@ -185,7 +187,8 @@ impl Head {
                 match (&picture, rendered) {
                     (Ok((data, layout)), Some(f)) => {
                         let tag = Geotag::of_view(&f.state, f.unix_us, i, self.cfg.view_size);
-                        self.capture
+                        self.outputs
+                            .capture
                             .save_view_still((data.clone(), *layout), tag, done)
                     }
                     (Err(e), _) => done(Err(CaptureError::Still(Box::new(e.clone())))),
@@ -225,11 +228,11 @@ impl Head {
                     .unwrap_or_else(|e| e.into_inner())
                     .tick(Instant::now());
                 head.gate.sensed().set_view_rate(i, rate);
-                head.rtsp.push_view(i, &au.buffer);
-                head.capture.on_view_access_unit(i, &au);
-                for p in &head.view_publishers[i] {
+                head.outputs.clients.push_view(i, &au.buffer);
+                head.outputs.capture.on_view_access_unit(i, &au);
+                for p in &head.outputs.view_publishers[i] {
                     if p.push(&au) {
-                        head.view_key_wanted[i].store(true, Ordering::Relaxed);
+                        head.outputs.view_key_wanted[i].store(true, Ordering::Relaxed);
                     }
                 }
             }) {
@@ -248,8 +251,11 @@ impl Head {
             }
         }
         let encoder = outs.encoders[i].as_mut().expect("started above");
-        let relay_wants = self.view_key_wanted[i].swap(false, Ordering::Relaxed);
-        if self.rtsp.view_key_wanted(i) | self.capture.take_view_key_request(i) | relay_wants {
+        let relay_wants = self.outputs.view_key_wanted[i].swap(false, Ordering::Relaxed);
+        if self.outputs.clients.view_key_wanted(i)
+            | self.outputs.capture.take_view_key_request(i)
+            | relay_wants
+        {
             encoder.force_key_unit();
         }
         if let Err(e) = encoder.push_with(data, layout, pts, fps, side) {

@@ -1,7 +1,16 @@
 //! The frame plan: for each view and detection tile of the output frame, its rectangle and how
 //! its pixels map to world rays and fisheye pixels. Built once per frame from the state, the
-//! lens and the vehicle's attitude; both the CPU reference and the ground-truth renderer
-//! walk the same plan, so they differ only in where the colour comes from.
+//! lens and the vehicle's attitude: plain geometry on the shared data, below the renderers
+//! that draw it (`crate::render`) and beside the services that reason with it (control,
+//! cameras, detection, the scene, the KLV writer). `filter` is the minification filter a view
+//! is drawn with, `thermal` where a thermal camera's picture lies over the views, `paint`
+//! walks a plan pixel by pixel (the CPU reference and the ground truth paint through it).
+
+pub mod filter;
+pub mod paint;
+pub mod thermal;
+
+pub use filter::{Filter, MAX_LEVELS};
 
 use crate::geometry::shutter::ShutterTable;
 use crate::geometry::view::lens_from_world;
@@ -9,11 +18,10 @@ use crate::geometry::{Euler, Projection, rotation::direction};
 use crate::layout::{Layout, LayoutError, Rect, Slot};
 use crate::lens::Lens;
 use crate::modes::Crop;
-use crate::render::mip::{Filter, MAX_LEVELS};
-use crate::render::thermal_layer::ThermalLayer;
 use crate::state::{State, Tracked};
 use glam::{DMat3, DVec2, DVec3};
 use std::sync::Arc;
+use thermal::ThermalLayer;
 
 /// The most samples per axis a minified view takes per output pixel.
 pub const MAX_SAMPLES: u32 = 8;

@@ -16,7 +16,7 @@ use crate::geometry::rotation::MOUNT_FROM_LENS;
 use crate::layout::Rect;
 use crate::lens::Lens;
 use crate::modes::ThermalShow;
-use crate::render::plan::{FramePlan, PlannedView, ViewMap};
+use crate::plan::{FramePlan, PlannedView, ViewMap};
 use crate::thermal::{GainTable, Palette, ThermalFrame, colourise};
 use glam::{DMat3, DVec2, DVec3};
 use image::{RgbImage, RgbaImage};

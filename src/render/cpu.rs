@@ -4,13 +4,12 @@
 //! sample of the fisheye's mip chain at the footprint its quad neighbours give (those the
 //! same view draws).
 
-use super::mip::{Filter, Pyramid, lod};
-use super::plan::{FramePlan, PlannedView};
+use super::mip::{Pyramid, lod};
 use crate::frame::{FrameError, PixelFormat, PlaneLayout};
-use crate::image_ops::{sample_offsets, to_rgb8};
-use glam::{DVec2, DVec3};
+use crate::plan::paint::render_pixels;
+use crate::plan::{Filter, FramePlan, PlannedView};
+use glam::DVec2;
 use image::RgbImage;
-use rayon::prelude::*;
 
 /// Renders the output frame; pixels of no view, and pixels whose ray falls outside the lens's
 /// image circle or the fisheye frame, are black. Fisheye pixels outside the lens's imaged box
@@ -89,46 +88,4 @@ fn render_from(plan: &FramePlan, pyramid: &Pyramid, filter: Filter, quad_chroma:
         let chroma_lod = group.iter().map(|g| g.1).fold(0.0, f64::max);
         Some(pyramid.sample_420(q, level, centre, chroma_lod))
     })
-}
-
-/// Renders every view of a plan with `colour(view, point)` averaged over the plan's
-/// supersampling grid; None is black. What the ground-truth renderer uses.
-pub fn render_with<F>(plan: &FramePlan, colour: F) -> RgbImage
-where
-    F: Fn(&PlannedView, DVec2) -> Option<DVec3> + Sync,
-{
-    render_pixels(plan, |view, x, y| {
-        let base = DVec2::new((x - view.rect.x) as f64, (y - view.rect.y) as f64);
-        let n = view.samples * view.samples;
-        let sum: DVec3 = sample_offsets(view.samples)
-            .filter_map(|o| colour(view, base + o))
-            .sum();
-        Some(sum / n as f64)
-    })
-}
-
-/// Calls `pixel(view, x, y)` for every frame pixel of every view, rows in parallel. Later views
-/// (tiles) are drawn over earlier ones, so overlay mode 1 covers its corner.
-fn render_pixels<F>(plan: &FramePlan, pixel: F) -> RgbImage
-where
-    F: Fn(&PlannedView, u32, u32) -> Option<DVec3> + Sync,
-{
-    let (w, h) = (plan.layout.width, plan.layout.height);
-    let mut out = vec![0u8; (w * h * 3) as usize];
-    out.par_chunks_mut((w * 3) as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            let y = y as u32;
-            for view in plan
-                .views
-                .iter()
-                .filter(|v| y >= v.rect.y && y < v.rect.bottom())
-            {
-                for x in view.rect.x..view.rect.right() {
-                    let rgb = to_rgb8(pixel(view, x, y).unwrap_or(DVec3::ZERO));
-                    row[(x * 3) as usize..(x * 3 + 3) as usize].copy_from_slice(&rgb);
-                }
-            }
-        });
-    RgbImage::from_raw(w, h, out).expect("buffer sized to the frame")
 }

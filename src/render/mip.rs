@@ -6,33 +6,13 @@
 
 use crate::frame::{PlaneLayout, yuv};
 use crate::image_ops::{bilinear, bilinear_luma};
+use crate::plan::MAX_LEVELS;
 use glam::{DVec2, DVec3};
 use image::{GrayImage, RgbImage};
 use std::ops::Range;
 
 /// Columns and rows of a frame (`Lens::imaged_box`).
 pub type ImagedBox = (Range<u32>, Range<u32>);
-
-/// The most mip levels kept: enough for 128x minification.
-pub const MAX_LEVELS: u32 = 8;
-
-/// How minified views are filtered.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Filter {
-    /// Trilinear from the mip chain at each pixel's footprint (the default).
-    #[default]
-    Mip,
-    /// One bilinear sample of the full-size frame: sharper, aliases when minified.
-    Bilinear,
-}
-
-impl Filter {
-    /// The code the shader uses (`FILTER_*` in shaders/render.wgsl).
-    pub fn shader_code(self) -> u32 {
-        self as u32
-    }
-}
 
 /// Mip levels for a frame: halving down to 1 pixel on the short side, at most [`MAX_LEVELS`].
 pub fn levels_for(width: u32, height: u32) -> u32 {

@@ -13,6 +13,7 @@ pub use gst_source::{Ended, FileFrames, GstSource, check, open};
 
 use crate::frame::{Frame, FrameError};
 use crate::gst::GstError;
+use crate::supervise::Backoff;
 use std::path::PathBuf;
 
 /// Why a `--source` string (or the config's `source`) was refused.
@@ -195,15 +196,10 @@ impl FrameSlot {
     }
 }
 
-/// Wait between attempts to (re)open a failed source: 0.5 s, then 1 s, so a camera that
+/// Waits between attempts to (re)open a failed source: 0.5 s, then 1 s, so a camera that
 /// comes back shows within 2 s (reopening a camera that is not there costs next to nothing).
-pub fn backoff(attempt: u32) -> Duration {
-    Duration::from_millis(if attempt == 0 { 500 } else { 1000 })
-}
-
-/// Whether failed attempt `attempt` (from 0) is logged: the first three, then one a minute.
-pub fn retry_logged(attempt: u32) -> bool {
-    attempt < 3 || attempt.is_multiple_of(60)
+pub const fn backoff() -> Backoff {
+    Backoff::new(Duration::from_millis(500), Duration::from_secs(1))
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@
 
 use super::{AccessUnit, Codec, Restamp, StreamError};
 use crate::gst::{GstError, element, element_error, launch};
-use crate::supervise::{self, FailureLog, Fault};
+use crate::supervise::{self, Backoff, FailureLog, Fault};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
@@ -22,10 +22,9 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use tracing::{info, warn};
 
-/// The wait before the first retry; it doubles up to [`MAX_BACKOFF`], and starts again after
-/// a connection that held for [`HELD`].
-const FIRST_BACKOFF: Duration = Duration::from_secs(1);
-const MAX_BACKOFF: Duration = Duration::from_secs(30);
+/// Waits between connections: 1 s doubling to 30 s, from 1 s again after a connection that
+/// held for [`HELD`].
+const BACKOFF: Backoff = Backoff::new(Duration::from_secs(1), Duration::from_secs(30));
 const HELD: Duration = Duration::from_secs(10);
 /// How long units must flow without an error before the relay counts as taking them.
 const TAKEN: Duration = Duration::from_secs(1);
@@ -262,7 +261,7 @@ fn keep_publishing(
     want_key: &(dyn Fn() + Send + Sync),
     fault: &Fault,
 ) {
-    let mut backoff = FIRST_BACKOFF;
+    let mut backoff = BACKOFF;
     // Started again after a panic: the last run's pipeline is let go first.
     *link.lock().unwrap_or_else(|e| e.into_inner()) = None;
     connected.store(false, Ordering::Relaxed);
@@ -275,22 +274,19 @@ fn keep_publishing(
             break;
         }
         if was_connected && started.elapsed() >= HELD {
-            backoff = FIRST_BACKOFF;
+            backoff.held();
         }
         let why = match result {
             Ok(()) => "the relay ended the stream".to_string(),
             Err(e) => e.to_string(),
         };
+        let wait = backoff.failed();
         warn!(
             "publish {}: {why}; retrying in {} s",
             target.url,
-            backoff.as_secs()
+            wait.as_secs()
         );
-        let until = Instant::now() + backoff;
-        while Instant::now() < until && !stop.load(Ordering::Relaxed) {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        backoff = (backoff * 2).min(MAX_BACKOFF);
+        supervise::sleep_unless(stop, wait);
     }
 }
 

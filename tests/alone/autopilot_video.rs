@@ -12,7 +12,7 @@ use common::serve::Serve;
 use common::viewer::Viewer;
 use common::{four_view_state, landmark_matches, lens_cal};
 use digiview::geometry::Euler;
-use digiview::render::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::scene::GridWorld;
 use digiview::scene::synth::truth;
 use glam::DVec3;

@@ -12,9 +12,9 @@ use common::{four_view_state, landmark_matches, lens_cal, probe_frames, probe_rt
 use digiview::control::client::Client;
 use digiview::image_ops;
 use digiview::layout::Rect;
+use digiview::plan::FramePlan;
 use digiview::protocol::params::{CamFov, Capture, VideoOutput};
 use digiview::protocol::{Param, ParamType};
-use digiview::render::FramePlan;
 use digiview::scene::GridWorld;
 use digiview::scene::synth::truth;
 use digiview::state::State;
@@ -440,7 +440,7 @@ fn a_frame_loop_that_keeps_panicking_is_reported_and_ends_the_process() {
     let log = serve.log();
     assert!(!status.success(), "{status:?}");
     assert!(
-        log.contains("the frames stage failed (fault injected")
+        log.contains("the frames service failed (fault injected")
             && log.contains("starting it again")
             && log.contains("the frames stage kept failing"),
         "{log}"

@@ -63,7 +63,7 @@ fn detection_and_publishing_are_restarted_after_a_panic() {
     serve.wait_exit(Duration::from_secs(10));
     let log = serve.log();
     assert!(
-        log.contains("the detection stage failed (fault injected"),
+        log.contains("the detection service failed (fault injected"),
         "{log}"
     );
 

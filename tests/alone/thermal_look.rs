@@ -19,7 +19,7 @@ use digiview::geometry::Euler;
 use digiview::image_ops::psnr;
 use digiview::lens::Lenses;
 use digiview::modes::ThermalShow;
-use digiview::render::plan::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::state::{State, ThermalGain, ThermalLook};
 use digiview::thermal::Palette;
 use image::RgbImage;

@@ -19,7 +19,7 @@ use digiview::image_ops::psnr;
 use digiview::layout::Rect;
 use digiview::lens::Lenses;
 use digiview::modes::ThermalShow;
-use digiview::render::plan::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::state::{State, ThermalLook};
 use glam::DVec2;
 use image::RgbImage;

@@ -5,7 +5,7 @@ use super::{DEG, four_view_state, three_tracked};
 use digiview::frame::{PixelFormat, PlaneLayout, yuv};
 use digiview::layout::Rect;
 use digiview::modes::OverlayMode;
-use digiview::render::Filter;
+use digiview::plan::Filter;
 use digiview::render::gpu::{Gpu, Renderer};
 use digiview::state::State;
 use image::RgbImage;

@@ -21,7 +21,7 @@ use digiview::image_ops::{centroid, pixel};
 use digiview::layout::Rect;
 use digiview::lens::{Lens, LensCal};
 use digiview::modes::{LayoutMode, OverlayMode};
-use digiview::render::{FramePlan, ViewMap};
+use digiview::plan::{FramePlan, ViewMap};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::eye;
 use digiview::state::{Camera, State, Tracked};

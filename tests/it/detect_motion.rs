@@ -10,7 +10,7 @@ use digiview::detect::scan::{MOTION_VIEWS, visible};
 use digiview::detect::{MotionDetector, Tracker};
 use digiview::frame::PixelFormat;
 use digiview::geometry::view::lens_from_world;
-use digiview::render::Filter;
+use digiview::plan::Filter;
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{eye, fisheye};
 use digiview::state::State;
@@ -313,7 +313,7 @@ fn a_minute_of_turning_finds_movers_entering_within_a_second_and_tiles_stay_on_t
                 if o.seen != t {
                     continue;
                 }
-                let fov = digiview::render::plan::tile_fov(o.bbox.size());
+                let fov = digiview::plan::tile_fov(o.bbox.size());
                 off_centre.push(o.at(tf).centre.angle_between(truth[m].0) / fov);
             }
         }

@@ -7,7 +7,8 @@
 use crate::common;
 use common::*;
 use digiview::image_ops::psnr;
-use digiview::render::{Filter, FramePlan, cpu};
+use digiview::plan::{Filter, FramePlan};
+use digiview::render::cpu;
 use digiview::scene::synth::{equirect, fisheye, truth};
 use digiview::scene::{GridWorld, PanoramaWorld, World};
 use digiview::state::State;

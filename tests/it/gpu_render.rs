@@ -16,9 +16,10 @@ use digiview::layout::Rect;
 use digiview::lens::Lens;
 use digiview::lens::samples::sample_lenses;
 use digiview::modes::{LayoutMode, LayoutMode::Whole, OverlayMode};
+use digiview::plan::{Filter, FramePlan};
+use digiview::render::cpu;
 use digiview::render::gpu::Renderer;
 use digiview::render::gpu::renderer::render_image;
-use digiview::render::{Filter, FramePlan, cpu};
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;
@@ -332,7 +333,7 @@ fn a_minified_debug_view_of_a_fine_checkerboard_does_not_alias() {
     (state.settings.output.layout, state.settings.output.overlay) = (Whole, OverlayMode::None);
     let plan = FramePlan::new(&state, &lens).unwrap();
     let view = plan.views[0].rect;
-    let digiview::render::ViewMap::Fisheye { origin, scale } = plan.views[0].map else {
+    let digiview::plan::ViewMap::Fisheye { origin, scale } = plan.views[0].map else {
         panic!("layout 6 is a fisheye view");
     };
     // Box reference: the mean of the checks over each output pixel's square footprint, inside

@@ -12,7 +12,7 @@ use common::*;
 use digiview::geometry::Euler;
 use digiview::geometry::ground::ground_point;
 use digiview::geometry::rotation::direction;
-use digiview::render::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::state::view::Field::{Pitch, Yaw};
 use digiview::stream::klv::ViewMetadata;
 use glam::DVec3;

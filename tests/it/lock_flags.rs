@@ -8,7 +8,8 @@
 use crate::common;
 use common::*;
 use digiview::image_ops::psnr;
-use digiview::render::{Filter, FramePlan, cpu};
+use digiview::plan::{Filter, FramePlan};
+use digiview::render::cpu;
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::State;

@@ -19,6 +19,7 @@ mod dewarp_vs_truth;
 mod disk_full;
 mod doctor;
 mod entry_paths;
+mod frame_loop;
 mod fuzz_corpus;
 mod gimbal_device;
 mod gpu_frames;

@@ -8,7 +8,7 @@ use crate::common;
 use common::{four_view_state, landmark_matches, probe_frames, small_lens};
 use digiview::image_ops::psnr;
 use digiview::layout::Rect;
-use digiview::render::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use image::RgbImage;

@@ -13,7 +13,7 @@ use common::serve::Serve;
 use common::thermal::{aimed, engine_ray, engine_serve, mount_towards};
 use digiview::geometry::Euler;
 use digiview::lens::Lenses;
-use digiview::render::plan::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::scene::thermal::{MOVER_KELVIN, world_from_thermal};
 use digiview::state::State;
 use digiview::state::view::{Camera, Field};

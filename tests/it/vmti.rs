@@ -9,7 +9,7 @@ use common::klv::{POSITION, metres, misb, pixel};
 use common::*;
 use digiview::control::detection::{KNOWN, detected_roi};
 use digiview::geometry::rotation::direction;
-use digiview::render::FramePlan;
+use digiview::plan::FramePlan;
 use digiview::state::Tracked;
 use digiview::stream::klv::ViewMetadata;
 

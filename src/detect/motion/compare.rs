@@ -10,7 +10,7 @@ use super::{
 use crate::detect::angular::Detection;
 use crate::detect::scan::{ScanView, clear_of_edges, to_world};
 use crate::layout::Rect;
-use crate::render::plan::PlannedView;
+use crate::plan::PlannedView;
 use glam::DVec2;
 
 /// A view's pixels of the mosaic's `luma` (`stride` bytes a row).

@@ -12,7 +12,7 @@ use super::Detection;
 #[cfg(doc)]
 use super::scan::model_views;
 use super::scan::{ScanView, owner, to_world};
-use crate::render::{FramePlan, PlannedView};
+use crate::plan::{FramePlan, PlannedView};
 use decode::Level;
 use glam::DVec2;
 use image::imageops::FilterType;

@@ -3,7 +3,7 @@
 //! long the last one took it), and taken the older first.
 
 use crate::detect::scan::ScanView;
-use crate::render::FramePlan;
+use crate::plan::FramePlan;
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 

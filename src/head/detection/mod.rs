@@ -22,8 +22,8 @@ use crate::detect::{AngularBox, Detector, MotionDetector, OnnxDetector, OnnxErro
 use crate::frame::{Frame, PixelFormat};
 use crate::geometry::GeoPoint;
 use crate::geometry::ground::to_ned;
+use crate::plan::{Filter, FramePlan};
 use crate::render::gpu::{GpuError, OutputId, Renderer};
-use crate::render::{Filter, FramePlan};
 use crate::state::State;
 use glam::DVec3;
 use handover::Scan;
@@ -62,6 +62,17 @@ pub enum DetectorError {
     },
 }
 
+/// What the detection stage keeps between the frame loop and its thread.
+#[derive(Default)]
+pub(super) struct DetectionParts {
+    /// The newest scan and the newest crops for the detection thread.
+    pub scans: ScanSlot,
+    /// The ONNX detector, once loaded.
+    pub model: std::sync::OnceLock<Model>,
+    /// What the external detector sends, once its socket listens.
+    pub external: std::sync::OnceLock<Arc<Inbox>>,
+}
+
 /// The loaded ONNX model, and the side of the square pictures it takes (read by the frame
 /// loop without waiting for the model).
 pub(super) struct Model {
@@ -73,7 +84,9 @@ impl Head {
     /// Loads the ONNX model when the configuration chooses it: a missing model or ONNX
     /// Runtime is an error at start-up, not a silent stage.
     pub fn load_detector(self: &Arc<Head>) -> Result<(), DetectorError> {
-        if self.cfg.detection.detector == Detector::External && self.external.get().is_none() {
+        if self.cfg.detection.detector == Detector::External
+            && self.detection.external.get().is_none()
+        {
             let path = &self.cfg.detection.socket;
             let inbox = Arc::new(Inbox::default());
             listen(path, inbox.clone(), self.stop.clone()).map_err(|e| DetectorError::Socket {
@@ -81,9 +94,9 @@ impl Head {
                 source: e,
             })?;
             info!("detection: external, JSON lines on {}", path.display());
-            let _ = self.external.set(inbox);
+            let _ = self.detection.external.set(inbox);
         }
-        if self.cfg.detection.detector != Detector::Onnx || self.model.get().is_some() {
+        if self.cfg.detection.detector != Detector::Onnx || self.detection.model.get().is_some() {
             return Ok(());
         }
         let cfg = self.cfg.detection.onnx();
@@ -95,7 +108,7 @@ impl Head {
             detector.side(),
             detector.side()
         );
-        let _ = self.model.set(Model {
+        let _ = self.detection.model.set(Model {
             side: detector.side(),
             detector: Mutex::new(detector),
         });
@@ -106,8 +119,8 @@ impl Head {
     fn detecting(&self, state: &State) -> bool {
         let ready = match self.cfg.detection.detector {
             Detector::Motion => true,
-            Detector::Onnx => self.model.get().is_some(),
-            Detector::External => self.external.get().is_some(),
+            Detector::Onnx => self.detection.model.get().is_some(),
+            Detector::External => self.detection.external.get().is_some(),
             Detector::Off => false,
         };
         ready && state.settings.detection.run_ai
@@ -133,7 +146,7 @@ impl Head {
         framed: &super::views::Framed,
     ) {
         let size = (frame.layout.width as u64) << 32 | frame.layout.height as u64;
-        self.frame_size.store(size, Ordering::Relaxed);
+        self.input.frame_size.store(size, Ordering::Relaxed);
         if !self.detecting(&framed.state) {
             return;
         }
@@ -160,11 +173,12 @@ impl Head {
             Err(e) => return warn!("detection: the scan did not render: {e}"),
         };
         if crops.is_empty() {
-            self.stats
+            self.meters
+                .stats
                 .scan_us
                 .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
         }
-        self.scans.put(Scan {
+        self.detection.scans.put(Scan {
             views,
             plan,
             stride: out.layout.stride as usize,
@@ -197,9 +211,9 @@ impl Head {
         // What the detection thread would not take within a period is not drawn yet (nor
         // again while one waits): a model slower than the rate sets the pace, the frame loop's
         // time goes to what is used, and what is used is at most a period old when taken.
-        let (scan_free, crops_free) = self.scans.free(cfg.scan_hz, cfg.crop_hz);
+        let (scan_free, crops_free) = self.detection.scans.free(cfg.scan_hz, cfg.crop_hz);
         let scanned = matches!(cfg.detector, Detector::Motion | Detector::Onnx);
-        let model = self.model.get();
+        let model = self.detection.model.get();
         let scan_late = late(scans.last, cfg.scan_hz).filter(|&l| scanned && scan_free && l >= 1.0);
         let crops_late = late(scans.last_crops, cfg.crop_hz)
             .filter(|&l| model.is_some() && crops_free && !state.tracked.is_empty() && l >= 1.0);
@@ -254,7 +268,7 @@ impl Head {
     /// The next boxes to track: the external detector's next line, or a scan's detections.
     /// None when nothing came, or what came was a track step (done here).
     fn next_found(&self, d: &mut Detecting, state: &State) -> Option<Found> {
-        if let Some(inbox) = self.external.get() {
+        if let Some(inbox) = self.detection.external.get() {
             let (batch, arrived) = inbox.take(Duration::from_millis(100))?;
             if batch
                 .t
@@ -269,13 +283,13 @@ impl Head {
             let t = crate::clock::clock_us() as f64 * 1e-6 - arrived.elapsed().as_secs_f64();
             return Some((t, found, plan, t0, None));
         }
-        let scan = self.scans.take()?;
+        let scan = self.detection.scans.take()?;
         let t0 = Instant::now();
         if !scan.crops.is_empty() {
             self.track_step(&mut d.tracker, state, &scan);
             self.show(&mut d.tracker, state, &d.labels, (&mut d.adopted, scan.t));
             d.owns_list = true;
-            self.scans.took(true, t0);
+            self.detection.scans.took(true, t0);
             return None;
         }
         let home = *d.origin.get_or_insert(GeoPoint {
@@ -284,7 +298,7 @@ impl Head {
         });
         let eye: DVec3 = to_ned(home, scan.position.point());
         let (v, p) = (&scan.views, &scan.plan);
-        let found = match self.model.get() {
+        let found = match self.detection.model.get() {
             Some(model) => {
                 let threshold = state.settings.detection.var_confidence_threshold as f32;
                 let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
@@ -316,24 +330,29 @@ impl Head {
         }
         if let (Some(position), Some(scorer)) = (position, d.scorer.as_mut()) {
             scorer.scan((t, &position), &list, tiled, sees);
-            let mut shared = self.demo_score.lock().unwrap_or_else(|e| e.into_inner());
+            let mut shared = self
+                .observers
+                .demo_score
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
             let rings = shared.take().map(|s| s.rings).unwrap_or_default();
             *shared = Some(score::Score {
                 rings,
                 ..scorer.score().clone()
             });
         }
-        self.scans.took(false, t0);
-        self.stats
+        self.detection.scans.took(false, t0);
+        self.meters
+            .stats
             .detect_us
             .fetch_add(t0.elapsed().as_micros() as u64, Ordering::Relaxed);
-        self.stats.scans.fetch_add(1, Ordering::Relaxed);
+        self.meters.stats.scans.fetch_add(1, Ordering::Relaxed);
     }
 
     /// The track step: the model on each crop, each object found again or missed in its own
     /// (at `crop_confidence_threshold`). A model that fails stops the step where it is.
     fn track_step(&self, tracker: &mut Tracker, state: &State, crops: &Scan) {
-        let Some(model) = self.model.get() else {
+        let Some(model) = self.detection.model.get() else {
             return;
         };
         let threshold = state.settings.detection.crop_confidence_threshold as f32;
@@ -345,7 +364,7 @@ impl Head {
                 }
                 Err(e) => return warn!("detection: {e}"),
             }
-            self.stats.crops.fetch_add(1, Ordering::Relaxed);
+            self.meters.stats.crops.fetch_add(1, Ordering::Relaxed);
         }
     }
 }

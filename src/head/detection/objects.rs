@@ -12,7 +12,7 @@ use crate::detect::tracker::UNKNOWN_CLASS;
 use crate::detect::{AngularBox, Tracker};
 use crate::geometry::rotation::{direction, yaw_pitch};
 use crate::lens::Lens;
-use crate::render::FramePlan;
+use crate::plan::FramePlan;
 use crate::state::view::{Seen, follow};
 use crate::state::{IN_SIGHT, Invalid, State, Tracked};
 use tracing::{info, warn};

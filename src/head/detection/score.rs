@@ -9,7 +9,7 @@ use crate::geometry::GeoPoint;
 use crate::geometry::GeoPosition;
 use crate::geometry::ground::to_ned;
 use crate::geometry::rotation::direction;
-use crate::render::FramePlan;
+use crate::plan::FramePlan;
 use crate::scene::grid::Mover;
 use crate::state::{State, Tracked};
 use glam::DVec3;

@@ -16,7 +16,7 @@ use super::planes::{
 use super::ring::{MapSlot, RING};
 use super::{Gpu, GpuError};
 use crate::frame::PlaneLayout;
-use crate::render::Filter;
+use crate::plan::Filter;
 use crate::render::mip::{ImagedBox, levels_for};
 use wgpu::util::DeviceExt;
 

@@ -9,7 +9,7 @@ use super::shaders::compose;
 use super::thermal::ThermalPass;
 use super::{Gpu, GpuError};
 use crate::frame::{PixelFormat, PlaneLayout};
-use crate::render::thermal_layer::ThermalLayer;
+use crate::plan::thermal::ThermalLayer;
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
 use wgpu::util::DeviceExt;

@@ -9,7 +9,7 @@ use crate::geometry::Projection;
 use crate::geometry::shutter::KNOTS;
 use crate::layout::Rect;
 use crate::lens::Lens;
-use crate::render::plan::{FramePlan, PlannedView, ViewMap};
+use crate::plan::{FramePlan, PlannedView, ViewMap};
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
 

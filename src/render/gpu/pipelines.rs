@@ -9,7 +9,7 @@
 use super::{Gpu, GpuError, shaders};
 use crate::frame::PixelFormat;
 use crate::lens::Model;
-use crate::render::Filter;
+use crate::plan::Filter;
 use std::collections::HashMap;
 use std::sync::mpsc;
 

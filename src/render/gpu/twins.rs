@@ -14,8 +14,8 @@ use super::planes::{IngestTargets, MipStep, Region};
 use super::shaders::passes;
 use crate::frame::{PixelFormat, yuv};
 use crate::geometry::shutter::KNOTS;
-use crate::render::Filter;
-use crate::render::plan::SHUTTER_STEPS;
+use crate::plan::Filter;
+use crate::plan::SHUTTER_STEPS;
 use naga::{Expression, Literal, Module, TypeInner};
 use std::mem::offset_of;
 

@@ -10,7 +10,7 @@ use super::vmti::{Target, Vmti};
 use crate::geometry::Euler;
 use crate::geometry::ground::{GeoPoint, ground_point};
 use crate::geometry::rotation::direction;
-use crate::render::plan::{FramePlan, PlannedView};
+use crate::plan::{FramePlan, PlannedView};
 use crate::state::State;
 use glam::{DMat3, DVec2, DVec3};
 

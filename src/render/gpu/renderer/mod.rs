@@ -22,8 +22,9 @@ mod staged;
 
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
 use crate::lens::Model;
-use crate::render::mip::{Filter, ImagedBox};
-use crate::render::plan::FramePlan;
+use crate::plan::Filter;
+use crate::plan::FramePlan;
+use crate::render::mip::ImagedBox;
 use image::RgbImage;
 use output::Output;
 pub use output::OutputId;

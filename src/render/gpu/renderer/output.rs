@@ -12,8 +12,8 @@ use super::super::pipelines::{DrawKey, MIXED_WORKGROUP, PipelineKey, Pipelines, 
 use super::super::{Gpu, GpuError};
 use super::OUTPUT_ALIGN;
 use crate::frame::{PixelFormat, PlaneLayout};
-use crate::render::mip::Filter;
-use crate::render::plan::FramePlan;
+use crate::plan::Filter;
+use crate::plan::FramePlan;
 
 /// An output drawn again from the renderer's last upload, made by
 /// [`super::Renderer::add_output`].

@@ -3,8 +3,8 @@
 
 use super::{RING, RenderedFrame, Renderer};
 use crate::frame::PlaneLayout;
+use crate::plan::FramePlan;
 use crate::render::gpu::GpuError;
-use crate::render::plan::FramePlan;
 use std::time::{Duration, Instant};
 
 /// Where one frame's time went, each stage waited for on its own (see
