@@ -17,8 +17,8 @@ use std::collections::VecDeque;
 use std::future::Future;
 use std::net::SocketAddr;
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use tracing::error;
@@ -209,6 +209,20 @@ pub fn sleep_unless(stop: &AtomicBool, wait: Duration) -> bool {
             return true;
         }
         std::thread::sleep(left.min(Duration::from_millis(20)));
+    }
+}
+
+/// A lock taken even where a thread panicked holding it: the supervisor reports the panic and
+/// starts that work again, and the value guarded (a slot, a queue, a figure, replaced whole
+/// by whoever holds the lock) is used as it was left rather than passed on as a panic of
+/// every other thread that shares it.
+pub trait Locked<T> {
+    fn locked(&self) -> MutexGuard<'_, T>;
+}
+
+impl<T> Locked<T> for Mutex<T> {
+    fn locked(&self) -> MutexGuard<'_, T> {
+        self.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 

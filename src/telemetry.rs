@@ -6,6 +6,7 @@
 use crate::clock::clock_us;
 use crate::geometry::attitude::AttitudeTrack;
 use crate::geometry::{Euler, GeoPosition, PositionSample, PositionTrack};
+use crate::supervise::Locked;
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -53,10 +54,7 @@ impl Telemetry {
 
     /// An attitude measured at `t_us` (the sources' clock, [`crate::clock::clock_us`]).
     pub fn attitude(&self, t_us: u64, attitude: Euler) {
-        self.track
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push(t_us, attitude);
+        self.track.locked().push(t_us, attitude);
     }
 
     /// An attitude from the autopilot, measured at `t_us`.
@@ -82,25 +80,18 @@ impl Telemetry {
 
     /// A position sample (from the autopilot, or the demo's at rest with the frame's time).
     pub fn position(&self, sample: PositionSample) {
-        self.position
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push(sample);
+        self.position.locked().push(sample);
     }
 
     /// The attitude and the position at `t_us` (None before any sample).
     pub fn at(&self, t_us: u64) -> (Option<Euler>, Option<GeoPosition>) {
-        let track = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        let track = self.track.locked();
         let attitude = match self.sample {
             AttitudeSample::Interpolated => track.at(t_us),
             AttitudeSample::Latest => track.latest(),
         };
         drop(track);
-        let position = self
-            .position
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .at(t_us);
+        let position = self.position.locked().at(t_us);
         (attitude, position)
     }
 }

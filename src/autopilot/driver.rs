@@ -4,6 +4,7 @@
 //! are ignored and shown as a warning. A real autopilot always wins: once one is heard the
 //! demo's flight steps aside for the rest of the run.
 
+use crate::supervise::Locked;
 use serde::Serialize;
 use std::net::SocketAddr;
 use std::sync::Mutex;
@@ -49,13 +50,13 @@ struct Others {
 impl Drivers {
     /// The demo's flight sends from `from` (its own socket); false when it must step aside.
     pub fn demo_sends_from(&self, from: Option<SocketAddr>) -> bool {
-        *self.demo_from.lock().unwrap_or_else(|e| e.into_inner()) = from;
+        *self.demo_from.locked() = from;
         !self.demo_aside()
     }
 
     /// Whether a frame from `from` is the demo's simulated flight.
     pub fn is_demo(&self, from: Option<SocketAddr>) -> bool {
-        from.is_some() && *self.demo_from.lock().unwrap_or_else(|e| e.into_inner()) == from
+        from.is_some() && *self.demo_from.locked() == from
     }
 
     pub fn demo_aside(&self) -> bool {
@@ -67,18 +68,18 @@ impl Drivers {
         if !driver.simulated {
             self.demo_aside.store(true, Ordering::Relaxed);
         }
-        *self.driver.lock().unwrap_or_else(|e| e.into_inner()) = Some(driver);
+        *self.driver.locked() = Some(driver);
     }
 
     pub fn driver(&self) -> Option<Driver> {
-        *self.driver.lock().unwrap_or_else(|e| e.into_inner())
+        *self.driver.locked()
     }
 
     /// `system`/`component` sent attitude too; true when that is news to announce (first
     /// heard, or back after [`ANNOUNCE_AGAIN`]; at most one a second).
     pub fn other(&self, system: u8, component: u8) -> bool {
         let now = Instant::now();
-        let mut others = self.others.lock().unwrap_or_else(|e| e.into_inner());
+        let mut others = self.others.locked();
         let Others { heard, announced } = &mut *others;
         let quiet = announced.is_none_or(|t| now - t >= ANNOUNCE_EVERY);
         let news = match heard.iter_mut().find(|o| (o.0, o.1) == (system, component)) {
@@ -104,12 +105,7 @@ impl Drivers {
 
     /// The other senders of attitude heard within [`OTHER_FOR`], newest first.
     pub fn others(&self) -> Vec<(u8, u8)> {
-        let mut others = self
-            .others
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .heard
-            .clone();
+        let mut others = self.others.locked().heard.clone();
         others.retain(|o| o.2.elapsed() < OTHER_FOR);
         others.sort_by_key(|o| std::cmp::Reverse(o.2));
         others.into_iter().map(|o| (o.0, o.1)).collect()

@@ -31,6 +31,7 @@ use crate::policy::{Peer, Policy};
 use crate::protocol::params::Autopilot;
 use crate::state::{Report, Sensed};
 use crate::supervise;
+use crate::supervise::Locked;
 use crate::telemetry::Telemetry;
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MavHeader, SigningConfig, SigningData};
@@ -96,7 +97,7 @@ impl LinkStatus {
             _ => 3,
         };
         let (system_id, component_id) = self.autopilot().unwrap_or_default();
-        let c = *self.clock.lock().unwrap_or_else(|e| e.into_inner());
+        let c = *self.clock.locked();
         let others = self.drivers.others();
         let (other_system, other_component) = others.first().copied().unwrap_or_default();
         Autopilot {
@@ -269,10 +270,7 @@ impl Shared {
 
     /// The open connection, while there is one.
     fn connection(&self) -> Option<Connection> {
-        self.connection
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.connection.locked().clone()
     }
 }
 

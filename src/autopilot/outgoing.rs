@@ -9,6 +9,7 @@ use super::{
     Connection, FIRST_REPORT, LinkStatus, OWN_COMPONENT, Outbox, REPORT_EVERY, STALE, Shared,
 };
 use crate::clock::clock_us;
+use crate::supervise::Locked;
 use mavlink::dialects::common::{
     COMMAND_ACK_DATA, COMMAND_LONG_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage,
     MavModeFlag, MavResult, MavSeverity, MavState, MavType, STATUSTEXT_DATA, TIMESYNC_DATA,
@@ -169,7 +170,7 @@ fn report(
 ) -> (Instant, u64, u64) {
     let n = status.attitudes.load(Ordering::Relaxed);
     let hz = (n - before) as f64 / since.elapsed().as_secs_f64();
-    let c = *status.clock.lock().unwrap_or_else(|e| e.into_inner());
+    let c = *status.clock.locked();
     let autopilot = status.autopilot();
     let went_back = c.resets.saturating_sub(resets);
     if went_back > CLOCKS_TAKING_TURNS
@@ -271,7 +272,7 @@ const SYNCS_KEPT: usize = 30;
 fn request_timesync(shared: &Shared, connection: &Connection, header: MavHeader) {
     let now = clock_us();
     {
-        let mut sent = shared.syncs_sent.lock().unwrap_or_else(|e| e.into_inner());
+        let mut sent = shared.syncs_sent.locked();
         sent.push_back(now);
         while sent.len() > SYNCS_KEPT {
             sent.pop_front();

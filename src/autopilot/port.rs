@@ -10,6 +10,7 @@
 //! the autopilot), so here everything sent goes to every peer a whole frame came from in the
 //! last [`PEER_SILENCE`], as mavlink-router does.
 
+use crate::supervise::Locked;
 use mavlink::dialects::common::MavMessage;
 use mavlink::error::{MessageReadError, MessageWriteError};
 use mavlink::{MAVLinkMessageRaw, MavConnection, MavHeader, MavlinkReader, MavlinkVersion};
@@ -137,24 +138,18 @@ impl Port {
     pub fn recv_raw(&self) -> Result<MAVLinkMessageRaw, MessageReadError> {
         match self {
             Port::Net(c, _) => c.recv_raw(),
-            Port::Sending { reader, .. } => reader
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .read_any_raw_message::<MavMessage>(),
+            Port::Sending { reader, .. } => reader.locked().read_any_raw_message::<MavMessage>(),
             Port::Listening { reader, peers, .. } => {
                 // A sender becomes a peer with its first whole frame: noise from any port
                 // cannot crowd the autopilot or a ground station out.
-                let mut reader = reader.lock().unwrap_or_else(|e| e.into_inner());
+                let mut reader = reader.locked();
                 let raw = reader.read_any_raw_message::<MavMessage>()?;
                 if let Some(from) = reader.get_ref().last_from {
                     peers.heard(from);
                 }
                 Ok(raw)
             }
-            Port::Serial { reader, .. } => reader
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .read_any_raw_message::<MavMessage>(),
+            Port::Serial { reader, .. } => reader.locked().read_any_raw_message::<MavMessage>(),
         }
     }
 
@@ -171,11 +166,7 @@ impl Port {
     pub fn sender_addr(&self) -> Option<SocketAddr> {
         match self {
             Port::Listening { reader, .. } | Port::Sending { reader, .. } => {
-                reader
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .get_ref()
-                    .last_from
+                reader.locked().get_ref().last_from
             }
             _ => None,
         }
@@ -191,7 +182,7 @@ impl Port {
             Port::Listening { socket, peers, .. } => Ok(peers.send(socket, bytes)?),
             Port::Sending { socket, .. } => Ok(socket.send(bytes).map(drop)?),
             Port::Serial { writer, .. } => {
-                let mut w = writer.lock().unwrap_or_else(|e| e.into_inner());
+                let mut w = writer.locked();
                 Ok(w.write_all(bytes)?)
             }
         }
@@ -220,7 +211,7 @@ impl Port {
                 Ok(socket.send(&bytes).map(drop)?)
             }
             Port::Serial { writer, .. } => {
-                let mut w = writer.lock().unwrap_or_else(|e| e.into_inner());
+                let mut w = writer.locked();
                 mavlink::write_versioned_msg(&mut *w, MavlinkVersion::V2, header, msg).map(drop)
             }
         }
@@ -233,7 +224,7 @@ pub struct Peers(Arc<Mutex<Vec<(SocketAddr, Instant)>>>);
 
 impl Peers {
     fn heard(&self, from: SocketAddr) {
-        let mut peers = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut peers = self.0.locked();
         match peers.iter_mut().find(|(a, _)| *a == from) {
             Some(p) => p.1 = Instant::now(),
             None => {
@@ -248,7 +239,7 @@ impl Peers {
 
     /// `bytes` to every peer heard lately; an unreachable one does not stop the others.
     fn send(&self, socket: &UdpSocket, bytes: &[u8]) -> io::Result<()> {
-        let mut peers = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut peers = self.0.locked();
         peers.retain(|p| p.1.elapsed() < PEER_SILENCE);
         for (to, _) in peers.iter() {
             let _ = socket.send_to(bytes, to);

@@ -10,6 +10,7 @@ use super::{
 use crate::clock::clock_us;
 use crate::policy::Peer;
 use crate::supervise;
+use crate::supervise::Locked;
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkMessageRaw, MavHeader, Message};
 use std::sync::Arc;
@@ -52,7 +53,7 @@ struct Held<'a>(&'a Shared);
 
 impl Drop for Held<'_> {
     fn drop(&mut self) {
-        *self.0.connection.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        *self.0.connection.locked() = None;
         self.0.status.connected.store(false, Ordering::Relaxed);
     }
 }
@@ -61,7 +62,7 @@ impl Drop for Held<'_> {
 fn read(shared: &Arc<Shared>, connection: Connection, vehicle: &mut Vehicle) -> Option<String> {
     let out = Outbox::new(shared.clone());
     let fault = supervise::Fault::for_service("mavlink-rx");
-    *shared.connection.lock().unwrap_or_else(|e| e.into_inner()) = Some(connection.clone());
+    *shared.connection.locked() = Some(connection.clone());
     shared.status.connected.store(true, Ordering::Relaxed);
     let _held = Held(shared);
     loop {
@@ -169,11 +170,7 @@ fn unknown_command(shared: &Shared, raw: &MAVLinkMessageRaw) {
     p[..n].copy_from_slice(&raw.payload()[..n]);
     let command = u16::from_le_bytes([p[28], p[29]]);
     let key = (raw.system_id() as u8, raw.component_id(), command);
-    let first = shared
-        .unknown
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .insert(key);
+    let first = shared.unknown.locked().insert(key);
     if first {
         warn!(
             "mavlink: command {command} from {}/{} to {}/{} is not one DigiView knows (not in \
@@ -212,19 +209,19 @@ fn apply(
             shared.telemetry.external_attitude(t_us, attitude);
             status.attitude_us.fetch_max(t_us, Ordering::Relaxed);
             status.attitudes.fetch_add(1, Ordering::Relaxed);
-            *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
+            *status.clock.locked() = vehicle.clock.state();
             if let Err(e) = shared.sensed.set_attitude(attitude) {
                 shared.policy.refusals.note(peer, "an attitude", &e.0);
             }
         }
         Update::TimeSync { remote_us, ours_us } => {
             // Only an answer to a request of ours, each once.
-            let mut sent = shared.syncs_sent.lock().unwrap_or_else(|e| e.into_inner());
+            let mut sent = shared.syncs_sent.locked();
             if let Some(i) = sent.iter().position(|&t| t == ours_us) {
                 sent.remove(i);
                 drop(sent);
                 vehicle.clock.observe_sync(remote_us, ours_us, clock_us());
-                *status.clock.lock().unwrap_or_else(|e| e.into_inner()) = vehicle.clock.state();
+                *status.clock.locked() = vehicle.clock.state();
             }
         }
         Update::TimeSyncRequest { ts1 } => outgoing::answer_timesync(shared, header, ts1),

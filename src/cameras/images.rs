@@ -8,6 +8,7 @@ use super::{Cameras, FIRST_COMPONENT, IMAGES_KEPT, Shot, Taken, boot_ms};
 use crate::autopilot::Outbox;
 use crate::clock::utc_us;
 use crate::state::capture::Geotag;
+use crate::supervise::Locked;
 use mavlink::dialects::common::{CAMERA_IMAGE_CAPTURED_DATA, MavBool, MavMessage};
 use std::time::Instant;
 use tracing::warn;
@@ -54,7 +55,7 @@ impl Cameras {
                     taken,
                     file,
                 };
-                shots.lock().unwrap_or_else(|e| e.into_inner()).push(shot);
+                shots.locked().push(shot);
             });
             if let Err(e) = shooter.shoot(i, done) {
                 warn!("camera {i}: no image: {e}");
@@ -67,8 +68,7 @@ impl Cameras {
 
     /// Announces the stills written since the last tick.
     pub(super) fn deliver_shots(&self, out: &Outbox) {
-        let shots: Vec<Shot> =
-            std::mem::take(&mut *self.shots.lock().unwrap_or_else(|e| e.into_inner()));
+        let shots: Vec<Shot> = std::mem::take(&mut *self.shots.locked());
         for shot in shots {
             let i = shot.camera;
             let t = shot.taken;

@@ -7,6 +7,7 @@ use crate::geometry::ground::ground_point;
 use crate::modes::ThermalShow;
 use crate::state::State;
 use crate::state::view::zoom;
+use crate::supervise::Locked;
 use glam::DQuat;
 use mavlink::dialects::common::{
     CAMERA_CAPTURE_STATUS_DATA, CAMERA_FOV_STATUS_DATA, CAMERA_INFORMATION_DATA,
@@ -304,10 +305,7 @@ impl Cameras {
 
     /// How long camera `i`'s recording has run, ms (0 when none runs).
     fn recording_ms(&self, i: usize) -> u32 {
-        let mut since = self
-            .recording_since
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
+        let mut since = self.recording_since.locked();
         match (self.recording(i), since[i]) {
             (true, Some(t)) => t.elapsed().as_millis() as u32,
             (true, None) => {

@@ -35,6 +35,7 @@ use crate::policy::{Act, Forbidden, Peer};
 use crate::state::capture::{CaptureError, ViewShooter, Written};
 use crate::state::view::{Op, Zoom};
 use crate::state::{Gate, MAX_CAMERAS, State};
+use crate::supervise::Locked;
 use mavlink::dialects::common::{
     CAMERA_IMAGE_CAPTURED_DATA, FILE_TRANSFER_PROTOCOL_DATA, HEARTBEAT_DATA, MavAutopilot,
     MavMessage, MavModeFlag, MavState, MavType,
@@ -200,24 +201,18 @@ impl Cameras {
 
     /// Where the streams are, once the RTSP server serves.
     pub fn set_streams(&self, base: String, bitrate_kbps: u32, codec: crate::stream::Codec) {
-        let mut s = self.streams.lock().unwrap_or_else(|e| e.into_inner());
+        let mut s = self.streams.locked();
         (s.base, s.bitrate_kbps, s.codec) = (base, bitrate_kbps, codec);
     }
 
     /// Where the HTTP server serves the captures (a capture's URL is `captures` plus its
     /// file name), once it serves. The camera definition goes over MAVLink FTP (`ftp`).
     pub fn set_captures_url(&self, captures: String) {
-        self.streams
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .captures = Some(captures);
+        self.streams.locked().captures = Some(captures);
     }
 
     fn streams(&self) -> Streams {
-        self.streams
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.streams.locked().clone()
     }
 
     /// Whether camera `i` records its view.
@@ -231,7 +226,7 @@ impl Cameras {
     }
 
     fn periodic(&self) -> std::sync::MutexGuard<'_, Periodic> {
-        self.state.lock().unwrap_or_else(|e| e.into_inner())
+        self.state.locked()
     }
 
     /// The state now: the settings with the vehicle and objects as last sensed.

@@ -16,6 +16,7 @@ use crate::stream::encoder::{AccessUnit, Side};
 use crate::stream::klv::ViewMetadata;
 use crate::stream::record::Container;
 use crate::stream::{Codec, Encoder, EncoderConfig, Recorder};
+use crate::supervise::Locked;
 use anyhow::{Context, Result, anyhow, bail};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -140,7 +141,7 @@ impl Sink {
             key_interval_s: 2.0,
         };
         let encoder = Encoder::offline(&cfg, fps, move |au: AccessUnit| {
-            if let Some(r) = feed.lock().unwrap_or_else(|e| e.into_inner()).as_mut()
+            if let Some(r) = feed.locked().as_mut()
                 && let Err(e) = r.push_unit(&au)
             {
                 tracing::error!("{e}");
@@ -177,11 +178,7 @@ impl Sink {
         } = self
         {
             encoder.finish()?;
-            let r = recorder
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .take()
-                .context("the recording was lost")?;
+            let r = recorder.locked().take().context("the recording was lost")?;
             if r.finish()? == crate::stream::record_file::Left::Removed {
                 bail!("no frame was written to the video");
             }

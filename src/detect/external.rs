@@ -13,6 +13,7 @@
 //! time of arrival otherwise). A line that is not right is answered with `error: ...` on the
 //! same connection and changes nothing.
 
+use crate::supervise::Locked;
 use serde::Deserialize;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
@@ -194,13 +195,13 @@ pub struct Inbox {
 
 impl Inbox {
     fn put(&self, batch: Batch) {
-        *self.batch.lock().unwrap_or_else(|e| e.into_inner()) = Some((batch, Instant::now()));
+        *self.batch.locked() = Some((batch, Instant::now()));
         self.ready.notify_one();
     }
 
     /// The newest batch, waiting up to `wait` for one.
     pub fn take(&self, wait: Duration) -> Option<(Batch, Instant)> {
-        let guard = self.batch.lock().unwrap_or_else(|e| e.into_inner());
+        let guard = self.batch.locked();
         let (mut guard, _) = self
             .ready
             .wait_timeout_while(guard, wait, |b| b.is_none())

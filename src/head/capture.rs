@@ -14,6 +14,7 @@ use crate::state::{CaptureFailure, MAX_CAMERAS, Report};
 use crate::stream::Recorder;
 use crate::stream::encoder::AccessUnit;
 use crate::stream::record::Container;
+use crate::supervise::Locked;
 use gstreamer::glib;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -140,7 +141,7 @@ impl Capture {
     /// the first, and again should it have ended, a panic in a job included), so the frame
     /// loop never waits on the disk.
     fn in_order(&self, job: Job) {
-        let mut writer = self.writer.lock().unwrap_or_else(|e| e.into_inner());
+        let mut writer = self.writer.locked();
         let job = match writer.as_ref() {
             Some(w) => match w.send(job) {
                 Ok(()) => return,
@@ -223,12 +224,12 @@ impl Capture {
     /// The views whose stills were asked for and not taken yet: each with when it was
     /// asked for and whom to tell.
     pub fn take_view_stills(&self) -> Vec<ViewStill> {
-        std::mem::take(&mut *self.view_stills.lock().unwrap_or_else(|e| e.into_inner()))
+        std::mem::take(&mut *self.view_stills.locked())
     }
 
     /// Stills asked for that wait for the next frame with a picture (the source was silent).
     pub fn put_back_view_stills(&self, waiting: Vec<ViewStill>) {
-        let mut stills = self.view_stills.lock().unwrap_or_else(|e| e.into_inner());
+        let mut stills = self.view_stills.locked();
         // Older first, as they were asked for.
         let newer = std::mem::replace(&mut *stills, waiting);
         stills.extend(newer);
@@ -322,7 +323,7 @@ impl Capture {
 
     /// Feeds the recording, if one runs (called for every access unit).
     pub fn on_access_unit(&self, au: &AccessUnit) {
-        let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
+        let mut recorder = self.recorder.locked();
         recording::feed(&mut recorder, au, &self.disk(), &self.report);
     }
 
@@ -351,9 +352,7 @@ impl Capture {
     }
 
     fn view_recorders(&self) -> std::sync::MutexGuard<'_, [Option<Running>; MAX_CAMERAS]> {
-        self.view_recorders
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
+        self.view_recorders.locked()
     }
 
     /// Starts (`on`) or ends the recording of view `i`'s own stream.
@@ -402,10 +401,7 @@ impl ViewShooter for Capture {
 
     fn shoot(&self, view: usize, done: StillDone) -> Result<(), CaptureError> {
         self.ready()?;
-        self.view_stills
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push((view, Instant::now(), done));
+        self.view_stills.locked().push((view, Instant::now(), done));
         Ok(())
     }
 
@@ -415,7 +411,7 @@ impl ViewShooter for Capture {
 
     fn format(&self) -> std::io::Result<usize> {
         // Both recorders' locks held while removing: no recording starts or ends meanwhile.
-        let composed = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
+        let composed = self.recorder.locked();
         let views = self.view_recorders();
         let keep: Vec<&std::path::Path> = composed
             .iter()
@@ -434,7 +430,7 @@ impl Capturer for Capture {
     }
 
     fn record(&self, on: bool) -> Result<(), CaptureError> {
-        let mut recorder = self.recorder.lock().unwrap_or_else(|e| e.into_inner());
+        let mut recorder = self.recorder.locked();
         match (on, recorder.is_some()) {
             // Finished outside the lock, as before: the encoder's units go on meanwhile.
             (false, _) => {
@@ -456,11 +452,7 @@ impl Capturer for Capture {
 
     fn status(&self) -> CaptureStatus {
         CaptureStatus {
-            recording: self
-                .recorder
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .is_some(),
+            recording: self.recorder.locked().is_some(),
             images: self.images.load(Ordering::Relaxed),
             videos: self.videos.load(Ordering::Relaxed),
         }

@@ -11,6 +11,7 @@ use crate::exposure::{AutoExposureMode, Limits, Setting, UNITY_GAIN, circle_luma
 use crate::frame::Frame;
 use crate::source::SourceSpec;
 use crate::state::{Invalid, MAX_GAIN, State};
+use crate::supervise::Locked;
 use std::path::PathBuf;
 use std::sync::Mutex;
 use std::sync::atomic::Ordering;
@@ -63,10 +64,7 @@ impl ExposureStage {
     }
 
     fn mapping(&self) -> Option<Mapping> {
-        self.mapping
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.mapping.locked().clone()
     }
 
     /// Whether DigiView runs the auto exposure (rather than the camera, or nobody).
@@ -147,7 +145,7 @@ impl Head {
             return;
         };
         stage.luma.store(luma.to_bits(), Ordering::Relaxed);
-        let mut ae = stage.ae.lock().unwrap_or_else(|e| e.into_inner());
+        let mut ae = stage.ae.locked();
         if !s.ae || !stage.software() {
             ae.reset();
             return;
@@ -217,17 +215,9 @@ impl Head {
                     "DigiView's"
                 }
             );
-            *self
-                .exposure
-                .mapping
-                .lock()
-                .unwrap_or_else(|e| e.into_inner()) = Some(mapping.clone());
+            *self.exposure.mapping.locked() = Some(mapping.clone());
             self.keep_controls(&device, &controls, &mapping, software);
-            *self
-                .exposure
-                .mapping
-                .lock()
-                .unwrap_or_else(|e| e.into_inner()) = None;
+            *self.exposure.mapping.locked() = None;
         }
     }
 

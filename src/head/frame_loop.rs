@@ -3,10 +3,9 @@
 //! "no signal" while the source is down), hands stills to the capture, and feeds the
 //! encoder. A failed GPU or encoder is rebuilt and the status says so meanwhile.
 
-use super::detection::score::rings;
 use super::pacing::Pacer;
 use super::views::{Framed, ViewOutputs};
-use super::{Head, HeadError, no_signal};
+use super::{Head, HeadError, no_signal, parts};
 use crate::clock::{Stamps, clock_us, unix_us};
 use crate::frame::{Frame, PixelFormat, PlaneLayout};
 use crate::geometry::lens_from_world;
@@ -20,6 +19,7 @@ use crate::stream::Encoder;
 use crate::stream::encoder::{AccessUnit, Side};
 use crate::stream::klv::ViewMetadata;
 use crate::supervise::Fault;
+use crate::supervise::Locked;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -429,26 +429,14 @@ impl Head {
         let cameras = (0..plan.layout.views.len()).filter(|&i| plan.shows_camera(i));
         let layer = self.thermal_layer(&s, &plan, cameras.map(|i| (i, i)));
         let plan = plan.with_thermal(layer);
-        let camera = (&lens, s.settings.mount.euler());
+        let seen = parts::Seen {
+            frame,
+            plan: &plan,
+            state: &s,
+            lens: &lens,
+        };
         self.observers
-            .readout_probe
-            .offer(frame, camera, self.cfg.readout, &self.telemetry);
-        let truth = self
-            .observers
-            .demo_truth
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        if let Some(truth) = truth.as_ref() {
-            let mut shared = self
-                .observers
-                .demo_score
-                .lock()
-                .unwrap_or_else(|e| e.into_inner());
-            if let Some(score) = shared.as_mut() {
-                rings(&mut score.rings, truth, (&plan, &s), frame.captured_us);
-            }
-        }
-        drop(truth);
+            .frame_planned(&seen, self.cfg.readout, &self.telemetry);
         let out = renderer
             .render(&frame.data, &frame.layout, &plan)
             .map_err(|e| match e {
@@ -460,7 +448,7 @@ impl Head {
         let klv = ViewMetadata::of_camera(&plan, &s, cam, time_us).map(|m| {
             let m = m.with_objects(self.cfg.klv_objects);
             let packet = m.packet().into();
-            *self.observers.klv.lock().unwrap_or_else(|e| e.into_inner()) = Some(m);
+            *self.observers.klv.locked() = Some(m);
             packet
         });
         Ok(Rendered {

@@ -4,6 +4,7 @@
 //! `health_interval_s` the same figures, over that interval, go to the log as one line.
 
 use super::Head;
+use crate::supervise::Locked;
 use serde::Serialize;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -187,29 +188,15 @@ impl Head {
             crops: (b.crops - a.crops) as f64 / secs,
             tracked: self.state().tracked.len(),
             latency: self.meters.latency.since(a.clock_us),
-            klv: self
-                .observers
-                .klv
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .clone(),
-            demo_score: self
-                .observers
-                .demo_score
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .clone(),
+            klv: self.observers.klv.locked().clone(),
+            demo_score: self.observers.demo_score.locked().clone(),
             readout_ms: self.cfg.readout.time_ms,
         }
     }
 
     /// The figures over the last second.
     pub fn health(&self) -> Health {
-        self.meters
-            .health
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.meters.health.locked().clone()
     }
 
     /// Updates [`Head::health`] every second and logs a line every `health_interval_s`,
@@ -223,8 +210,7 @@ impl Head {
             std::thread::sleep(Duration::from_millis(100));
             let now = self.sample();
             if now.at - last.at >= Duration::from_secs(1) {
-                *self.meters.health.lock().unwrap_or_else(|e| e.into_inner()) =
-                    self.health_between(&last, &now);
+                *self.meters.health.locked() = self.health_between(&last, &now);
                 last = now;
             }
             if log_every.is_some_and(|e| now.at - logged.at >= e) {

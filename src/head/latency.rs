@@ -4,6 +4,7 @@
 //! stage, for the log line and the web page's status.
 
 use crate::clock::Stamps;
+use crate::supervise::Locked;
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::sync::Mutex;
@@ -41,7 +42,7 @@ pub struct Stages {
 
 impl Latency {
     pub fn record(&self, s: Stamps) {
-        let mut recent = self.recent.lock().unwrap_or_else(|e| e.into_inner());
+        let mut recent = self.recent.locked();
         if recent.len() == KEPT {
             recent.pop_front();
         }
@@ -50,7 +51,7 @@ impl Latency {
 
     /// The stages of the frames sent at `since_us` or later; None when there were none.
     pub fn since(&self, since_us: u64) -> Option<Stages> {
-        let recent = self.recent.lock().unwrap_or_else(|e| e.into_inner());
+        let recent = self.recent.locked();
         let frames: Vec<&Stamps> = recent.iter().filter(|s| s.sent >= since_us).collect();
         if frames.is_empty() {
             return None;

@@ -7,13 +7,16 @@
 //! image through GStreamer, or the demo) puts frames in a newest-wins slot; the frame loop
 //! (`frame_loop`, paced by `pacing`) takes the newest, renders it with the live state and the
 //! attitude at its capture time (`crate::telemetry`), and feeds the encoder, whose access
-//! units go to the RTSP clients, the recorder (`capture`) and the relays it publishes to.
+//! units go to the viewers (the RTSP server, behind the `Clients` trait so the loop runs in a
+//! test with a fake), the recorder (`capture`) and the relays it publishes to.
 //! Output size and rate follow the live state's VIDEO_OUTPUT at each frame. Watched views get
 //! streams of their own (`views`). A failed source is retried with back-off while a "no
 //! signal" frame is streamed; a failed encoder or GPU is rebuilt; `health` logs a summary
 //! line. `exposure` sets the camera's exposure and runs DigiView's auto exposure on new
 //! frames. `detection` renders scan views of the frames for `crate::detect`'s detector and
-//! tracker on a thread of their own, whose objects the detection tiles follow.
+//! tracker on a thread of their own, whose objects the detection tiles follow. Each thread
+//! runs under the one supervisor (`crate::supervise`); what each stage owns is grouped in
+//! `parts`.
 
 pub mod capture;
 mod detection;
@@ -47,6 +50,7 @@ use crate::source::demo::{DemoConfig, Flight};
 use crate::state::{Gate, Report, Settings, State};
 use crate::stream::rtsp::VIEW_MOUNTS;
 use crate::stream::{EncoderConfig, Preview, Publisher, StreamError};
+use crate::supervise::Locked;
 use crate::telemetry::Telemetry;
 use capture::Capture;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -259,16 +263,12 @@ impl Head {
     }
 
     fn set_source_error(&self, e: Option<String>) {
-        *self.input.error.lock().unwrap_or_else(|e| e.into_inner()) = e;
+        *self.input.error.locked() = e;
     }
 
     /// Why the source is down, while it is.
     fn source_error(&self) -> Option<String> {
-        self.input
-            .error
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.input.error.locked().clone()
     }
 
     /// The newest frame's size, or the sensor's in the settings before the first.
@@ -282,11 +282,7 @@ impl Head {
 
     /// Where the demo's movers are, while the demo is the source.
     fn demo_truth(&self) -> Option<detection::score::DemoTruth> {
-        let truth = self
-            .observers
-            .demo_truth
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
+        let truth = self.observers.demo_truth.locked();
         truth.clone()
     }
 }

@@ -1,17 +1,25 @@
 //! The head's parts, each owned by the stage that uses it: where the frames come from
 //! ([`Input`]: the source's slot and state, the thermal sensor), where they go ([`Outputs`]:
 //! the viewers through [`Clients`], the page, the recording, the relays), what watches them
-//! beside the loop ([`Observers`]: the KLV, the demo's score, the readout probe) and the
+//! beside the loop ([`Observers`]: the KLV, the demo's score, the readout probe, each shown
+//! every frame about to be drawn, [`Seen`], through one call of the loop) and the
 //! figures the health line reads ([`Meters`]). The frame loop's viewers are a trait so the
 //! loop runs in a test with a fake that keeps what it is handed.
 
 use super::capture::Capture;
-use super::detection::score::{DemoTruth, Score};
+use super::detection::score::{DemoTruth, Score, rings};
 use super::{DemoAutopilot, health, latency, readout_probe, thermal};
+use crate::frame::Frame;
+use crate::geometry::shutter::Readout;
+use crate::lens::Lens;
+use crate::plan::FramePlan;
 use crate::source::FrameSlot;
+use crate::state::State;
 use crate::stream::klv::ViewMetadata;
 use crate::stream::rtsp::VIEW_MOUNTS;
 use crate::stream::{Preview, Publisher, Rtsp};
+use crate::supervise::Locked;
+use crate::telemetry::Telemetry;
 use gstreamer as gst;
 use std::sync::atomic::{AtomicBool, AtomicU64};
 use std::sync::{Arc, Mutex};
@@ -87,6 +95,36 @@ pub struct Observers {
     pub demo_score: Mutex<Option<Score>>,
     /// The readout estimate, when one is asked for.
     pub readout_probe: Arc<readout_probe::ReadoutProbe>,
+}
+
+/// A frame about to be drawn: what the observers see of it.
+pub struct Seen<'a> {
+    pub frame: &'a Frame,
+    pub plan: &'a FramePlan,
+    /// The state it is drawn with, the vehicle as at its capture.
+    pub state: &'a State,
+    /// The lens at the frame's size.
+    pub lens: &'a Lens,
+}
+
+impl Observers {
+    /// Shows the observers a frame about to be drawn: the readout probe takes it while it
+    /// measures (`like` the readout configured), the demo's score places its rings on it.
+    /// They keep what they need and never hold the frame loop up.
+    pub fn frame_planned(&self, seen: &Seen, like: Readout, telemetry: &Arc<Telemetry>) {
+        let camera = (seen.lens, seen.state.settings.mount.euler());
+        self.readout_probe
+            .offer(seen.frame, camera, like, telemetry);
+        let truth = self.demo_truth.locked();
+        let Some(truth) = truth.as_ref() else {
+            return;
+        };
+        let mut shared = self.demo_score.locked();
+        if let Some(score) = shared.as_mut() {
+            let at = (seen.plan, seen.state);
+            rings(&mut score.rings, truth, at, seen.frame.captured_us);
+        }
+    }
 }
 
 /// The figures the health line reads.

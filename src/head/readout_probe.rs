@@ -10,6 +10,7 @@ use crate::geometry::Euler;
 use crate::geometry::shutter::Readout;
 use crate::lens::Lens;
 use crate::render::shutter_fit::{ATTITUDE_SPAN_US, Fit, FitError, FitFrame, estimate};
+use crate::supervise::Locked;
 use crate::telemetry::Telemetry;
 use serde::Serialize;
 use std::sync::{Arc, Mutex};
@@ -104,7 +105,7 @@ impl ReadoutProbe {
         if !(seconds.is_finite() && (1.0..=MAX_SECONDS).contains(&seconds)) {
             return Err(StartError::Seconds(seconds));
         }
-        let mut status = self.status.lock().unwrap_or_else(|e| e.into_inner());
+        let mut status = self.status.locked();
         if matches!(status.state, "collecting" | "fitting") {
             return Err(StartError::Busy(status.state));
         }
@@ -113,7 +114,7 @@ impl ReadoutProbe {
             seconds,
             ..ProbeStatus::default()
         };
-        *self.collecting.lock().unwrap_or_else(|e| e.into_inner()) = Some(Collecting {
+        *self.collecting.locked() = Some(Collecting {
             span_us: (seconds * 1e6) as u64,
             until_us: None,
             full: false,
@@ -129,11 +130,7 @@ impl ReadoutProbe {
     }
 
     pub fn status(&self) -> ProbeStatus {
-        let mut s = self
-            .status
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone();
+        let mut s = self.status.locked().clone();
         if s.state.is_empty() {
             s.state = "idle";
         }
@@ -149,7 +146,7 @@ impl ReadoutProbe {
         like: Readout,
         telemetry: &Arc<Telemetry>,
     ) {
-        let mut guard = self.collecting.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = self.collecting.locked();
         let Some(c) = guard.as_mut() else {
             return;
         };
@@ -178,7 +175,7 @@ impl ReadoutProbe {
                 c.done.push(f);
             }
         }
-        let mut status = self.status.lock().unwrap_or_else(|e| e.into_inner());
+        let mut status = self.status.locked();
         status.frames = c.done.len();
         status.offered = c.offered;
         let first = until - c.span_us;
@@ -203,14 +200,14 @@ impl ReadoutProbe {
             return self.finish(Err(NotFitted::NoLuma));
         };
         let progress = |done, of| {
-            self.status.lock().unwrap_or_else(|e| e.into_inner()).steps = (done, of);
+            self.status.locked().steps = (done, of);
         };
         let fit = estimate(&c.done, &lens, c.mount, like, progress).map_err(NotFitted::Fit);
         self.finish(fit);
     }
 
     fn finish(&self, result: Result<Fit, NotFitted>) {
-        let mut status = self.status.lock().unwrap_or_else(|e| e.into_inner());
+        let mut status = self.status.locked();
         match result {
             Ok(fit) => {
                 info!(

@@ -12,6 +12,7 @@ use crate::scene::GridWorld;
 use crate::scene::synth::world_origin;
 use crate::source::demo::{DemoCamera, Flight};
 use crate::source::{Ended, SourceSpec, backoff};
+use crate::supervise::Locked;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 use tracing::{error, info};
@@ -75,11 +76,7 @@ impl Head {
         let (camera, flight) = self.demo_camera()?;
         let period = Duration::from_secs_f64(1.0 / d.fps as f64);
         let start = Instant::now();
-        *self
-            .observers
-            .demo_truth
-            .lock()
-            .unwrap_or_else(|e| e.into_inner()) = Some(DemoTruth {
+        *self.observers.demo_truth.locked() = Some(DemoTruth {
             movers: camera.world().movers.clone(),
             origin: world_origin(&flight.hover),
             start_us: clock_us(),

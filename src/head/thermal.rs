@@ -18,6 +18,7 @@ use crate::scene::thermal::{thermal_frame, thermal_in_lens, world_from_thermal};
 use crate::source::thermal::{Stamped, ThermalConfig, ThermalSetup, ThermalSlot};
 use crate::source::{SourceSpec, backoff};
 use crate::state::State;
+use crate::supervise::Locked;
 use crate::thermal::{GainMode, GainTable, Spot};
 use glam::{DMat3, DVec2};
 use serde::Serialize;
@@ -72,7 +73,7 @@ impl Sensor {
 
     /// `stamped`'s gain table under `mode`, made on the first asking.
     fn gain(&self, stamped: &Stamped, mode: GainMode) -> Option<Arc<GainTable>> {
-        let mut kept = self.gain.lock().unwrap_or_else(|e| e.into_inner());
+        let mut kept = self.gain.locked();
         if let Some((at, m, table)) = kept.as_ref()
             && (*at, *m) == (stamped.captured_us, mode)
         {
@@ -84,7 +85,7 @@ impl Sensor {
     }
 
     fn set_error(&self, e: Option<String>) {
-        *self.error.lock().unwrap_or_else(|e| e.into_inner()) = e;
+        *self.error.locked() = e;
     }
 
     /// The sensor's figures for `/api/status`: its source, frames so far, the newest frame's
@@ -96,7 +97,7 @@ impl Sensor {
             "lens": self.lens.name,
             "frames": self.slot.received(),
             "size": newest.map(|f| [f.frame.width, f.frame.height]),
-            "error": *self.error.lock().unwrap_or_else(|e| e.into_inner()),
+            "error": *self.error.locked(),
         })
     }
 }

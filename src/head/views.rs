@@ -20,6 +20,7 @@ use crate::stream::Encoder;
 use crate::stream::encoder::Side;
 use crate::stream::klv::ViewMetadata;
 use crate::stream::rtsp::VIEW_MOUNTS;
+use crate::supervise::Locked;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -223,10 +224,7 @@ impl Head {
             // behind drops frames it was given): what VIDEO_STREAM_INFORMATION says.
             let meter = Mutex::new(RateMeter::default());
             match Encoder::new(&self.cfg.encoder, fps, move |au| {
-                let rate = meter
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .tick(Instant::now());
+                let rate = meter.locked().tick(Instant::now());
                 head.gate.sensed().set_view_rate(i, rate);
                 head.outputs.clients.push_view(i, &au.buffer);
                 head.outputs.capture.on_view_access_unit(i, &au);

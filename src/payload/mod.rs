@@ -20,6 +20,7 @@ use crate::autopilot::{Components, Outbox, Rename};
 use crate::cameras::{Cameras, device_component};
 use crate::policy::Peer;
 use crate::state::Gate;
+use crate::supervise::Locked;
 use mavlink::dialects::common::{MavMessage, MavType};
 use mavlink::{MavHeader, Message};
 use params::Modes;
@@ -96,7 +97,7 @@ impl Payload {
     }
 
     fn inner(&self) -> std::sync::MutexGuard<'_, Inner> {
-        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+        self.inner.locked()
     }
 
     /// The chosen view's camera and gimbal device speak as the payload's; the payload

@@ -5,6 +5,7 @@
 //! request was refused.
 
 use super::Peer;
+use crate::supervise::Locked;
 use std::collections::HashMap;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -47,7 +48,7 @@ impl Inner {
 impl Refusals {
     /// Notes that `peer`'s request `what` was refused because of `why`.
     pub fn note(&self, peer: Peer, what: &str, why: &str) {
-        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut g = self.inner.locked();
         let inner = &mut *g;
         inner.count += 1;
         if inner.last.len() >= PEERS && !inner.last.contains_key(&peer) {
@@ -83,7 +84,7 @@ impl Refusals {
     /// Logs the summary of the refusals left out, if any, even when no new refusal comes
     /// (the frame loop's health thread, or any periodic task, may call it).
     pub fn flush(&self) {
-        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut g = self.inner.locked();
         if g.window
             .is_some_and(|w| w.elapsed() >= Duration::from_secs(1))
         {
@@ -94,12 +95,12 @@ impl Refusals {
 
     /// Refusals noted since the start.
     pub fn count(&self) -> u64 {
-        self.inner.lock().unwrap_or_else(|e| e.into_inner()).count
+        self.inner.locked().count
     }
 
     /// The reason for `peer`'s last refused request, if it had one.
     pub fn last(&self, peer: Peer) -> Option<String> {
-        let g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let g = self.inner.locked();
         g.last.get(&peer).map(|(_, why)| why.clone())
     }
 }

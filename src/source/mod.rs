@@ -14,6 +14,7 @@ pub use gst_source::{Ended, FileFrames, GstSource, check, open};
 use crate::frame::{Frame, FrameError};
 use crate::gst::GstError;
 use crate::supervise::Backoff;
+use crate::supervise::Locked;
 use std::path::PathBuf;
 
 /// Why a `--source` string (or the config's `source`) was refused.
@@ -143,7 +144,7 @@ pub struct FrameSlot {
 
 impl FrameSlot {
     pub fn put(&self, frame: Frame) {
-        let mut inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut inner = self.inner.locked();
         inner.stats.received += 1;
         if inner.frame.replace(frame).is_some() {
             inner.stats.dropped += 1;
@@ -154,7 +155,7 @@ impl FrameSlot {
 
     /// The newest frame not yet taken and when it arrived, waiting for one until `deadline`.
     pub fn take_until(&self, deadline: Instant) -> Option<(Frame, Instant)> {
-        let mut inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut inner = self.inner.locked();
         loop {
             if let Some(f) = inner.frame.take() {
                 inner.last_taken = Some(Instant::now());
@@ -175,15 +176,11 @@ impl FrameSlot {
 
     /// Whether a frame waits to be taken.
     pub fn pending(&self) -> bool {
-        self.inner
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .frame
-            .is_some()
+        self.inner.locked().frame.is_some()
     }
 
     pub fn stats(&self) -> SlotStats {
-        self.inner.lock().unwrap_or_else(|e| e.into_inner()).stats
+        self.inner.locked().stats
     }
 
     /// How long the source has been silent (None: it never delivered): since it last put a
@@ -191,7 +188,7 @@ impl FrameSlot {
     /// last frame is not taken (the demo) puts nothing while the frame loop is late; once the
     /// loop takes that frame, it starts on the next, and its silence starts then.
     pub fn silence(&self) -> Option<Duration> {
-        let inner = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let inner = self.inner.locked();
         inner.last_put.max(inner.last_taken).map(|t| t.elapsed())
     }
 }

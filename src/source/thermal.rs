@@ -10,6 +10,7 @@ use super::gst_source::{
 };
 use super::{SourceError, SourceSpec, SpecError};
 use crate::geometry::Euler;
+use crate::supervise::Locked;
 use crate::thermal::{Calibration, ThermalError, ThermalFrame};
 use crate::units::Angle;
 use gstreamer as gst;
@@ -120,16 +121,13 @@ impl ThermalSlot {
             frame: Arc::new(frame),
             captured_us,
         });
-        *self.newest.lock().unwrap_or_else(|e| e.into_inner()) = Some(stamped);
+        *self.newest.locked() = Some(stamped);
         self.received.fetch_add(1, Ordering::Relaxed);
     }
 
     /// The newest frame, if one came.
     pub fn newest(&self) -> Option<Arc<Stamped>> {
-        self.newest
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.newest.locked().clone()
     }
 
     /// Frames put in so far.

@@ -11,6 +11,7 @@ use super::Invalid;
 use super::settings::Settings;
 use super::view::follow;
 use crate::lens::{LensCal, Lenses};
+use crate::supervise::Locked;
 use arc_swap::ArcSwap;
 use std::sync::{Arc, Mutex};
 
@@ -43,7 +44,7 @@ impl LiveSettings {
         &self,
         change: impl FnOnce(&mut Settings) -> Result<T, E>,
     ) -> Result<T, E> {
-        let _one_writer = self.writer.lock().unwrap_or_else(|e| e.into_inner());
+        let _one_writer = self.writer.locked();
         let mut next = Settings::clone(&self.settings.load());
         let detecting = next.detection.run_ai;
         let out = change(&mut next)?;

@@ -7,6 +7,7 @@ use super::State;
 use super::sensed::Vehicle;
 use super::services::Services;
 use crate::geometry::shutter::ShutterTable;
+use crate::supervise::Locked;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
@@ -99,15 +100,12 @@ impl Report {
     /// The frame last rendered, as one record, so a reader never sees one frame's vehicle
     /// with another's table or time.
     pub fn set_rendered(&self, frame: RenderedFrame) {
-        *self.rendered.lock().unwrap_or_else(|e| e.into_inner()) = Some(frame);
+        *self.rendered.locked() = Some(frame);
     }
 
     /// The frame last rendered (None before any).
     pub fn rendered(&self) -> Option<RenderedFrame> {
-        self.rendered
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.rendered.locked().clone()
     }
 
     /// The last frame's rolling-shutter table for a lens planned at `size` pixels (None:
@@ -170,15 +168,12 @@ impl Report {
 
     /// A recording stopped or a still failed, and why (`Some`); or one worked again (`None`).
     pub fn set_capture_failure(&self, why: Option<CaptureFailure>) {
-        *self.capture.lock().unwrap_or_else(|e| e.into_inner()) = why;
+        *self.capture.locked() = why;
     }
 
     /// Why the last recording or still failed, while none has worked since.
     pub fn capture_failure(&self) -> Option<CaptureFailure> {
-        self.capture
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.capture.locked().clone()
     }
 
     /// Whether the autopilot's attitude is stale (the views hold the last one).
@@ -189,16 +184,10 @@ impl Report {
     /// Says CAM_SENSOR SET is refused, and why (the source has no exposure to set), or
     /// allowed again.
     pub fn set_sensor_refusal(&self, why: Option<String>) {
-        *self
-            .sensor_refusal
-            .lock()
-            .unwrap_or_else(|e| e.into_inner()) = why;
+        *self.sensor_refusal.locked() = why;
     }
 
     pub fn sensor_refusal(&self) -> Option<String> {
-        self.sensor_refusal
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.sensor_refusal.locked().clone()
     }
 }

@@ -13,6 +13,7 @@ use super::rules::{
 };
 use super::settings::Angles;
 use crate::geometry::{Euler, GeoPosition};
+use crate::supervise::Locked;
 use crate::units::de_angle;
 use arc_swap::ArcSwap;
 use serde::{Deserialize, Serialize};
@@ -166,7 +167,7 @@ impl Sensed {
 
     /// The vehicle as last reported.
     pub fn vehicle(&self) -> Vehicle {
-        *self.vehicle.lock().unwrap_or_else(|e| e.into_inner())
+        *self.vehicle.locked()
     }
 
     /// The vehicle's attitude now; refused (and nothing kept) outside the vehicle's rules.
@@ -176,10 +177,7 @@ impl Sensed {
             pitch: checked(&VEHICLE_PITCH, a.pitch)?,
             roll: checked(&VEHICLE_ROLL, a.roll)?,
         };
-        self.vehicle
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .attitude = attitude;
+        self.vehicle.locked().attitude = attitude;
         Ok(())
     }
 
@@ -189,10 +187,7 @@ impl Sensed {
         checked(&VEHICLE_LON, p.lon)?;
         checked(&VEHICLE_ALT, p.alt)?;
         checked(&VEHICLE_HEIGHT, p.relative_alt)?;
-        self.vehicle
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .position = p;
+        self.vehicle.locked().position = p;
         Ok(())
     }
 

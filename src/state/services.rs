@@ -5,6 +5,7 @@
 
 use super::report::{Failure, Report};
 use crate::supervise::FailureLog;
+use crate::supervise::Locked;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
@@ -27,7 +28,7 @@ pub struct Services(Mutex<BTreeMap<&'static str, ServiceHealth>>);
 impl Services {
     /// `service` failed with `why`; `given_up` when it will not be started again.
     pub fn failed(&self, service: &'static str, why: &str, given_up: bool) {
-        let mut all = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut all = self.0.locked();
         let h = all.entry(service).or_default();
         h.last_failure = why.to_string();
         h.given_up |= given_up;
@@ -35,18 +36,18 @@ impl Services {
 
     /// `service` is being started again after a failure.
     pub fn restarted(&self, service: &'static str) {
-        let mut all = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut all = self.0.locked();
         all.entry(service).or_default().restarts += 1;
     }
 
     /// Every service that has failed so far.
     pub fn failures(&self) -> BTreeMap<&'static str, ServiceHealth> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
+        self.0.locked().clone()
     }
 
     /// The first service given up, and why, if any.
     pub fn given_up(&self) -> Option<(&'static str, String)> {
-        let all = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let all = self.0.locked();
         all.iter()
             .find(|(_, h)| h.given_up)
             .map(|(n, h)| (*n, h.last_failure.clone()))

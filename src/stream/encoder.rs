@@ -7,6 +7,7 @@ use super::{Codec, StreamError};
 use crate::clock::{Stamps, clock_us};
 use crate::frame::{PixelFormat, PlaneLayout};
 use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
+use crate::supervise::Locked;
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
@@ -196,10 +197,7 @@ impl Encoder {
                     };
                     // One unit per frame, in order (no B-frames; the encoder shifts
                     // timestamps, so they cannot be matched).
-                    let pushed = waiting
-                        .lock()
-                        .unwrap_or_else(|e| e.into_inner())
-                        .pop_front();
+                    let pushed = waiting.locked().pop_front();
                     let encode_time = pushed.as_ref().map(|(at, _, _)| at.elapsed());
                     let pushed_pts = pushed.as_ref().map(|(_, pts, _)| *pts);
                     let side = pushed.map(|(_, _, side)| side).unwrap_or_default();
@@ -294,7 +292,7 @@ impl Encoder {
         let pushed_pts = pts;
         let pts = gst::ClockTime::from_nseconds(pts.as_nanos() as u64);
         loop {
-            let mut q = self.pending.lock().unwrap_or_else(|e| e.into_inner());
+            let mut q = self.pending.locked();
             if q.len() < BACKLOG {
                 let stamps = side.stamps.map(|s| Stamps {
                     encoder_in: clock_us(),

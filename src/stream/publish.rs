@@ -12,6 +12,7 @@
 
 use super::{AccessUnit, Codec, Restamp, StreamError};
 use crate::gst::{GstError, element, element_error, launch};
+use crate::supervise::Locked;
 use crate::supervise::{self, Backoff, FailureLog, Fault};
 use gstreamer as gst;
 use gstreamer::prelude::*;
@@ -212,7 +213,7 @@ impl Publisher {
     /// because the relay is behind: ask the encoder for a key frame to resume at.
     pub fn push(&self, au: &AccessUnit) -> bool {
         let (src, buffer, klv) = {
-            let mut link = self.link.lock().unwrap_or_else(|e| e.into_inner());
+            let mut link = self.link.locked();
             let Some(l) = link.as_mut() else {
                 return false;
             };
@@ -263,12 +264,12 @@ fn keep_publishing(
 ) {
     let mut backoff = BACKOFF;
     // Started again after a panic: the last run's pipeline is let go first.
-    *link.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    *link.locked() = None;
     connected.store(false, Ordering::Relaxed);
     while !stop.load(Ordering::Relaxed) {
         let started = Instant::now();
         let result = publish_once(target, link, connected, stop, want_key, fault);
-        *link.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        *link.locked() = None;
         let was_connected = connected.swap(false, Ordering::Relaxed);
         if stop.load(Ordering::Relaxed) {
             break;
@@ -324,7 +325,7 @@ fn publish_once(
             .set_state(gst::State::Playing)
             .map_err(|_| GstError::Refused(format!("cannot start publishing to {}", target.url)))?;
         // Units flow from now: the relay's session is described from the first ones.
-        *link.lock().unwrap_or_else(|e| e.into_inner()) = Some(Link {
+        *link.locked() = Some(Link {
             src,
             klv,
             clock: Restamp::default(),
@@ -365,7 +366,7 @@ struct Stopped<'a>(&'a gst::Pipeline, &'a Mutex<Option<Link>>);
 
 impl Drop for Stopped<'_> {
     fn drop(&mut self) {
-        *self.1.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        *self.1.locked() = None;
         let _ = self.0.set_state(gst::State::Null);
     }
 }

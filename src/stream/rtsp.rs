@@ -8,6 +8,7 @@
 //! fed only while someone watches it.
 
 use super::{Codec, Restamp, StreamError};
+use crate::supervise::Locked;
 use gstreamer as gst;
 use gstreamer::glib;
 use gstreamer::prelude::*;
@@ -337,7 +338,7 @@ fn push(medias: &Medias, codec: Codec, au: &gst::Buffer) {
 }
 
 fn lock(medias: &Medias) -> std::sync::MutexGuard<'_, Vec<Media>> {
-    medias.lock().unwrap_or_else(|e| e.into_inner())
+    medias.locked()
 }
 
 impl Drop for Rtsp {

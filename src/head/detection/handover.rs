@@ -4,6 +4,7 @@
 
 use crate::detect::scan::ScanView;
 use crate::plan::FramePlan;
+use crate::supervise::Locked;
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -41,7 +42,7 @@ struct Pending {
 
 impl ScanSlot {
     fn pending(&self) -> std::sync::MutexGuard<'_, Pending> {
-        self.pending.lock().unwrap_or_else(|e| e.into_inner())
+        self.pending.locked()
     }
 
     /// Whether a scan (at `scan_hz`) and crops (at `crop_hz`) may be drawn now: none waits,

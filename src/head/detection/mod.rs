@@ -25,6 +25,7 @@ use crate::geometry::ground::to_ned;
 use crate::plan::{Filter, FramePlan};
 use crate::render::gpu::{GpuError, OutputId, Renderer};
 use crate::state::State;
+use crate::supervise::Locked;
 use glam::DVec3;
 use handover::Scan;
 use objects::crop_plan;
@@ -301,7 +302,7 @@ impl Head {
         let found = match self.detection.model.get() {
             Some(model) => {
                 let threshold = state.settings.detection.var_confidence_threshold as f32;
-                let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
+                let mut model = model.detector.locked();
                 match model.scan(v, p, &scan.picture, scan.stride, threshold) {
                     Ok(found) => found,
                     Err(e) => {
@@ -330,11 +331,7 @@ impl Head {
         }
         if let (Some(position), Some(scorer)) = (position, d.scorer.as_mut()) {
             scorer.scan((t, &position), &list, tiled, sees);
-            let mut shared = self
-                .observers
-                .demo_score
-                .lock()
-                .unwrap_or_else(|e| e.into_inner());
+            let mut shared = self.observers.demo_score.locked();
             let rings = shared.take().map(|s| s.rings).unwrap_or_default();
             *shared = Some(score::Score {
                 rings,
@@ -356,7 +353,7 @@ impl Head {
             return;
         };
         let threshold = state.settings.detection.crop_confidence_threshold as f32;
-        let mut model = model.detector.lock().unwrap_or_else(|e| e.into_inner());
+        let mut model = model.detector.locked();
         for ((view, planned), &id) in crops.views.iter().zip(&crops.plan.views).zip(&crops.crops) {
             match model.crop(view, planned, &crops.picture, crops.stride, threshold) {
                 Ok(found) => {
