@@ -3,10 +3,10 @@
 //! frame, and an appsink handing each access unit to the caller. A new output size or frame
 //! rate is a caps change on the appsrc: the encoder reconfigures in place, the stream goes on.
 
-use super::{Codec, StreamError};
+use super::{Codec, StreamError, probe};
 use crate::clock::{Stamps, clock_us};
 use crate::frame::{PixelFormat, PlaneLayout};
-use crate::gst::{GstError, bus_error, element, launch, set_state, wait_eos};
+use crate::gst::{GstError, bus_error, element, launch, wait_eos};
 use crate::supervise::Locked;
 use gstreamer as gst;
 use gstreamer::prelude::*;
@@ -16,21 +16,6 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// Hardware encoders tried before the software one when `kind` is "auto", best first:
-/// Jetson's, NVIDIA's NVENC on a desktop or server GPU (GStreamer's nvcodec plugin registers
-/// it only where the driver has an encoder: not on an H100 or H200, which have none),
-/// VA-API's, V4L2's.
-pub const HARDWARE: [&str; 4] = ["nvv4l2h264enc", "nvh264enc", "vaapih264enc", "v4l2h264enc"];
-/// The same for H.265.
-pub const HARDWARE_H265: [&str; 4] = ["nvv4l2h265enc", "nvh265enc", "vaapih265enc", "v4l2h265enc"];
-
-/// The hardware encoders for `codec`, best first, and the software one.
-pub fn encoders(codec: Codec) -> (&'static [&'static str; 4], &'static str) {
-    match codec {
-        Codec::H264 => (&HARDWARE, "x264enc"),
-        Codec::H265 => (&HARDWARE_H265, "x265enc"),
-    }
-}
 /// Frames the encoder may hold before new ones are dropped (it has fallen behind).
 const BACKLOG: usize = 3;
 
@@ -130,22 +115,6 @@ fn element_description(name: &str, cfg: &EncoderConfig, fps: u32) -> String {
     }
 }
 
-/// The encoders to try for `kind` and `codec`, in order; `installed` says whether GStreamer
-/// has an element.
-fn candidates(kind: &str, codec: Codec, installed: impl Fn(&str) -> bool) -> Vec<String> {
-    let (hardware, software) = encoders(codec);
-    match kind {
-        "auto" => hardware
-            .iter()
-            .filter(|n| installed(n))
-            .map(|n| n.to_string())
-            .chain([software.to_string()])
-            .collect(),
-        "x264" | "x265" => vec![format!("{kind}enc")],
-        other => vec![other.to_string()],
-    }
-}
-
 impl Encoder {
     /// Starts the encoder; `sink` gets every access unit, on GStreamer's streaming thread.
     pub fn new(
@@ -154,12 +123,31 @@ impl Encoder {
         sink: impl Fn(AccessUnit) + Send + Sync + 'static,
     ) -> Result<Encoder, StreamError> {
         super::init()?;
+        let names = probe::candidates(&cfg.kind, cfg.codec, probe::usable);
+        Self::first_to_start(&names, cfg, fps, sink)
+    }
+
+    /// Starts the first of encoders `names` that starts within [`probe::START_DEADLINE`];
+    /// the log says which, and why each before it was passed over.
+    pub fn first_to_start(
+        names: &[String],
+        cfg: &EncoderConfig,
+        fps: u32,
+        sink: impl Fn(AccessUnit) + Send + Sync + 'static,
+    ) -> Result<Encoder, StreamError> {
         let sink: Arc<Sink> = Arc::new(Box::new(sink));
         let mut errors = vec![];
-        let installed = |n: &str| gst::ElementFactory::find(n).is_some();
-        for name in candidates(&cfg.kind, cfg.codec, installed) {
-            match Self::start(&name, cfg, fps, sink.clone()) {
-                Ok(e) => return Ok(e),
+        for name in names {
+            if probe::has_hung(name) {
+                errors.push(format!("{name}: hung starting before, not tried again"));
+                continue;
+            }
+            match Self::start(name, cfg, fps, sink.clone()) {
+                Ok(e) if errors.is_empty() => return Ok(e),
+                Ok(e) => {
+                    tracing::warn!("encoder: {name}, after {}", errors.join("; "));
+                    return Ok(e);
+                }
                 Err(e) => errors.push(format!("{name}: {e}")),
             }
         }
@@ -218,7 +206,14 @@ impl Encoder {
                 })
                 .build(),
         );
-        set_state(&pipeline, gst::State::Playing, || "would not start".into())?;
+        match probe::play_within(&pipeline, probe::START_DEADLINE) {
+            Ok(()) => {}
+            Err(Some(e)) => return Err(e.into()),
+            Err(None) => {
+                probe::hung(name);
+                return Err(StreamError::NoStart(probe::START_DEADLINE));
+            }
+        }
         tracing::info!("encoder: {name}");
         Ok(Encoder {
             pipeline,
@@ -418,33 +413,6 @@ fn bt709() -> gst_video::VideoColorimetry {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn auto_tries_the_installed_hardware_encoders_best_first_then_x264() {
-        let only = |names: &'static [&'static str]| move |n: &str| names.contains(&n);
-        let h264 = Codec::H264;
-        assert_eq!(candidates("auto", h264, only(&[])), ["x264enc"]);
-        // A desktop NVIDIA GPU with NVENC, and VA-API beside it: NVENC first.
-        assert_eq!(
-            candidates("auto", h264, only(&["vaapih264enc", "nvh264enc"])),
-            ["nvh264enc", "vaapih264enc", "x264enc"]
-        );
-        // A Jetson's own encoder before the desktop one.
-        assert_eq!(
-            candidates("auto", h264, only(&["nvh264enc", "nvv4l2h264enc"]))[0],
-            "nvv4l2h264enc"
-        );
-        // A named kind is tried alone, installed or not (its error then says so).
-        assert_eq!(candidates("x264", h264, only(&["nvh264enc"])), ["x264enc"]);
-        assert_eq!(candidates("nvh264enc", h264, only(&[])), ["nvh264enc"]);
-        // H.265: its own hardware encoders, then x265; the H.264 ones are not taken.
-        let h265 = Codec::H265;
-        assert_eq!(
-            candidates("auto", h265, only(&["nvh264enc", "nvh265enc"])),
-            ["nvh265enc", "x265enc"]
-        );
-        assert_eq!(candidates("auto", h265, only(&[])), ["x265enc"]);
-    }
 
     #[test]
     fn nvenc_is_told_the_bitrate_in_kbit_and_the_key_interval_in_frames() {

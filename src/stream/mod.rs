@@ -1,5 +1,6 @@
 //! Stream: from rendered frames to the network and to disk. `encoder` turns I420 frames into
-//! H.264 access units (x264 tuned for zero latency, or a hardware encoder); `rtsp` serves them
+//! H.264 access units (x264 tuned for zero latency, or a hardware encoder, which `probe`
+//! picks: present, and started within its deadline); `rtsp` serves them
 //! as one shared media to any number of RTSP clients; `record` writes them to fragmented MP4.
 //! One encoder feeds both, so recording costs no second encode; `publish` pushes the same
 //! units to media relays, and `preview` to the web page's viewers. `klv` makes each frame's
@@ -10,6 +11,7 @@ mod delimit;
 pub mod encoder;
 pub mod klv;
 pub mod preview;
+pub mod probe;
 pub mod publish;
 pub mod record;
 pub mod record_file;
@@ -37,6 +39,8 @@ pub enum StreamError {
     NoEncoder(String),
     #[error("not installed")]
     NotInstalled,
+    #[error("did not start within {0:?}: abandoned")]
+    NoStart(std::time::Duration),
     #[error("encoder {name}: {source}")]
     Encoder { name: String, source: GstError },
     #[error("encoder {name}: {flow:?}")]

@@ -18,6 +18,7 @@ mod detect_motion;
 mod dewarp_vs_truth;
 mod disk_full;
 mod doctor;
+mod encoder_probe;
 mod entry_paths;
 mod frame_loop;
 mod fuzz_corpus;

@@ -79,7 +79,7 @@ fn needed(cfg: &Config) -> Vec<(&'static str, &'static str)> {
         ("mp4mux", "gstreamer1.0-plugins-good"),
         ("filesink", "libgstreamer1.0-0"),
     ];
-    let (hardware, software) = crate::stream::encoder::encoders(cfg.encoder.codec);
+    let (hardware, software) = crate::stream::probe::encoders(cfg.encoder.codec);
     if cfg.encoder.kind != "auto" || !hardware.iter().any(|n| present(n)) {
         out.push(match software {
             "x265enc" => ("x265enc", "gstreamer1.0-plugins-bad"),
@@ -129,10 +129,16 @@ pub fn gstreamer(cfg: &Config) -> Outcome {
         .collect();
     let (codec, (hardware, software)) = (
         cfg.encoder.codec,
-        crate::stream::encoder::encoders(cfg.encoder.codec),
+        crate::stream::probe::encoders(cfg.encoder.codec),
     );
-    let hardware: Vec<&str> = hardware.iter().copied().filter(|n| present(n)).collect();
-    let encoders = match hardware.as_slice() {
+    let usable = crate::stream::probe::usable;
+    let without_device: Vec<&str> = hardware
+        .iter()
+        .copied()
+        .filter(|n| present(n) && !usable(n))
+        .collect();
+    let hardware: Vec<&str> = hardware.iter().copied().filter(|n| usable(n)).collect();
+    let mut encoders = match hardware.as_slice() {
         [] => format!(
             "no hardware {} encoder ({} encodes on the CPU)",
             codec.name(),
@@ -140,6 +146,10 @@ pub fn gstreamer(cfg: &Config) -> Outcome {
         ),
         found => format!("hardware {} encoders: {}", codec.name(), found.join(", ")),
     };
+    if !without_device.is_empty() {
+        let names = without_device.join(", ");
+        encoders += &format!("; {names} installed without its device, not tried");
+    }
     if missing.is_empty() {
         Outcome::pass(
             "gstreamer",
