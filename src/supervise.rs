@@ -288,7 +288,6 @@ impl Fault {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::Mutex;
     use std::sync::atomic::AtomicU32;
 
     /// What was reported, in order.

@@ -9,8 +9,7 @@ use super::{
 };
 use crate::clock::clock_us;
 use crate::policy::Peer;
-use crate::supervise;
-use crate::supervise::Locked;
+use crate::supervise::{self, Locked};
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkMessageRaw, MavHeader, Message};
 use std::sync::Arc;

@@ -13,8 +13,7 @@ pub use gst_source::{Ended, FileFrames, GstSource, check, open};
 
 use crate::frame::{Frame, FrameError};
 use crate::gst::GstError;
-use crate::supervise::Backoff;
-use crate::supervise::Locked;
+use crate::supervise::{Backoff, Locked};
 use std::path::PathBuf;
 
 /// Why a `--source` string (or the config's `source`) was refused.

@@ -4,8 +4,7 @@
 //! the run's status error 5 (internal); `/api/status` reads it.
 
 use super::report::{Failure, Report};
-use crate::supervise::FailureLog;
-use crate::supervise::Locked;
+use crate::supervise::{FailureLog, Locked};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::sync::Mutex;

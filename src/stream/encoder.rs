@@ -143,9 +143,10 @@ impl Encoder {
                 continue;
             }
             match Self::start(name, cfg, fps, sink.clone()) {
-                Ok(e) if errors.is_empty() => return Ok(e),
                 Ok(e) => {
-                    tracing::warn!("encoder: {name}, after {}", errors.join("; "));
+                    if !errors.is_empty() {
+                        tracing::warn!("encoder: {name}, after {}", errors.join("; "));
+                    }
                     return Ok(e);
                 }
                 Err(e) => errors.push(format!("{name}: {e}")),

@@ -84,17 +84,16 @@ pub fn has_hung(name: &str) -> bool {
 /// Sets `pipeline` playing, giving up after `deadline`: Err(None) when it did not return in
 /// time (the thread that waits on it is left behind), Err(Some) when it refused.
 pub fn play_within(pipeline: &gst::Pipeline, deadline: Duration) -> Result<(), Option<GstError>> {
+    let play = |p: &gst::Pipeline| set_state(p, gst::State::Playing, || "would not start".into());
     let (tx, rx) = mpsc::channel();
     let waiting = pipeline.clone();
     let started = std::thread::Builder::new()
         .name("encoder start".into())
         .spawn(move || {
-            let _ = tx.send(set_state(&waiting, gst::State::Playing, || {
-                "would not start".into()
-            }));
+            let _ = tx.send(play(&waiting));
         });
     if started.is_err() {
-        return set_state(pipeline, gst::State::Playing, || "would not start".into()).map_err(Some);
+        return play(pipeline).map_err(Some);
     }
     match rx.recv_timeout(deadline) {
         Ok(done) => done.map_err(Some),

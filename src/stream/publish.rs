@@ -12,8 +12,7 @@
 
 use super::{AccessUnit, Codec, Restamp, StreamError};
 use crate::gst::{GstError, element, element_error, launch};
-use crate::supervise::Locked;
-use crate::supervise::{self, Backoff, FailureLog, Fault};
+use crate::supervise::{self, Backoff, FailureLog, Fault, Locked};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;
