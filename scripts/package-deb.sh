@@ -62,7 +62,7 @@ Depends: libc6, libgcc-s1, adduser, libvulkan1, mesa-vulkan-drivers | vulkan-icd
  libgstreamer1.0-0, libgstreamer-plugins-base1.0-0, libgstrtspserver-1.0-0,
  gstreamer1.0-plugins-base, gstreamer1.0-plugins-good, gstreamer1.0-plugins-bad,
  gstreamer1.0-plugins-ugly, gstreamer1.0-libav
-Recommends: gstreamer1.0-rtsp
+Recommends: gstreamer1.0-rtsp, libegl1, libegl-mesa0, libgl1-mesa-dri
 Section: video
 Priority: optional
 Description: onboard fisheye virtual-camera video head

@@ -8,6 +8,9 @@ packages=(
   build-essential pkg-config
   # Vulkan and Mesa's lavapipe software driver: the GPU path runs on it where no GPU is.
   libvulkan1 mesa-vulkan-drivers vulkan-tools
+  # EGL and Mesa's GL drivers (llvmpipe where no GPU is): the GL backend (--backend gl), the
+  # fallback where Vulkan is missing or draws wrong.
+  libegl1 libegl-mesa0 libgl1-mesa-dri
   # GStreamer: decoding, H.264 encoding and the RTSP server.
   libgstreamer1.0-dev libgstreamer-plugins-base1.0-dev libgstrtspserver-1.0-dev
   gstreamer1.0-plugins-base gstreamer1.0-plugins-good gstreamer1.0-plugins-bad
@@ -36,16 +39,22 @@ for p in "${packages[@]}"; do
 done
 
 # On Debian 12 (bookworm), lavapipe comes from bookworm-backports: Mesa 25 rather than 22.3,
-# whose mip-chain passes take about a third longer (docs/performance.md, "Mesa 22.3").
+# whose mip-chain passes take about a third longer (docs/performance.md, "Mesa 22.3"). Mesa's
+# GL drivers come from there with it, so both backends share one Mesa.
+mesa_packages=(mesa-vulkan-drivers libegl-mesa0 libgl1-mesa-dri)
 backports=()
 if [ -r /etc/os-release ] && [ "$(. /etc/os-release; echo "${VERSION_CODENAME:-}")" = bookworm ]; then
-  mesa=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true)
-  if [ -z "$mesa" ] || dpkg --compare-versions "$mesa" lt 25; then
-    backports=(mesa-vulkan-drivers)
-    for i in "${!missing[@]}"; do
-      [ "${missing[$i]}" = mesa-vulkan-drivers ] && unset "missing[$i]"
+  for p in "${mesa_packages[@]}"; do
+    mesa=$(dpkg-query -W -f='${Version}' "$p" 2>/dev/null || true)
+    if [ -z "$mesa" ] || dpkg --compare-versions "$mesa" lt 25; then
+      backports=("${mesa_packages[@]}")
+    fi
+  done
+  for i in "${!missing[@]}"; do
+    for p in "${backports[@]}"; do
+      [ "${missing[$i]:-}" = "$p" ] && unset "missing[$i]"
     done
-  fi
+  done
 fi
 
 as_root=()

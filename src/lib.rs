@@ -11,7 +11,7 @@
 //!   `frame` (frames as bytes: pixel formats, plane layouts, YUV), `image_ops` (sampling and
 //!   image metrics), `thermal` (a thermal sensor's counts: temperatures, gain, palettes),
 //!   `gst` (the GStreamer plumbing sources and streams share), `clock` (the one time base),
-//!   `modes` (the modes an operator picks, as enums), `protocol` (the control protocol's
+//!   `modes` (the modes an operator picks, as enums, and the GPU backend), `protocol` (the control protocol's
 //!   codec), `policy` (the one trust boundary: who may change the state, stop the system or
 //!   delete files, and the refusal log every control path shares), `supervise` (a service's
 //!   thread run again after a panic, its failures reported through a trait the head's report
@@ -24,7 +24,9 @@
 //! - **The data's path.** `source` brings camera frames in (`exposure` sets the camera's
 //!   exposure and gain, and runs the auto exposure; `scene` synthesises worlds for the demo
 //!   and ground truth), `render` turns a fisheye frame into the output frame as its plan says
-//!   (`gpu`, and the CPU reference; only the frame loop, `bench` and the CLI use it), `stream` encodes, serves, records and publishes it.
+//!   (`gpu`, on the adapter `choose` finds drawing right, and the CPU reference; only the
+//!   frame loop, `bench` and the CLI use it), `stream` encodes, serves, records and
+//!   publishes it.
 //! - **The services, beside each other.** `head`, the frame loop along the path (with its
 //!   detection stage, which runs `detect`'s detectors and tracker); `control`, the DigiView
 //!   protocol's request handling, server and client; `autopilot`, the MAVLink link the

@@ -1,8 +1,9 @@
 //! The modes an operator picks, as the seed numbers them on the wire: a view's control mode
 //! (CAM_CONTROL_MODE) and crop mode (CAM_CROP_MODE), the output's layout and detection
 //! overlay (VIDEO_OUTPUT), and how a view shows the thermal camera (the camera setting
-//! THERMAL). Shared data at the bottom: the renderer, the layout and every entry path name
-//! them by these types; only the wire codecs see their numbers.
+//! THERMAL); and which GPU backend renders. Shared data at the bottom: the renderer, the
+//! layout and every entry path name them by these types; only the wire codecs see their
+//! numbers.
 
 use serde::{Deserialize, Serialize};
 
@@ -218,6 +219,34 @@ impl From<Crop> for u8 {
 impl std::fmt::Display for Crop {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{}", self.code())
+    }
+}
+
+/// Which of wgpu's backends renders (`--backend`, the serve config's `gpu_backend`): `auto`
+/// takes the best adapter of any and checks it draws right (`render::choose`), `vulkan` (Metal
+/// or DX12 where those are the platform's) and `gl` (OpenGL or OpenGL ES through EGL) only
+/// those adapters. Not on the wire: the log, `/api/status` and `doctor` name it.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum GpuBackend {
+    /// The best adapter that draws right, Vulkan before GL on the same kind of device.
+    #[default]
+    Auto,
+    /// Vulkan (Metal on macOS, DX12 on Windows).
+    Vulkan,
+    /// OpenGL or OpenGL ES through EGL, headless.
+    Gl,
+}
+
+impl GpuBackend {
+    pub fn name(self) -> &'static str {
+        match self {
+            GpuBackend::Auto => "auto",
+            GpuBackend::Vulkan => "vulkan",
+            GpuBackend::Gl => "gl",
+        }
     }
 }
 

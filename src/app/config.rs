@@ -12,6 +12,7 @@ use crate::geometry::shutter::Readout;
 use crate::head::HeadConfig;
 use crate::head::capture::CaptureConfig;
 use crate::http::HttpConfig;
+use crate::modes::GpuBackend;
 use crate::source::demo::DemoConfig;
 use crate::source::thermal::ThermalConfig;
 use crate::source::{SourceSpec, SpecError};
@@ -70,6 +71,9 @@ pub struct Config {
     /// The camera's rolling shutter, corrected in every view (docs/serve.md, "Rolling
     /// shutter"); none by default.
     pub readout: Readout,
+    /// Which GPU backend renders: auto (the best adapter that draws a known frame right),
+    /// vulkan or gl (docs/onboard.md).
+    pub gpu_backend: GpuBackend,
 }
 
 impl Default for Config {
@@ -98,6 +102,7 @@ impl Default for Config {
             klv_objects: true,
             health_interval_s: 10.0,
             readout: Readout::default(),
+            gpu_backend: GpuBackend::Auto,
         }
     }
 }
@@ -150,6 +155,7 @@ impl Config {
             klv_camera: self.klv_camera,
             klv_objects: self.klv_objects,
             readout: self.readout,
+            gpu_backend: self.gpu_backend,
         })
     }
 

@@ -7,9 +7,10 @@ use super::readout_args::ReadoutArgs;
 use super::{Backend, StateArgs, spinner};
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
 use crate::lens::{Lens, LensCal, Lenses};
+use crate::modes::GpuBackend;
 use crate::plan::{Filter, FramePlan};
-use crate::render::cpu;
 use crate::render::gpu::{Gpu, OutputId, Renderer, StageTimes};
+use crate::render::{choose, cpu};
 use crate::scene::GridWorld;
 use crate::scene::synth::fisheye;
 use crate::state::{State, Tracked};
@@ -48,8 +49,11 @@ pub struct BenchArgs {
     output_format: PixelFormat,
     #[arg(long, value_enum, default_value = "mip")]
     filter: Filter,
-    #[arg(long, value_enum, default_value = "gpu")]
-    backend: Backend,
+    /// The renderer: the GPU's on a backend (auto, vulkan, gl; `gpu` is `auto`) or the CPU
+    /// reference; several, comma-separated (`vulkan,gl`), are timed one after the other on
+    /// the same frames and shown side by side.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "auto")]
+    backend: Vec<Backend>,
     /// Also draw this many views alone (0 to 4, as the per-view streams do) after each
     /// staged frame: from the frame's upload, and, interleaved, each on a renderer of its
     /// own (uploading the frame again), to time both.
@@ -201,67 +205,82 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
     let input = yuv::encode(&fish, &input_layout);
     bar.finish_and_clear();
     let (plans, view_plans, plan_ms) = plans(&args, &base, &lens)?;
-    let measured = match args.backend {
-        Backend::Gpu => bench_gpu(&args, &input, &input_layout, &plans, &view_plans)?,
-        Backend::Cpu => bench_cpu(&args, &fish, &plans),
-    };
     let output = &base.settings.output;
-    let report = Report {
-        measured,
-        input: format!(
-            "{}x{} {}",
-            args.input_size.0, args.input_size.1, args.input_format
-        ),
-        output: format!("{}x{} {}", output.width, output.height, args.output_format),
-        layout: output.layout.code(),
-        overlay: output.overlay.code(),
-        filter: args.filter,
-        frames: args.frames,
-        plan_ms,
-        readout_ms: args.readout.readout_ms,
-    };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print_table(&report);
+    let mut reports = vec![];
+    for backend in &args.backend {
+        let measured = match backend.gpu() {
+            Some(b) => bench_gpu(&args, b, &input, &input_layout, &plans, &view_plans)?,
+            None => bench_cpu(&args, &fish, &plans),
+        };
+        reports.push(Report {
+            measured,
+            input: format!(
+                "{}x{} {}",
+                args.input_size.0, args.input_size.1, args.input_format
+            ),
+            output: format!("{}x{} {}", output.width, output.height, args.output_format),
+            layout: output.layout.code(),
+            overlay: output.overlay.code(),
+            filter: args.filter,
+            frames: args.frames,
+            plan_ms,
+            readout_ms: args.readout.readout_ms,
+        });
+    }
+    match (args.json, reports.as_slice()) {
+        (true, [one]) => println!("{}", serde_json::to_string_pretty(one)?),
+        (true, all) => println!("{}", serde_json::to_string_pretty(all)?),
+        (false, all) => print_table(all),
     }
     Ok(())
 }
 
-/// The report as a table.
-fn print_table(report: &Report) {
-    let r = &report.measured;
-    println!("adapter      {} ({})", r.adapter, r.backend);
-    println!(
-        "frames       {} of {} → {}, layout {} overlay {}, filter {:?}",
-        report.frames, report.input, report.output, report.layout, report.overlay, report.filter
-    );
-    if report.readout_ms > 0.0 {
+/// The reports as a table, a column per backend.
+fn print_table(reports: &[Report]) {
+    let first = &reports[0];
+    for r in reports {
         println!(
-            "rolling shutter corrected, {} ms readout",
-            report.readout_ms
+            "adapter      {} ({})",
+            r.measured.adapter, r.measured.backend
         );
     }
+    println!(
+        "frames       {} of {} → {}, layout {} overlay {}, filter {:?}",
+        first.frames, first.input, first.output, first.layout, first.overlay, first.filter
+    );
+    if first.readout_ms > 0.0 {
+        println!("rolling shutter corrected, {} ms readout", first.readout_ms);
+    }
+    let row = |label: &str, f: &dyn Fn(&Measured) -> String| {
+        let cells: Vec<String> = reports
+            .iter()
+            .map(|r| format!("{:>14}", f(&r.measured)))
+            .collect();
+        println!("  {label:<10}{}", cells.concat());
+    };
     println!("median per stage (each waited for on its own):");
-    let m = &r.staged;
-    println!("  plan       {:8.2} ms (CPU)", report.plan_ms);
-    println!("  upload     {:8.2} ms", m.upload_ms);
-    println!("  render     {:8.2} ms", m.render_ms);
-    println!("  readback   {:8.2} ms", m.readback_ms);
+    row("", &|m| m.backend.to_string());
     println!(
-        "  total      {:8.2} ms  ({:.1} fps)",
-        m.total_ms,
-        1e3 / m.total_ms
+        "  {:<10}{}",
+        "plan",
+        format!("{:>11.2} ms", first.plan_ms).repeat(reports.len())
     );
-    println!(
-        "pipelined    {:8.1} fps, latency {:.2} ms median (upload start → bytes readable)",
-        r.pipelined_fps, r.pipelined_latency_ms
-    );
-    if let Some(v) = &r.views {
-        println!(
-            "{} views alone at {}: {:.2} ms from the frame's upload, {:.2} ms each uploading it again",
-            v.count, v.size, v.shared_ms, v.alone_ms
-        );
+    row("upload", &|m| format!("{:.2} ms", m.staged.upload_ms));
+    row("render", &|m| format!("{:.2} ms", m.staged.render_ms));
+    row("readback", &|m| format!("{:.2} ms", m.staged.readback_ms));
+    row("total", &|m| format!("{:.2} ms", m.staged.total_ms));
+    row("", &|m| format!("({:.1} fps)", 1e3 / m.staged.total_ms));
+    println!("pipelined (frame N renders while N-1 is read back):");
+    row("rate", &|m| format!("{:.1} fps", m.pipelined_fps));
+    row("latency", &|m| format!("{:.2} ms", m.pipelined_latency_ms));
+    for r in reports {
+        if let Some(v) = &r.measured.views {
+            println!(
+                "{} views alone at {} ({}): {:.2} ms from the frame's upload, {:.2} ms each \
+                 uploading it again",
+                v.count, v.size, r.measured.backend, v.shared_ms, v.alone_ms
+            );
+        }
     }
 }
 
@@ -277,12 +296,13 @@ fn progress(n: u32, what: &str) -> indicatif::ProgressBar {
 
 fn bench_gpu(
     args: &BenchArgs,
+    backend: GpuBackend,
     input: &[u8],
     input_layout: &PlaneLayout,
     plans: &[FramePlan],
     view_plans: &[Vec<FramePlan>],
 ) -> Result<Measured> {
-    let gpu = Gpu::new()?;
+    let gpu = choose::open(backend)?.gpu;
     let mut renderer = Renderer::new(&gpu, args.output_format, args.filter)?;
     renderer.fixed_view_kinds();
     let (warm, timed) = plans.split_at(args.warmup as usize);
@@ -316,7 +336,7 @@ fn bench_gpu(
     let pick = |f: fn(&StageTimes) -> Duration| median(stages.iter().map(|s| ms(f(s))).collect());
     Ok(Measured {
         adapter: gpu.describe(),
-        backend: "gpu",
+        backend: gpu.backend(),
         staged: Medians {
             upload_ms: pick(|s| s.upload),
             render_ms: pick(|s| s.render),

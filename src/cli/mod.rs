@@ -67,13 +67,32 @@ pub enum Command {
     Readout(readout_cmd::ReadoutCmdArgs),
 }
 
-/// Which renderer `render` and `bench` use.
+/// Which renderer `render` and `bench` use: the CPU reference, or the GPU renderer on a
+/// backend as `serve --backend` takes it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Backend {
     /// The f64 CPU reference.
     Cpu,
-    /// The wgpu renderer (lavapipe where there is no GPU).
-    Gpu,
+    /// The GPU renderer on the best adapter that draws right (lavapipe where there is no GPU).
+    #[value(alias = "gpu")]
+    Auto,
+    /// The GPU renderer on Vulkan (Metal on macOS, DX12 on Windows).
+    Vulkan,
+    /// The GPU renderer on OpenGL or OpenGL ES through EGL (llvmpipe where there is no GPU).
+    Gl,
+}
+
+impl Backend {
+    /// The GPU backend, for all but the CPU reference.
+    pub fn gpu(self) -> Option<crate::modes::GpuBackend> {
+        use crate::modes::GpuBackend;
+        match self {
+            Backend::Cpu => None,
+            Backend::Auto => Some(GpuBackend::Auto),
+            Backend::Vulkan => Some(GpuBackend::Vulkan),
+            Backend::Gl => Some(GpuBackend::Gl),
+        }
+    }
 }
 
 /// Everything a state file holds, as flags that override it.

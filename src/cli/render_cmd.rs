@@ -2,14 +2,16 @@
 //! frames, ground-truth output frames and panoramas).
 
 use super::readout_args::ReadoutArgs;
-use super::{Backend, StateArgs, output, spinner};
+use super::{StateArgs, output, spinner};
 use crate::frame::PixelFormat;
 use crate::lens::calibrate::Board;
 use crate::lens::{LensCal, Lenses};
+use crate::modes::GpuBackend;
 use crate::plan::{Filter, FramePlan};
+use crate::render::choose;
 use crate::render::cpu;
+use crate::render::gpu::Renderer;
 use crate::render::gpu::renderer::render_image;
-use crate::render::gpu::{Gpu, Renderer};
 use crate::scene::synth::{equirect, fisheye, rolling_fisheye, truth};
 use crate::scene::{GridWorld, PanoramaWorld, World};
 use anyhow::{Context, Result};
@@ -33,9 +35,10 @@ pub struct RenderArgs {
     /// H.264 bitrate of an MP4 output, 100..=100000 kbit/s.
     #[arg(long, default_value_t = 8000, value_parser = bitrate)]
     bitrate_kbps: u32,
-    /// The GPU renderer (lavapipe where there is no GPU) or the f64 CPU reference.
-    #[arg(long, value_enum, default_value = "gpu")]
-    backend: Backend,
+    /// The GPU renderer on a backend (auto: the best adapter that draws right; lavapipe
+    /// where there is no GPU), or the f64 CPU reference (`gpu` is `auto`).
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: super::Backend,
     /// Minification filter (docs/decisions.md, "Filtering").
     #[arg(long, value_enum, default_value = "mip")]
     filter: Filter,
@@ -152,15 +155,16 @@ fn is_pattern(path: &Path) -> bool {
 pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
     let state = args.state.state(cal)?;
     if is_pattern(&args.input) || !is_image(&args.input) {
-        if args.backend == Backend::Cpu {
+        let Some(backend) = args.backend.gpu() else {
             anyhow::bail!(
-                "the CPU reference renders single images; videos and sequences use --backend gpu"
+                "the CPU reference renders single images; videos and sequences use --backend \
+                 auto, vulkan or gl"
             );
-        }
+        };
         if !args.readout.readout().is_global() {
             anyhow::bail!("--readout-ms corrects an image input; videos and sequences take none");
         }
-        return super::render_video::render_video(cal, &state, &args.video());
+        return super::render_video::render_video(cal, &state, &args.video(backend));
     }
     if args.klv {
         anyhow::bail!("--klv goes with a video's frames (--out NAME.ts); an image has no stream");
@@ -182,15 +186,15 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
         state.settings.sensor.roi(),
     )?;
     let plan = FramePlan::new(&state, &lens)?.with_shutter(args.readout.table(&state, &lens));
-    let out = match args.backend {
-        Backend::Cpu => {
+    let out = match args.backend.gpu() {
+        None => {
             let bar = spinner("rendering on the CPU");
             let out = cpu::render(&plan, &input, args.filter);
             bar.finish_and_clear();
             out
         }
-        Backend::Gpu => {
-            let gpu = Gpu::new()?;
+        Some(backend) => {
+            let gpu = choose::open(backend)?.gpu;
             let mut renderer = Renderer::new(&gpu, PixelFormat::Rgba, args.filter)?;
             renderer.fixed_view_kinds();
             render_image(&mut renderer, &input, &plan)?.to_rgb()
@@ -200,8 +204,9 @@ pub fn render(cal: &LensCal, args: RenderArgs) -> Result<()> {
 }
 
 impl RenderArgs {
-    fn video(&self) -> super::render_video::VideoJob {
+    fn video(&self, backend: GpuBackend) -> super::render_video::VideoJob {
         super::render_video::VideoJob {
+            backend,
             input: self.input.clone(),
             out: self.out.clone(),
             input_fps: self.input_fps,

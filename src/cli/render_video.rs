@@ -7,9 +7,11 @@
 use super::output::{self, Output};
 use crate::frame::PixelFormat;
 use crate::lens::{LensCal, Lenses};
+use crate::modes::GpuBackend;
 use crate::plan::{Filter, FramePlan};
+use crate::render::choose;
+use crate::render::gpu::Renderer;
 use crate::render::gpu::renderer::RenderedFrame;
-use crate::render::gpu::{Gpu, Renderer};
 use crate::source::{FileFrames, SourceSpec};
 use crate::state::State;
 use crate::stream::encoder::{AccessUnit, Side};
@@ -24,6 +26,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 pub struct VideoJob {
+    pub backend: GpuBackend,
     pub input: PathBuf,
     pub out: PathBuf,
     pub input_fps: u32,
@@ -391,7 +394,7 @@ pub fn render_video(cal: &LensCal, state: &State, job: &VideoJob) -> Result<()> 
         true => PixelFormat::Rgba,
         false => PixelFormat::I420,
     };
-    let mut renderer = Renderer::new(&Gpu::new()?, out_format, job.filter)?;
+    let mut renderer = Renderer::new(&choose::open(job.backend)?.gpu, out_format, job.filter)?;
     renderer.fixed_view_kinds();
     let mut run = Run {
         state,

@@ -111,6 +111,10 @@ pub struct SetupArgs {
     /// Where stills and recordings go.
     #[arg(long)]
     capture_dir: Option<PathBuf>,
+    /// The GPU backend: auto (the best adapter that draws a known frame right, Vulkan before
+    /// GL), vulkan or gl (replaces the config's `gpu_backend`).
+    #[arg(long, value_enum)]
+    backend: Option<crate::modes::GpuBackend>,
 }
 
 impl SetupArgs {
@@ -137,6 +141,9 @@ impl SetupArgs {
         }
         if let Some(m) = &self.mavlink {
             cfg.mavlink.endpoint = m.clone();
+        }
+        if let Some(b) = self.backend {
+            cfg.gpu_backend = b;
         }
         if let Some(d) = &self.capture_dir {
             cfg.capture.dir = d.clone();

@@ -13,6 +13,7 @@ use crate::geometry::shutter::ShutterTable;
 use crate::head::capture::Still;
 use crate::lens::Lens;
 use crate::plan::{Filter, FramePlan};
+use crate::render::choose;
 use crate::render::gpu::{Gpu, GpuError, Renderer};
 use crate::state::{Failure, RenderedFrame, RunStatus, Settings, State, Tracked};
 use crate::stream::Encoder;
@@ -118,6 +119,14 @@ impl Head {
         Ok(encoder)
     }
 
+    /// Opens the adapter the configured backend chooses (`render::choose`) and says which,
+    /// and why, in the health figures.
+    fn open_gpu(&self) -> Result<Gpu, GpuError> {
+        let chosen = choose::open(self.cfg.gpu_backend)?;
+        *self.meters.gpu.locked() = Some(chosen.choice);
+        Ok(chosen.gpu)
+    }
+
     /// The stream's renderer: I420 out, mip filtering, ready from its first frame for a
     /// LENS SET to any lens of lens.cal.
     pub(super) fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
@@ -128,7 +137,7 @@ impl Head {
 
     pub(super) fn frame_loop(self: &Arc<Head>) -> Result<(), HeadError> {
         let mut l = Looping {
-            renderer: self.renderer(&Gpu::new()?)?,
+            renderer: self.renderer(&self.open_gpu()?)?,
             views: ViewOutputs::default(),
             scans: super::detection::ScanRenderer::default(),
             encoder: self.encoder(self.settings().output.fps)?,
@@ -307,7 +316,7 @@ impl Head {
                 self.report.set_failure(Failure::Gpu);
                 l.healthy = Some(false);
                 std::thread::sleep(Duration::from_secs(1));
-                match Gpu::new().and_then(|g| self.renderer(&g)) {
+                match self.open_gpu().and_then(|g| self.renderer(&g)) {
                     Ok(r) => l.renderer = r,
                     Err(e) => error!("GPU: {e}"),
                 }

@@ -45,6 +45,8 @@ pub struct Health {
     pub demo_score: Option<super::detection::score::Score>,
     /// The rolling-shutter readout corrected, ms (0: a global shutter, nothing corrected).
     pub readout_ms: f64,
+    /// The adapter that renders, its backend, and why it was chosen.
+    pub gpu: Option<crate::render::choose::GpuChoice>,
 }
 
 /// The counters at one moment.
@@ -191,6 +193,7 @@ impl Head {
             klv: self.observers.klv.locked().clone(),
             demo_score: self.observers.demo_score.locked().clone(),
             readout_ms: self.cfg.readout.time_ms,
+            gpu: self.meters.gpu.locked().clone(),
         }
     }
 

@@ -44,6 +44,7 @@ use crate::exposure::ExposureConfig;
 use crate::frame::FrameError;
 use crate::geometry::shutter::Readout;
 use crate::lens::LensError;
+use crate::modes::GpuBackend;
 use crate::render::gpu::GpuError;
 use crate::source::SourceSpec;
 use crate::source::demo::{DemoConfig, Flight};
@@ -79,6 +80,8 @@ pub struct HeadConfig {
     pub klv_objects: bool,
     /// The camera's rolling shutter, corrected.
     pub readout: Readout,
+    /// The backend the renderer's adapter is chosen from.
+    pub gpu_backend: GpuBackend,
 }
 
 /// Sends the demo's flight on as an autopilot would, from its start: what it returns runs

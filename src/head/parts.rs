@@ -13,6 +13,7 @@ use crate::frame::Frame;
 use crate::geometry::shutter::Readout;
 use crate::lens::Lens;
 use crate::plan::FramePlan;
+use crate::render::choose::GpuChoice;
 use crate::source::FrameSlot;
 use crate::state::State;
 use crate::stream::klv::ViewMetadata;
@@ -135,6 +136,8 @@ pub struct Meters {
     pub latency: latency::Latency,
     /// The figures over the last second.
     pub health: Mutex<health::Health>,
+    /// The adapter the frame loop renders on, and why (None until it has one).
+    pub gpu: Mutex<Option<GpuChoice>>,
 }
 
 /// Counters the frame loop keeps and the health log reads.

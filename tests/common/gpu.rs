@@ -1,25 +1,47 @@
-//! The GPU renderer as the GPU tests use it: one device per test binary (lavapipe in CI; no
-//! adapter is a failure, never a skip), a standard state and frames in every format.
+//! The GPU renderer as the GPU tests use it: one device per backend per test binary (Mesa's
+//! lavapipe through Vulkan and llvmpipe through GL in CI; no adapter is a failure, never a
+//! skip), a standard state and frames in every format.
 
 use super::{DEG, four_view_state, three_tracked};
 use digiview::frame::{PixelFormat, PlaneLayout, yuv};
 use digiview::layout::Rect;
+use digiview::modes::GpuBackend;
 use digiview::modes::OverlayMode;
 use digiview::plan::Filter;
-use digiview::render::gpu::{Gpu, Renderer};
+use digiview::render::choose;
+pub use digiview::render::gpu::Gpu;
+use digiview::render::gpu::Renderer;
 use digiview::state::State;
 use image::RgbImage;
 use std::sync::OnceLock;
 
-/// One device for the whole test binary: opening lavapipe is not free.
+/// One Vulkan device for the whole test binary: opening lavapipe is not free.
 pub fn gpu() -> Gpu {
     static GPU: OnceLock<Gpu> = OnceLock::new();
-    GPU.get_or_init(|| Gpu::new().expect("a GPU adapter (lavapipe in CI)"))
-        .clone()
+    GPU.get_or_init(|| open(GpuBackend::Vulkan)).clone()
 }
 
+/// One GL device for the whole test binary (llvmpipe through EGL in CI).
+pub fn gl() -> Gpu {
+    static GPU: OnceLock<Gpu> = OnceLock::new();
+    GPU.get_or_init(|| open(GpuBackend::Gl)).clone()
+}
+
+fn open(backend: GpuBackend) -> Gpu {
+    match choose::open(backend) {
+        Ok(chosen) => chosen.gpu,
+        Err(e) => panic!("a {} adapter (Mesa's in CI): {e}", backend.name()),
+    }
+}
+
+/// A renderer on the Vulkan device.
 pub fn renderer(format: PixelFormat, filter: Filter) -> Renderer {
     Renderer::new(&gpu(), format, filter).unwrap()
+}
+
+/// A renderer on `gpu`.
+pub fn renderer_on(gpu: &Gpu, format: PixelFormat, filter: Filter) -> Renderer {
+    Renderer::new(gpu, format, filter).unwrap()
 }
 
 pub fn whole(img: &RgbImage) -> Rect {
@@ -41,3 +63,23 @@ pub fn as_format(img: &RgbImage, format: PixelFormat) -> (Vec<u8>, PlaneLayout) 
     let layout = PlaneLayout::tight(format, img.width(), img.height()).unwrap();
     (yuv::encode(img, &layout), layout)
 }
+
+/// Each picture test `NAME(&Gpu)` as two tests, `NAME::vulkan` and `NAME::gl`: the same
+/// bounds on lavapipe through Vulkan and on llvmpipe through GL (issue 58).
+#[allow(unused_macros)] // tests/alone has no picture tests
+macro_rules! on_each_backend {
+    ($($name:ident),+ $(,)?) => {$(
+        mod $name {
+            #[test]
+            fn vulkan() {
+                super::$name(&crate::common::gpu::gpu())
+            }
+            #[test]
+            fn gl() {
+                super::$name(&crate::common::gpu::gl())
+            }
+        }
+    )+};
+}
+#[allow(unused_imports)]
+pub(crate) use on_each_backend;

@@ -50,6 +50,12 @@ impl Serve {
         )
     }
 
+    /// As [`Serve::start_video`] with `env` set for this server alone, errors logged into a
+    /// pipe ([`Serve::log`]).
+    pub fn start_video_env(env: &[(&str, &str)], extra: &[&str]) -> Serve {
+        Serve::launch(&["--rtsp-port", "0"], extra, Some("error"), env)
+    }
+
     /// As [`Serve::start`], logging at `level` into a pipe ([`Serve::log`]), with
     /// `DIGIVIEW_FAULT=fault` when given.
     pub fn start_logging(level: &str, fault: Option<&str>, extra: &[&str]) -> Serve {

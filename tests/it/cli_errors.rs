@@ -333,8 +333,9 @@ fn bench_reports_every_stage_and_the_frame_rate_as_json() {
     assert_eq!(report["output"], "640x480 i420");
 }
 
-#[test]
-fn without_any_vulkan_driver_render_says_what_to_install() {
+/// `render` of a small black image with `args` and `env`: its exit, stderr (info log) and
+/// whether it wrote the output.
+fn render_with_drivers(args: &[&str], env: &[(&str, &Path)]) -> (bool, String, bool) {
     let dir = tempfile::tempdir().unwrap();
     let fish = dir.path().join("fish.png");
     image::RgbImage::new(64, 36).save(&fish).unwrap();
@@ -344,13 +345,47 @@ fn without_any_vulkan_driver_render_says_what_to_install() {
         .arg(&out)
         .arg("--lens-cal")
         .arg(shipped())
-        .env("VK_ICD_FILENAMES", dir.path().join("no-such-driver.json"))
+        .args(args)
+        .env("RUST_LOG", "info")
+        .envs(env.iter().copied())
         .output()
         .unwrap();
-    assert!(!o.status.success());
-    let err = stderr(&o);
-    assert!(err.contains("mesa-vulkan-drivers"), "{err}");
-    assert!(!out.exists(), "no output file on failure");
+    (o.status.success(), stderr(&o), out.exists())
+}
+
+#[test]
+fn without_a_vulkan_driver_render_runs_on_gl_and_without_either_says_what_to_install() {
+    let nowhere = tempfile::tempdir().unwrap();
+    let no_vulkan = (
+        "VK_ICD_FILENAMES",
+        nowhere.path().join("no-such-driver.json"),
+    );
+    let no_egl = (
+        "__EGL_VENDOR_LIBRARY_FILENAMES",
+        nowhere.path().join("no-such-egl.json"),
+    );
+    let (ok, err, wrote) = render_with_drivers(&[], &[(no_vulkan.0, &no_vulkan.1)]);
+    assert!(ok && wrote, "{err}");
+    assert!(
+        err.contains("(Gl, ") && err.contains("no Vulkan adapter was found"),
+        "{err}"
+    );
+
+    let vulkan = ["--backend", "vulkan"];
+    let (ok, err, wrote) = render_with_drivers(&vulkan, &[(no_vulkan.0, &no_vulkan.1)]);
+    assert!(!ok && !wrote, "{err}");
+    assert!(
+        err.contains("with --backend vulkan") && err.contains("mesa-vulkan-drivers"),
+        "{err}"
+    );
+
+    let neither = [(no_vulkan.0, &*no_vulkan.1), (no_egl.0, &*no_egl.1)];
+    let (ok, err, wrote) = render_with_drivers(&[], &neither);
+    assert!(!ok && !wrote, "{err}");
+    assert!(
+        err.contains("mesa-vulkan-drivers") && err.contains("libegl-mesa0"),
+        "{err}"
+    );
 }
 
 #[test]

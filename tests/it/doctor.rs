@@ -15,7 +15,12 @@ use std::process::Command;
 
 /// Runs `digiview doctor` with `config` (TOML), `args` and `env`: exit code and the lines it
 /// printed.
-fn doctor(dir: &Path, config: &str, args: &[&str], env: &[(&str, &str)]) -> (i32, Vec<String>) {
+pub(crate) fn doctor(
+    dir: &Path,
+    config: &str,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (i32, Vec<String>) {
     let path = dir.join("digiview.toml");
     std::fs::write(&path, config).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_digiview"))
@@ -36,7 +41,7 @@ fn doctor(dir: &Path, config: &str, args: &[&str], env: &[(&str, &str)]) -> (i32
 
 /// A configuration that passes: ports the system picks, captures in `dir`, the autopilot
 /// link on `mavlink`.
-fn good_config(dir: &Path, mavlink: &str) -> String {
+pub(crate) fn good_config(dir: &Path, mavlink: &str) -> String {
     format!(
         "[control]\nlisten = \"127.0.0.1:0\"\n[rtsp]\nport = 0\n[http]\nlisten = \"127.0.0.1:0\"\n\
          [mavlink]\nendpoint = \"{mavlink}\"\n[capture]\ndir = \"{}\"\n",

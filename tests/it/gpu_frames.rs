@@ -25,6 +25,8 @@ use digiview::state::view::Field;
 use glam::DVec2;
 use image::RgbImage;
 
+on_each_backend!(tiny_and_odd_sized_frames_render_as_the_cpu_does_and_too_small_ones_are_refused,);
+
 /// Where pixel `k` of an 8-pixel run lies on the parabola through the run's columns 0, 4 and
 /// 7 (`a`, `b`, `c`): shaders/render.wgsl's `through`.
 fn on_parabola(a: DVec2, b: DVec2, c: DVec2, k: f64) -> DVec2 {
@@ -162,13 +164,12 @@ fn a_frame_of_the_wrong_size_is_refused_and_the_renderer_goes_on() {
     assert_eq!(ok.layout.width, 480);
 }
 
-#[test]
-fn tiny_and_odd_sized_frames_render_as_the_cpu_does_and_too_small_ones_are_refused() {
+fn tiny_and_odd_sized_frames_render_as_the_cpu_does_and_too_small_ones_are_refused(gpu: &Gpu) {
     // Frames smaller than one ingest block (16x4) and RGBA with odd sizes: every plane and
     // level still lands where the CPU reference puts it.
     let state = base_state();
     let world = GridWorld::default();
-    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let mut r = renderer_on(gpu, PixelFormat::Rgba, Filter::Mip);
     for (format, w, h) in [
         (PixelFormat::Rgba, 5, 5),
         (PixelFormat::Rgba, 37, 21),

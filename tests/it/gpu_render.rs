@@ -26,6 +26,17 @@ use digiview::state::State;
 use digiview::state::view::Field;
 use image::RgbImage;
 
+on_each_backend!(
+    every_layout_and_crop_mode_matches_the_cpu_reference_and_ground_truth,
+    light_outside_the_lens_image_circle_never_reaches_the_output,
+    every_lens_model_matches_the_cpu_reference_and_ground_truth,
+    nv12_and_i420_input_give_the_picture_of_rgba_input_and_of_the_cpu_reference,
+    bilinear_filtering_matches_the_cpu_reference_from_every_input_format,
+    i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range,
+    camera_colours_rgb_cannot_hold_go_from_4_2_0_input_to_4_2_0_output_unclipped,
+    a_minified_debug_view_of_a_fine_checkerboard_does_not_alias,
+);
+
 struct Scores {
     vs_cpu: f64,
     gpu_vs_truth: f64,
@@ -60,10 +71,9 @@ fn assert_parity(label: &str, s: &Scores) {
     );
 }
 
-#[test]
-fn every_layout_and_crop_mode_matches_the_cpu_reference_and_ground_truth() {
+fn every_layout_and_crop_mode_matches_the_cpu_reference_and_ground_truth(gpu: &Gpu) {
     let (world, lens) = (GridWorld::default(), small_lens("CIL018"));
-    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let mut r = renderer_on(gpu, PixelFormat::Rgba, Filter::Mip);
     let state = base_state();
     let fish = fisheye(&world, &lens, &state);
     for &layout in LayoutMode::ALL {
@@ -84,8 +94,7 @@ fn every_layout_and_crop_mode_matches_the_cpu_reference_and_ground_truth() {
     }
 }
 
-#[test]
-fn light_outside_the_lens_image_circle_never_reaches_the_output() {
+fn light_outside_the_lens_image_circle_never_reaches_the_output(gpu: &Gpu) {
     // CIL216's circle is narrower than the frame: a third of the columns are not imaged.
     let world = GridWorld::default();
     let lens = small_lens("CIL216").for_frame(1920, 1080, None);
@@ -105,7 +114,7 @@ fn light_outside_the_lens_image_circle_never_reaches_the_output() {
             *p = image::Rgb([255; 3]);
         }
     }
-    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let mut r = renderer_on(gpu, PixelFormat::Rgba, Filter::Mip);
     for format in [PixelFormat::Rgba, PixelFormat::Nv12, PixelFormat::I420] {
         let (dark, layout) = as_format(&dark, format);
         let (flare, _) = as_format(&flare, format);
@@ -126,10 +135,9 @@ fn light_outside_the_lens_image_circle_never_reaches_the_output() {
     }
 }
 
-#[test]
-fn every_lens_model_matches_the_cpu_reference_and_ground_truth() {
+fn every_lens_model_matches_the_cpu_reference_and_ground_truth(gpu: &Gpu) {
     let world = GridWorld::default();
-    let mut r = renderer(PixelFormat::Rgba, Filter::Mip);
+    let mut r = renderer_on(gpu, PixelFormat::Rgba, Filter::Mip);
     for lens in sample_lenses() {
         let lens = lens.for_frame(960, 720, None);
         let mut state = base_state();
@@ -144,12 +152,11 @@ fn every_lens_model_matches_the_cpu_reference_and_ground_truth() {
     }
 }
 
-#[test]
-fn nv12_and_i420_input_give_the_picture_of_rgba_input_and_of_the_cpu_reference() {
+fn nv12_and_i420_input_give_the_picture_of_rgba_input_and_of_the_cpu_reference(gpu: &Gpu) {
     let state = base_state();
     // RGBA output takes 4:2:0 chroma per pixel, I420 output once per 2x2 quad.
     for output in [PixelFormat::Rgba, PixelFormat::I420] {
-        let mut r = renderer(output, Filter::Mip);
+        let mut r = renderer_on(gpu, output, Filter::Mip);
         // 1002x566: rows that do not start on a word (luma 1002 bytes, I420 chroma 501) and a
         // height that is not a multiple of the ingest's 4-row blocks.
         for (w, h) in [(1280, 720), (1002, 566)] {
@@ -181,8 +188,7 @@ fn nv12_and_i420_input_give_the_picture_of_rgba_input_and_of_the_cpu_reference()
     }
 }
 
-#[test]
-fn bilinear_filtering_matches_the_cpu_reference_from_every_input_format() {
+fn bilinear_filtering_matches_the_cpu_reference_from_every_input_format(gpu: &Gpu) {
     // Bilinear filtering samples level 0 alone, so the GPU makes no mip chain for it: what it
     // does make must still be the right picture.
     let state = base_state();
@@ -190,7 +196,7 @@ fn bilinear_filtering_matches_the_cpu_reference_from_every_input_format() {
     let fish = fisheye(&GridWorld::default(), &lens, &state);
     let plan = FramePlan::new(&state, &lens).unwrap();
     for output in [PixelFormat::Rgba, PixelFormat::I420] {
-        let mut r = renderer(output, Filter::Bilinear);
+        let mut r = renderer_on(gpu, output, Filter::Bilinear);
         for format in [PixelFormat::Rgba, PixelFormat::Nv12, PixelFormat::I420] {
             let (data, layout) = as_format(&fish, format);
             let frame = r.render(&data, &layout, &plan).unwrap();
@@ -209,19 +215,22 @@ fn bilinear_filtering_matches_the_cpu_reference_from_every_input_format() {
     }
 }
 
-#[test]
-fn i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range() {
+fn i420_and_nv12_output_are_the_rgba_output_in_bt709_limited_range(gpu: &Gpu) {
     let lens = small_lens("CIL216");
     let mut state = base_state();
     // 472 is not a multiple of 8: the GPU pads its rows; the decoded picture must not care.
     state.settings.output.width = 472;
     let fish = fisheye(&GridWorld::default(), &lens, &state);
     let plan = FramePlan::new(&state, &lens).unwrap();
-    let rgba = render_image(&mut renderer(PixelFormat::Rgba, Filter::Mip), &fish, &plan)
-        .unwrap()
-        .to_rgb();
+    let rgba = render_image(
+        &mut renderer_on(gpu, PixelFormat::Rgba, Filter::Mip),
+        &fish,
+        &plan,
+    )
+    .unwrap()
+    .to_rgb();
     for format in [PixelFormat::I420, PixelFormat::Nv12] {
-        let frame = render_image(&mut renderer(format, Filter::Mip), &fish, &plan).unwrap();
+        let frame = render_image(&mut renderer_on(gpu, format, Filter::Mip), &fish, &plan).unwrap();
         assert_eq!((frame.layout.width, frame.layout.height), (472, 272));
         // The same picture encoded on the CPU: every code value within 1.
         let want = yuv::encode(&rgba, &frame.layout);
@@ -253,8 +262,7 @@ fn dominant<T: Copy + Ord>(values: impl Iterator<Item = T>, black: T) -> (T, f64
     (value, n as f64 / total as f64)
 }
 
-#[test]
-fn camera_colours_rgb_cannot_hold_go_from_4_2_0_input_to_4_2_0_output_unclipped() {
+fn camera_colours_rgb_cannot_hold_go_from_4_2_0_input_to_4_2_0_output_unclipped(gpu: &Gpu) {
     // Y 60, Cb 60, Cr 220: a dark, saturated red whose blue is below RGB's 0. Through RGB and
     // back it would come out clipped (Y 66); 4:2:0 in and out, the camera's values go out as
     // they came, wherever a view sees the image.
@@ -272,7 +280,7 @@ fn camera_colours_rgb_cannot_hold_go_from_4_2_0_input_to_4_2_0_output_unclipped(
         for output in [PixelFormat::I420, PixelFormat::Nv12] {
             for filter in [Filter::Mip, Filter::Bilinear] {
                 let label = format!("{input} in, {output} out, {filter:?}");
-                let frame = renderer(output, filter)
+                let frame = renderer_on(gpu, output, filter)
                     .render(&data, &layout, &plan)
                     .unwrap();
                 let (out, bytes) = (&frame.layout, &frame.data);
@@ -317,8 +325,7 @@ fn ac_energy(img: &RgbImage, r: Rect) -> f64 {
     e / n
 }
 
-#[test]
-fn a_minified_debug_view_of_a_fine_checkerboard_does_not_alias() {
+fn a_minified_debug_view_of_a_fine_checkerboard_does_not_alias(gpu: &Gpu) {
     // A 1280x720 fisheye of 3-pixel checks (period 6 px) drawn 5.3x smaller in layout 6: the
     // checks' period is 1.1 output pixels, all of their energy above the output's Nyquist
     // limit, so whatever AC energy the view has is aliasing. The box-filtered reference
@@ -376,14 +383,14 @@ fn a_minified_debug_view_of_a_fine_checkerboard_does_not_alias() {
     let aliasing = |img: &RgbImage| ac_energy(img, window) / input_energy;
     let reference_aliasing = aliasing(&reference);
     let mip = render_image(
-        &mut renderer(PixelFormat::Rgba, Filter::Mip),
+        &mut renderer_on(gpu, PixelFormat::Rgba, Filter::Mip),
         &checks,
         &plan,
     )
     .unwrap()
     .to_rgb();
     let bilinear = render_image(
-        &mut renderer(PixelFormat::Rgba, Filter::Bilinear),
+        &mut renderer_on(gpu, PixelFormat::Rgba, Filter::Bilinear),
         &checks,
         &plan,
     )

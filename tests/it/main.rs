@@ -23,6 +23,7 @@ mod entry_paths;
 mod frame_loop;
 mod fuzz_corpus;
 mod gimbal_device;
+mod gpu_fallback;
 mod gpu_frames;
 mod gpu_render;
 mod h265;

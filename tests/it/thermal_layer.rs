@@ -7,7 +7,7 @@
 
 use crate::common;
 
-use common::gpu::{as_format, renderer, whole};
+use common::gpu::{Gpu, as_format, on_each_backend, renderer, renderer_on, whole};
 use common::{DEG, four_view_state, lens_cal};
 use digiview::frame::{PixelFormat, yuv};
 use digiview::geometry::Euler;
@@ -26,6 +26,8 @@ use digiview::thermal::{Calibration, GainMode, GainTable, Palette};
 use glam::{DMat3, DVec2, DVec3};
 use image::{Rgb, RgbImage};
 use std::sync::Arc;
+
+on_each_backend!(the_thermal_layer_matches_the_cpu_reference_and_stands_where_the_mounts_put_it,);
 
 /// The thermal camera turned a little from the fisheye's axis on all three axes.
 fn mount() -> DMat3 {
@@ -159,15 +161,14 @@ fn body_place(s: &Setup) -> DVec2 {
     q + DVec2::new(12.0, -7.0)
 }
 
-#[test]
-fn the_thermal_layer_matches_the_cpu_reference_and_stands_where_the_mounts_put_it() {
+fn the_thermal_layer_matches_the_cpu_reference_and_stands_where_the_mounts_put_it(on: &Gpu) {
     let s = setup();
     let at = body_place(&s);
     let (with, without) = (plan(&s, Some(at)), plan(&s, None));
     let want = reference(&s, &with);
     let background = reference(&s, &without);
     for format in [PixelFormat::Rgba, PixelFormat::I420] {
-        let mut r = renderer(format, Filter::Mip);
+        let mut r = renderer_on(on, format, Filter::Mip);
         let got = gpu(&mut r, &s, &with);
         let got_background = gpu(&mut r, &s, &without);
         // The reference through the same 4:2:0 the output takes.

@@ -15,11 +15,12 @@ use digiview::scene::GridWorld;
 use digiview::scene::synth::{fisheye, truth};
 use digiview::state::view::Field;
 
-#[test]
-fn views_drawn_from_one_level_match_the_truth_as_well_as_the_mip_filter() {
+on_each_backend!(views_drawn_from_one_level_match_the_truth_as_well_as_the_mip_filter,);
+
+fn views_drawn_from_one_level_match_the_truth_as_well_as_the_mip_filter(gpu: &Gpu) {
     let lens = small_lens("CIL216");
     let world = GridWorld::default();
-    let mut r = renderer(PixelFormat::I420, Filter::Mip);
+    let mut r = renderer_on(gpu, PixelFormat::I420, Filter::Mip);
     let view = r.add_output(PixelFormat::I420, Filter::Mip).unwrap();
     let mut chosen = vec![];
     for (fov, pitch, (w, h)) in [

@@ -52,17 +52,21 @@ pub fn lens_cal(flag: Option<&Path>, cfg: &Config) -> Outcome {
     )
 }
 
-/// A GPU adapter opens (a software one works, slowly).
-pub fn gpu() -> Outcome {
-    match crate::render::gpu::Gpu::new() {
-        Ok(g) if g.is_software() => Outcome::pass(
-            "gpu",
-            format!(
-                "{} (software: fine to try, too slow for 4K at full rate)",
-                g.describe()
-            ),
-        ),
-        Ok(g) => Outcome::pass("gpu", g.describe()),
+/// An adapter of the configured backend opens and draws a known frame right (a software
+/// one works, slowly): which one `serve` would render on, and why.
+pub fn gpu(cfg: &Config) -> Outcome {
+    match crate::render::choose::open(cfg.gpu_backend) {
+        Ok(c) => {
+            let slow = match c.gpu.is_software() {
+                true => " (software: fine to try, too slow for 4K at full rate)",
+                false => "",
+            };
+            let line = format!(
+                "{}{slow}, backend {}: {}",
+                c.choice.adapter, c.choice.backend, c.choice.why
+            );
+            Outcome::pass("gpu", line)
+        }
         Err(e) => Outcome::fail("gpu", e.to_string()),
     }
 }

@@ -78,7 +78,7 @@ pub fn doctor(lens_cal: Option<&Path>, args: DoctorArgs) -> Result<()> {
         }
     };
     report(checks::lens_cal(lens_cal, &cfg));
-    report(checks::gpu());
+    report(checks::gpu(&cfg));
     report(checks::gstreamer(&cfg));
     report(checks::source(&cfg, lens_cal));
     for o in links::ports(&cfg) {

@@ -56,6 +56,7 @@ function showStatus(s) {
       ['dropped', `${v.dropped_renderer} renderer, ${v.dropped_encoder} encoder`],
       ['render', `${v.render_ms.toFixed(1)} ms`], ['encode', `${v.encode_ms.toFixed(1)} ms`],
       ['RTSP clients', v.rtsp_clients], ['page viewers', v.page_viewers]);
+    if (v.gpu) rows.push(['GPU', `${v.gpu.adapter}, ${v.gpu.backend}: ${v.gpu.why}`]);
     const [scans, scanMs, detectMs] = v.scans;
     rows.push(['detection', scans > 0
       ? `${scans.toFixed(1)} scans/s (${scanMs.toFixed(1)} ms render, ${detectMs.toFixed(1)} ms detect)`

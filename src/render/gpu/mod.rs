@@ -31,12 +31,15 @@ use crate::frame::FrameError;
 
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
-    #[error(
-        "no GPU adapter found. Install a Vulkan driver: on Debian or Ubuntu, as root, \
-         `apt-get install libvulkan1 mesa-vulkan-drivers` (Mesa's lavapipe software driver \
-         works everywhere), or your GPU vendor's driver{0}"
-    )]
+    /// No adapter of the backend asked for; what to install.
+    #[error("no GPU adapter found{0}")]
     NoAdapter(String),
+    /// The start-up check's known frame came out unlike the CPU reference's (`render::choose`).
+    #[error("it drew a known frame wrong: {0:.1} dB against the CPU reference, {1} needed")]
+    DrewWrong(f64, f64),
+    /// Every adapter tried drew wrong or would not open: each with why.
+    #[error("no GPU adapter draws right: {0}")]
+    NoneDrawsRight(String),
     #[error("no GPU adapter's name contains {wanted:?} (found: {found})")]
     AdapterNotFound { wanted: String, found: String },
     #[error("opening the GPU device {adapter}: {source}")]

@@ -375,7 +375,10 @@ impl Renderer {
     /// Waits for a frame's readback buffer and copies the frame out.
     fn read_back(&self, frame: InFlight) -> Result<RenderedFrame, GpuError> {
         frame.readback.wait(&self.gpu.device)?;
-        let data = frame.readback.read_out(frame.layout.size as usize)?;
+        let mut data = frame.readback.read_out(frame.layout.size as usize)?;
+        if self.gpu.draws_black {
+            data.fill(0);
+        }
         Ok(RenderedFrame {
             id: frame.id,
             layout: frame.layout,
