@@ -43,6 +43,14 @@ done | sort -u | while read -r lib; do
 done
 vulkan=$(ldconfig -p | awk '/libvulkan\.so\.1 .*x86-64/ && !f {f = $NF} END {print f}')
 [[ -n $vulkan ]] && cp -L "$vulkan" "$b/lib/"
+# The GL backend loads EGL (GLVND's dispatcher) at run time; the machine's driver brings its
+# own vendor library.
+egl=$(ldconfig -p | awk '/libEGL\.so\.1 .*x86-64/ && !f {f = $NF} END {print f}')
+if [[ -n $egl ]]; then
+  for lib in "$egl" $(ldd "$egl" | awk '$2 == "=>" && $3 ~ /^\// {print $3}'); do
+    [[ $(basename "$lib") =~ $libc ]] || cp -L "$lib" "$b/lib/"
+  done
+fi
 cp -r lens-cal scripts/gpu_figures.sh scripts/serve_views.sh "$b/"
 cat >"$b/run.sh" <<'EOF'
 #!/usr/bin/env bash

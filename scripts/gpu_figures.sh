@@ -3,7 +3,7 @@
 # machine has (lavapipe where it has none):
 # 1. `digiview bench`: 4K fisheye to the 1920x1080 four-view frame, NV12, I420 and RGBA in,
 #    mip and bilinear, two interleaved rounds; NV12 turning at 90°/s without and with a
-#    25 ms rolling-shutter readout corrected;
+#    25 ms rolling-shutter readout corrected; NV12 mip on each backend (Vulkan, GL);
 # 2. `digiview serve` on a 3840x2160 still (image source), 1920x1080 out, motion detection
 #    on: the health lines with nobody watching a view, then with all four views' streams
 #    (1280x720) pulled by RTSP clients, for the encoder `auto` picks and for x264, and for
@@ -50,6 +50,9 @@ for round in 1 2; do
         echo "gpu_figures: bench $fmt $filter failed (bench.log)" >&2
     done
   done
+  "$dv" bench --frames 300 --warmup 20 --json --input-format nv12 --backend vulkan,gl \
+    >"$logs/backends-$round.json" 2>>"$logs/bench.log" ||
+    echo "gpu_figures: bench on each backend failed (bench.log)" >&2
   for readout in 0 25; do
     "$dv" bench --frames 300 --warmup 20 --json --input-format nv12 --turn yaw=90 \
       --readout-ms "$readout" >"$logs/shutter-$readout-$round.json" 2>>"$logs/bench.log" ||
@@ -116,6 +119,15 @@ for fmt in ("nv12", "i420", "rgba"):
         fps = [r["pipelined_fps"] for r in runs]
         print(f"| {fmt.upper()} {filt} | {spread(s('upload_ms'))} | {spread(s('render_ms'))} | "
               f"{spread(s('readback_ms'))} | {spread(s('total_ms'))} | {spread(fps)} |")
+print("\n| bench, NV12 mip, each backend | adapter | render ms | staged ms | pipelined fps |")
+print("|---|---|---:|---:|---:|")
+by_backend = {}
+for report in [r for run in runs_of("backends-*.json") for r in run]:
+    by_backend.setdefault(report["backend"], []).append(report)
+for backend, runs in by_backend.items():
+    s = lambda k: [r["staged"][k] for r in runs]
+    print(f"| {backend} | {runs[0]['adapter']} | {spread(s('render_ms'))} | {spread(s('total_ms'))} | "
+          f"{spread([r['pipelined_fps'] for r in runs])} |")
 print("\n| bench, NV12 mip turning at 90°/s | render ms | staged ms | pipelined fps |")
 print("|---|---:|---:|---:|")
 for readout in ("0", "25"):

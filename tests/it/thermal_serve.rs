@@ -213,17 +213,20 @@ fn a_16_bit_gstreamer_source_runs_beside_the_fisheye() {
     let end = Instant::now() + Duration::from_secs(20);
     let status = loop {
         let (_, status) = request(host, "GET", "/api/status", "");
+        // The fisheye's frames and the stream's, each over the last second, both going: read
+        // from one status, as the test's other tests ran beside it on two cores.
         let frames = status["video"]["thermal"]["frames"].as_u64();
-        if frames >= Some(18) && status["video"]["fps_out"].as_f64() > Some(5.0) {
+        let going = |k: &str| status["video"][k].as_f64() > Some(5.0);
+        if frames >= Some(18) && going("fps_out") && going("fps_in") {
             break status;
         }
         assert!(
             Instant::now() < end,
-            "in 20 s, not 18 thermal frames and the stream going: {status}"
+            "in 20 s, not 18 thermal frames and the fisheye and the stream going: {status}"
         );
         std::thread::sleep(Duration::from_millis(200));
     };
-    let (video, thermal) = (&status["video"], &status["video"]["thermal"]);
+    let thermal = &status["video"]["thermal"];
     assert_eq!(thermal["size"], serde_json::json!([w, h]), "{status}");
     assert_eq!(thermal["error"], Value::Null, "{status}");
     // Paced at the file's 9 frames a second, not read as fast as the CPU goes (twice that
@@ -234,7 +237,6 @@ fn a_16_bit_gstreamer_source_runs_beside_the_fisheye() {
         frames <= most,
         "{frames} thermal frames, {most} at most: {status}"
     );
-    assert!(video["fps_in"].as_f64().unwrap() > 5.0, "{status}");
     // Where the mounts put view pixels in the thermal frame (the default mount: looking where
     // the fisheye looks, straight down), and the file's counts there.
     let mut state = State::default();
