@@ -19,7 +19,7 @@ use crate::state::{Failure, RenderedFrame, RunStatus, Settings, State, Tracked};
 use crate::stream::Encoder;
 use crate::stream::encoder::{AccessUnit, Side};
 use crate::stream::klv::ViewMetadata;
-use crate::supervise::{Fault, Locked};
+use crate::supervise::{self, Backoff, Fault, Locked};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -27,6 +27,8 @@ use tracing::{error, info, warn};
 
 /// A source silent for this long is gone: the stream shows "no signal".
 const SIGNAL_TIMEOUT: Duration = Duration::from_secs(1);
+/// How a failed encoder is built again (`rebuild_encoder`).
+const ENCODER_RETRY: Backoff = Backoff::new(Duration::from_millis(500), Duration::from_secs(4));
 
 /// Why a frame was not rendered: the GPU failed (rebuild it), or this frame or state cannot
 /// be rendered (skip it, say why).
@@ -357,15 +359,18 @@ impl Head {
         Ok(true)
     }
 
-    /// A new encoder after one failed, tried every half second until one starts or the
-    /// head stops.
+    /// A new encoder after one failed, tried by the one back-off (half a second, doubling to
+    /// 4 s) until one starts or the head stops: its wait ends when the head stops, and an
+    /// encoder that keeps failing is logged three times, then once a minute or so.
     fn rebuild_encoder(self: &Arc<Head>, fps: u32) -> Result<Encoder, HeadError> {
+        let mut backoff = ENCODER_RETRY;
         loop {
-            std::thread::sleep(Duration::from_millis(500));
+            supervise::sleep_unless(&self.stop, backoff.failed());
             match self.encoder(fps) {
                 Ok(e) => return Ok(e),
-                Err(e) if !self.stop.load(Ordering::Relaxed) => error!("{e}"),
-                Err(e) => return Err(e),
+                Err(e) if self.stop.load(Ordering::Relaxed) => return Err(e),
+                Err(e) if backoff.worth_logging() => error!("{e}"),
+                Err(_) => {}
             }
         }
     }
