@@ -9,6 +9,7 @@
 //! the vehicle's as `FlightYawDegree` ...). Both go into the encoded JPEG (APP1 segments) or
 //! PNG (eXIf and iTXt chunks) before it is written.
 
+use crate::geometry::GeoPosition;
 use crate::state::capture::Geotag;
 use crate::state::view::zoom::SENSOR_WIDTH_MM;
 use bytes::Bytes;
@@ -107,8 +108,7 @@ fn date_time(unix_us: u64) -> Result<(String, String, [u32; 3], u32), GeotagErro
 /// The EXIF fields of a still (TIFF byte order little-endian), as an EXIF APP1 payload
 /// without its "Exif\0\0" header, which the containers add.
 pub fn exif(tag: &Geotag) -> Result<Vec<u8>, GeotagError> {
-    let (date, time, [h, m, s], micros) = date_time(tag.unix_us)?;
-    let p = &tag.position;
+    let (date, time, hms, micros) = date_time(tag.unix_us)?;
     let mut fields = vec![
         (Tag::Make, ascii("DigiView")),
         (Tag::Model, ascii(&format!("virtual camera {}", tag.camera))),
@@ -121,6 +121,29 @@ pub fn exif(tag: &Geotag) -> Result<Vec<u8>, GeotagError> {
         (Tag::OffsetTimeOriginal, ascii("+00:00")),
         (Tag::PixelXDimension, Value::Long(vec![tag.size.0])),
         (Tag::PixelYDimension, Value::Long(vec![tag.size.1])),
+    ];
+    fields.extend(gps_fields(&tag.position, &date, hms, micros));
+    fields.extend(focal_fields(tag));
+    let fields: Vec<Field> = fields
+        .into_iter()
+        .map(|(tag, value)| Field {
+            tag,
+            ifd_num: In::PRIMARY,
+            value,
+        })
+        .collect();
+    let mut writer = Writer::new();
+    for f in &fields {
+        writer.push_field(f);
+    }
+    let mut out = std::io::Cursor::new(Vec::new());
+    writer.write(&mut out, true)?;
+    Ok(out.into_inner())
+}
+
+/// Where and when (UTC) the still was taken, as GPS fields.
+fn gps_fields(p: &GeoPosition, date: &str, [h, m, s]: [u32; 3], micros: u32) -> Vec<(Tag, Value)> {
+    vec![
         (Tag::GPSVersionID, Value::Byte(vec![2, 3, 0, 0])),
         (
             Tag::GPSLatitudeRef,
@@ -145,53 +168,42 @@ pub fn exif(tag: &Geotag) -> Result<Vec<u8>, GeotagError> {
                 rational(s as f64 + micros as f64 * 1e-6, 1_000_000),
             ]),
         ),
-        (Tag::GPSDateStamp, ascii(&date)),
+        (Tag::GPSDateStamp, ascii(date)),
         (Tag::GPSMapDatum, ascii("WGS-84")),
-    ];
-    if let Some(fov) = tag
+    ]
+}
+
+/// A rectilinear view's focal length, as a pinhole on a 36 mm wide frame: its focal length
+/// is its own 35 mm equivalent, and the focal plane's resolution gives the same ratio
+/// exactly (the 35 mm figure is a whole number of millimetres). None for other views.
+fn focal_fields(tag: &Geotag) -> Vec<(Tag, Value)> {
+    let Some(fov) = tag
         .pinhole_fov
         .filter(|f| *f > 0.0 && *f < std::f64::consts::PI)
-    {
-        // The view as a pinhole on a 36 mm wide frame: its focal length is its own 35 mm
-        // equivalent, and the focal plane's resolution gives the same ratio exactly (the
-        // 35 mm figure is a whole number of millimetres).
-        let focal = SENSOR_WIDTH_MM / 2.0 / (fov / 2.0).tan();
-        let per_cm = tag.size.0 as f64 / (SENSOR_WIDTH_MM / 10.0);
-        fields.extend([
-            (
-                Tag::FocalLength,
-                Value::Rational(vec![rational(focal, 10_000)]),
-            ),
-            (
-                Tag::FocalLengthIn35mmFilm,
-                Value::Short(vec![focal.round().min(u16::MAX as f64) as u16]),
-            ),
-            (
-                Tag::FocalPlaneXResolution,
-                Value::Rational(vec![rational(per_cm, 1000)]),
-            ),
-            (
-                Tag::FocalPlaneYResolution,
-                Value::Rational(vec![rational(per_cm, 1000)]),
-            ),
-            (Tag::FocalPlaneResolutionUnit, Value::Short(vec![3])),
-        ]);
-    }
-    let fields: Vec<Field> = fields
-        .into_iter()
-        .map(|(tag, value)| Field {
-            tag,
-            ifd_num: In::PRIMARY,
-            value,
-        })
-        .collect();
-    let mut writer = Writer::new();
-    for f in &fields {
-        writer.push_field(f);
-    }
-    let mut out = std::io::Cursor::new(Vec::new());
-    writer.write(&mut out, true)?;
-    Ok(out.into_inner())
+    else {
+        return vec![];
+    };
+    let focal = SENSOR_WIDTH_MM / 2.0 / (fov / 2.0).tan();
+    let per_cm = tag.size.0 as f64 / (SENSOR_WIDTH_MM / 10.0);
+    vec![
+        (
+            Tag::FocalLength,
+            Value::Rational(vec![rational(focal, 10_000)]),
+        ),
+        (
+            Tag::FocalLengthIn35mmFilm,
+            Value::Short(vec![focal.round().min(u16::MAX as f64) as u16]),
+        ),
+        (
+            Tag::FocalPlaneXResolution,
+            Value::Rational(vec![rational(per_cm, 1000)]),
+        ),
+        (
+            Tag::FocalPlaneYResolution,
+            Value::Rational(vec![rational(per_cm, 1000)]),
+        ),
+        (Tag::FocalPlaneResolutionUnit, Value::Short(vec![3])),
+    ]
 }
 
 /// The XMP packet: the view's and the vehicle's orientation in degrees, as DJI writes them
