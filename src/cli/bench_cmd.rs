@@ -260,11 +260,7 @@ fn print_table(reports: &[Report]) {
     };
     println!("median per stage (each waited for on its own):");
     row("", &|m| m.backend.to_string());
-    println!(
-        "  {:<10}{}",
-        "plan",
-        format!("{:>11.2} ms", first.plan_ms).repeat(reports.len())
-    );
+    row("plan", &|_| format!("{:.2} ms", first.plan_ms));
     row("upload", &|m| format!("{:.2} ms", m.staged.upload_ms));
     row("render", &|m| format!("{:.2} ms", m.staged.render_ms));
     row("readback", &|m| format!("{:.2} ms", m.staged.readback_ms));

@@ -47,6 +47,9 @@ pub struct Chosen {
 pub fn open(backend: GpuBackend) -> Result<Chosen, GpuError> {
     let adapters = device::adapters(backend)?;
     let fault = std::env::var("DIGIVIEW_FAULT").is_ok_and(|s| s == "black-adapter");
+    let only_gl = adapters
+        .iter()
+        .all(|a| a.get_info().backend == wgpu::Backend::Gl);
     let mut passed_over = Vec::new();
     for (i, adapter) in adapters.iter().enumerate() {
         let name = device::describe(&adapter.get_info());
@@ -60,7 +63,7 @@ pub fn open(backend: GpuBackend) -> Result<Chosen, GpuError> {
                 let choice = GpuChoice {
                     adapter: gpu.describe(),
                     backend: gpu.backend(),
-                    why: why(backend, &gpu, &passed_over, db),
+                    why: why(backend, only_gl, &passed_over, db),
                 };
                 info!("GPU: {}: {}", choice.adapter, choice.why);
                 return Ok(Chosen { gpu, choice });
@@ -74,24 +77,18 @@ pub fn open(backend: GpuBackend) -> Result<Chosen, GpuError> {
     Err(GpuError::NoneDrawsRight(passed_over.join("; ")))
 }
 
-/// Why `gpu` renders, in the operator's words.
-fn why(backend: GpuBackend, gpu: &Gpu, passed_over: &[String], db: f64) -> String {
+/// Why the adapter chosen renders, in the operator's words (`only_gl`: the backend's adapters
+/// were all GL ones).
+fn why(backend: GpuBackend, only_gl: bool, passed_over: &[String], db: f64) -> String {
     let drew = format!("it drew the known frame right ({db:.1} dB against the CPU reference)");
     if !passed_over.is_empty() {
         return format!("{drew}, in place of {}", passed_over.join("; "));
     }
     match backend {
-        GpuBackend::Auto if gpu.backend() == "gl" && !has_primary() => {
-            format!("no Vulkan adapter was found; {drew}")
-        }
+        GpuBackend::Auto if only_gl => format!("no Vulkan adapter was found; {drew}"),
         GpuBackend::Auto => format!("the best adapter there is; {drew}"),
         asked => format!("asked for (backend {}); {drew}", asked.name()),
     }
-}
-
-/// Whether any Vulkan (or Metal, DX12) adapter is there at all.
-fn has_primary() -> bool {
-    device::adapters(GpuBackend::Vulkan).is_ok()
 }
 
 /// The known frame: the demo world seen by a sample lens in a 320x240 fisheye, and the

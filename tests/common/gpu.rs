@@ -36,7 +36,7 @@ fn open(backend: GpuBackend) -> Gpu {
 
 /// A renderer on the Vulkan device.
 pub fn renderer(format: PixelFormat, filter: Filter) -> Renderer {
-    Renderer::new(&gpu(), format, filter).unwrap()
+    renderer_on(&gpu(), format, filter)
 }
 
 /// A renderer on `gpu`.
