@@ -15,25 +15,13 @@ sizes=${3:-1280x720 1920x1080}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$dv" synth --out "$work/fish.png" >/dev/null 2>&1 || { echo "board_fit: synth failed" >&2; exit 1; }
+. "$(dirname "$0")/serve_config.sh"
 port=18754
 for backend in $backends; do
   for size in $sizes; do
     log="$work/$backend-$size.log"
     cfg="$work/$backend-$size.toml"
-    cat >"$cfg" <<TOML
-source = "image:$work/fish.png"
-health_interval_s = 5
-gpu_backend = "$backend"
-[encoder]
-kind = "x264"
-[control]
-listen = "127.0.0.1:0"
-[rtsp]
-address = "127.0.0.1"
-port = $port
-[mavlink]
-endpoint = "off"
-TOML
+    SERVE_TOP="gpu_backend = \"$backend\"" serve_config "$cfg" "$work/fish.png" $port x264 h264
     echo "board_fit: $backend $size" >&2
     RUST_LOG=info "$dv" serve --config "$cfg" --size "$size" --http off >/dev/null 2>>"$log" &
     serve=$!

@@ -51,7 +51,7 @@ if [[ -n $egl ]]; then
     [[ $(basename "$lib") =~ $libc ]] || cp -L "$lib" "$b/lib/"
   done
 fi
-cp -r lens-cal scripts/gpu_figures.sh scripts/serve_views.sh "$b/"
+cp -r lens-cal scripts/gpu_figures.sh scripts/serve_views.sh scripts/serve_config.sh "$b/"
 cat >"$b/run.sh" <<'EOF'
 #!/usr/bin/env bash
 # Runs gpu_figures.sh on this bundle's binaries, libraries and plugins alone.

@@ -3,7 +3,8 @@
 # watching a view for 22 s, then "=== watched" and each of the four views' streams pulled by
 # one RTSP client for 32 s (FFmpeg's write each frame's timestamp to LOG.camN). 1920x1080 out,
 # motion detection on, health lines every 5 s.
-# SERVE_TOP and SERVE_TABLES, where set, add top-level keys and tables to its configuration.
+# SERVE_TOP and SERVE_TABLES, where set, add top-level keys and tables to its configuration
+# (serve_config.sh).
 # Used by scripts/views_cost.sh and scripts/gpu_figures.sh.
 #
 # Usage: scripts/serve_views.sh DIGIVIEW STILL LOG PORT [KIND [CODEC [CLIENT]]]
@@ -13,22 +14,8 @@ set -uo pipefail
 dv=$1 still=$2 log=$3 port=$4 kind=${5:-auto} codec=${6:-h264} client=${7:-ffmpeg}
 cfg=$(mktemp --suffix=.toml)
 trap 'rm -f "$cfg"' EXIT
-cat >"$cfg" <<TOML
-source = "image:$still"
-health_interval_s = 5
-${SERVE_TOP:-}
-[encoder]
-kind = "$kind"
-codec = "$codec"
-[control]
-listen = "127.0.0.1:0"
-[rtsp]
-address = "127.0.0.1"
-port = $port
-[mavlink]
-endpoint = "off"
-${SERVE_TABLES:-}
-TOML
+. "$(dirname "$0")/serve_config.sh"
+serve_config "$cfg" "$still" "$port" "$kind" "$codec"
 # Appending, as the phase marker below is: both writers keep their lines.
 RUST_LOG=${RUST_LOG:-info} "$dv" serve --config "$cfg" --size 1920x1080 --http off >/dev/null 2>>"$log" &
 serve=$!
