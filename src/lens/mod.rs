@@ -17,10 +17,12 @@ pub mod calibrate;
 pub mod check;
 pub mod import;
 pub mod models;
+pub mod pair;
 pub mod samples;
 
 pub use calfile::{LensCal, LensEntry, LensError, Provenance};
 pub use models::{Model, ModelLimits, Radial, RadialModel};
+pub use pair::{Pair, PairPose, Side};
 
 use glam::{DMat2, DVec2, DVec3};
 use std::ops::Range;
@@ -107,8 +109,12 @@ pub struct Lens {
     /// The frame these pixel coordinates refer to.
     pub width: u32,
     pub height: u32,
-    /// Half of the valid field of view: rays further than this from the axis are not imaged.
+    /// Half of the valid field of view: rays further than this from the axis are not imaged
+    /// (π for a pair: it sees everything).
     pub half_fov: f64,
+    /// For two lenses back to back, the second and how the two sit (`pair`); the fields
+    /// above are then the first lens's, but for the name, id and field of view.
+    pub pair: Option<std::sync::Arc<Pair>>,
 }
 
 impl Lens {
@@ -130,41 +136,40 @@ impl Lens {
             width: size.0,
             height: size.1,
             half_fov,
+            pair: None,
         }
     }
 
-    /// Pixel where a lens-frame ray lands; None outside the valid field of view.
+    /// Pixel where a lens-frame ray lands; None outside the valid field of view. A pair
+    /// draws each ray from the lens that sees it best ([`Pair::project`]).
     pub fn project(&self, ray: DVec3) -> Option<DVec2> {
-        let rho = ray.x.hypot(ray.y);
-        let theta = rho.atan2(ray.z);
-        if theta.is_nan() || theta > self.half_fov + 1e-9 {
-            return None;
+        match &self.pair {
+            Some(pair) => pair.project(ray),
+            None => pair::project_radial(&self.radial, &self.affine, self.half_fov, ray),
         }
-        let r = self.radial.r_of_theta(theta)?;
-        let dir = if rho > 0.0 {
-            DVec2::new(ray.x, ray.y) / rho
-        } else {
-            DVec2::ZERO
-        };
-        Some(self.affine.to_pixel(dir * r))
     }
 
     /// Unit lens-frame ray through a pixel; None outside the valid field of view.
     pub fn unproject(&self, pixel: DVec2) -> Option<DVec3> {
-        let m = self.affine.to_normalized(pixel);
-        let r = m.length();
-        let theta = self.radial.theta_of_r(r)?;
-        if theta > self.half_fov + 1e-9 {
-            return None;
+        match &self.pair {
+            Some(pair) => pair.unproject(pixel),
+            None => pair::unproject_radial(&self.radial, &self.affine, self.half_fov, pixel),
         }
-        let dir = if r > 0.0 { m / r } else { DVec2::ZERO };
-        let (s, c) = theta.sin_cos();
-        Some(DVec3::new(dir.x * s, dir.y * s, c))
+    }
+
+    /// Whether two pixel positions lie in the same lens's image (always, but for a pair).
+    pub fn same_image(&self, a: DVec2, b: DVec2) -> bool {
+        self.pair
+            .as_ref()
+            .is_none_or(|p| p.side_at(a) == p.side_at(b))
     }
 
     /// The horizontal field of view, radians: between the rays through the middles of the
     /// frame's left and right edges (the whole field where those lie outside it).
     pub fn hfov(&self) -> f64 {
+        if self.pair.is_some() {
+            return 2.0 * std::f64::consts::PI;
+        }
         let y = self.height as f64 / 2.0;
         let edge = |x: f64| self.unproject(DVec2::new(x, y));
         match (edge(0.0), edge(self.width as f64)) {
@@ -175,7 +180,8 @@ impl Lens {
 
     /// Radius of the image circle in pixels (mean over both axes).
     pub fn circle_radius(&self) -> f64 {
-        self.radial.r_of_theta(self.half_fov).unwrap_or(0.0) * self.affine.mean_scale()
+        let half_fov = self.pair.as_ref().map_or(self.half_fov, |p| p.first.half_fov);
+        self.radial.r_of_theta(half_fov).unwrap_or(0.0) * self.affine.mean_scale()
     }
 
     /// The part of the frame the lens can image: the image circle's bounding box (an ellipse's,
@@ -183,9 +189,10 @@ impl Lens {
     /// [`IMAGED_ALIGN`] and clipped to the frame, as column and row ranges. Both renderers
     /// take every pixel outside it as black, and the GPU never converts those pixels.
     pub fn imaged_box(&self) -> (Range<u32>, Range<u32>) {
-        let Some(r) = self
-            .radial
-            .r_of_theta(self.half_fov)
+        // A pair's two images fill their frame between them.
+        let Some(r) = (self.pair.is_none())
+            .then(|| self.radial.r_of_theta(self.half_fov))
+            .flatten()
             .filter(|r| r.is_finite())
         else {
             return (0..self.width, 0..self.height);
@@ -243,10 +250,15 @@ impl Lens {
             height: self.height as f64,
         });
         let scale = DVec2::new(width as f64 / roi.width, height as f64 / roi.height);
+        let origin = DVec2::new(roi.x, roi.y);
         Lens {
-            affine: self.affine.rescaled(scale, DVec2::new(roi.x, roi.y)),
+            affine: self.affine.rescaled(scale, origin),
             width,
             height,
+            pair: self
+                .pair
+                .as_ref()
+                .map(|p| std::sync::Arc::new(p.rescaled(scale, origin))),
             ..self.clone()
         }
     }

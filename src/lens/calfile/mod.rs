@@ -7,8 +7,10 @@
 //! survive. The format is documented in docs/lens-cal.md.
 
 mod fields;
+mod pair;
 
 pub use fields::{Fields, TomlWriter};
+pub use pair::{DEFAULT_FEATHER_DEG, PairOf};
 
 use super::{Lens, Model, PixelAffine};
 use crate::units::{Angle, line_of};
@@ -66,6 +68,8 @@ pub struct Provenance {
 struct RawFile {
     #[serde(default)]
     lens: Vec<Spanned<Table>>,
+    #[serde(default)]
+    pair: Vec<Spanned<Table>>,
 }
 
 /// A lens as lens.cal declares it, at its calibration frame size.
@@ -83,10 +87,16 @@ pub struct LensEntry {
     pub provenance: Provenance,
     /// 1-based line of the entry's first field, for messages.
     pub line: usize,
+    /// For a `[[pair]]`: its two lenses and their pose (the fields above are then the first
+    /// lens's, but for the name, id, field of view and provenance).
+    pub pair: Option<Box<PairOf>>,
 }
 
 impl LensEntry {
     pub fn lens(&self) -> Lens {
+        if let Some(pair) = &self.pair {
+            return pair.lens(&self.name, self.lens_id);
+        }
         Lens::new(
             &self.name,
             self.lens_id,
@@ -100,9 +110,15 @@ impl LensEntry {
     /// The entry as a `[[lens]]` TOML table, in the form lens.cal documents.
     pub fn to_toml(&self) -> String {
         let mut out = TomlWriter::default();
-        out.line("[[lens]]".into());
+        let table = if self.pair.is_some() { "pair" } else { "lens" };
+        out.line(format!("[[{table}]]"));
         out.line(format!("name = {:?}", self.name));
         out.line(format!("lens_id = {}", self.lens_id));
+        if let Some(pair) = &self.pair {
+            pair.write(&mut out);
+            out.line(self.provenance_line());
+            return out.text;
+        }
         out.line(format!("model = {:?}", self.model.name()));
         out.line(format!("width = {}\nheight = {}", self.width, self.height));
         out.line(format!("fov = \"{:.4}deg\"", self.fov.to_degrees()));
@@ -111,6 +127,11 @@ impl LensEntry {
             .unwrap_or_else(|| self.lens().circle_radius());
         out.line(format!("circle_radius = {radius:.2}"));
         self.model.write(&self.affine, &mut out);
+        out.line(self.provenance_line());
+        out.text
+    }
+
+    fn provenance_line(&self) -> String {
         let p = &self.provenance;
         let mut provenance = format!(
             "provenance = {{ kind = {:?}, by = {:?}, date = {:?}, source = {:?}",
@@ -122,8 +143,7 @@ impl LensEntry {
         if let Some(rms) = p.rms_px {
             provenance += &format!(", rms_px = {rms}");
         }
-        out.line(provenance + " }");
-        out.text
+        provenance + " }"
     }
 }
 
@@ -159,9 +179,14 @@ impl LensCal {
             }
         })?;
         let mut entries: Vec<LensEntry> = Vec::new();
-        for table in &raw.lens {
+        let tables = raw.lens.iter().map(|t| (t, false));
+        for (table, is_pair) in tables.chain(raw.pair.iter().map(|t| (t, true))) {
             let fields = Fields::new(path, text, table.get_ref(), table.span().start);
-            let entry = read_entry(&fields)?;
+            let entry = if is_pair {
+                pair::read_pair(&fields, &entries)?
+            } else {
+                read_entry(&fields)?
+            };
             if let Some(prev) = entries
                 .iter()
                 .find(|p| p.name == entry.name || p.lens_id == entry.lens_id)
@@ -273,6 +298,7 @@ fn read_entry(f: &Fields) -> Result<LensEntry, LensError> {
         circle_radius,
         provenance,
         line: 0,
+        pair: None,
     })
 }
 
@@ -386,6 +412,7 @@ provenance = { kind = "calibrated", by = "test", date = "2026-11-21" }
                     ..Provenance::default()
                 },
                 line: 0,
+                pair: None,
             };
             let back = LensCal::parse(Path::new("m"), &entry.to_toml()).unwrap();
             let back = &back.entries[0];

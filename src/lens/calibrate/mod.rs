@@ -48,6 +48,7 @@ pub fn entry(
             rms_px: Some((got.rms * 1000.0).round() / 1000.0),
         },
         line: 0,
+        pair: None,
     };
     // Through the text form, so the entry is exactly what lens.cal will hold.
     let cal = LensCal::parse(std::path::Path::new("(calibrated)"), &entry.to_toml())?;

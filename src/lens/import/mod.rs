@@ -145,6 +145,7 @@ pub fn import(
             rms_px: got.rms_px,
         },
         line: 0,
+        pair: None,
     };
     // Round-trip through the text form so the entry is exactly what lens.cal will hold.
     let cal = super::LensCal::parse(Path::new("(imported)"), &entry.to_toml())?;
