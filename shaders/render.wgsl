@@ -39,14 +39,14 @@ override FILTER: u32 = 0u;
 const MIXED: u32 = 0xfffffffeu;
 
 // A pixel's level of detail, from where it lands (`q`) and where its quad neighbours in x and
-// y land. A neighbour drawn by another view, or black, does not count (src/render/cpu.rs
-// measures the same way).
+// y land. A neighbour drawn by another view, or black, or in the other image of a lens pair,
+// does not count (src/render/cpu.rs measures the same way).
 fn lod_of(q: vec3f, qx: vec3f, x_same: bool, qy: vec3f, y_same: bool) -> f32 {
     if FILTER == FILTER_BILINEAR {
         return 0.0;
     }
-    let sx = select(0.0, distance(qx.xy, q.xy), x_same && qx.z > 0.0);
-    let sy = select(0.0, distance(qy.xy, q.xy), y_same && qy.z > 0.0);
+    let sx = select(0.0, distance(qx.xy, q.xy), x_same && qx.z > 0.0 && same_image(q.xy, qx.xy));
+    let sy = select(0.0, distance(qy.xy, q.xy), y_same && qy.z > 0.0 && same_image(q.xy, qy.xy));
     return clamp(log2(max(max(sx, sy), 1.0)), 0.0, f32(params.input_planes.z - 1u));
 }
 

@@ -74,11 +74,6 @@ fn view_point_from(v: View, p: vec2f, rectified: vec3f) -> vec3f {
     return select(vec3f(0.0), drawn, kind != KIND_BLACK);
 }
 
-// Vector v turned by unit quaternion q (x, y, z, w).
-fn rotate(q: vec4f, v: vec3f) -> vec3f {
-    let t = 2.0 * cross(q.xyz, v);
-    return v + q.w * t + cross(q.xyz, t);
-}
 
 // The rolling shutter's rotation at fisheye point q: `ShutterTable::at` (nlerp between the
 // knots around the point's knot coordinate).

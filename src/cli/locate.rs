@@ -172,6 +172,11 @@ mod tests {
     fn the_built_in_lens_cal_is_the_shipped_file_and_parses() {
         let cal = super::built_in_lens_cal();
         let names: Vec<_> = cal.entries.iter().map(|e| e.name.as_str()).collect();
-        assert_eq!(names, ["CIL216", "CIL018", "LN007", "BOSON320"]);
+        assert_eq!(
+            names,
+            [
+                "CIL216", "CIL018", "LN007", "BOSON320", "DUALF", "DUALB", "DUAL"
+            ]
+        );
     }
 }

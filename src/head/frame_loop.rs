@@ -133,7 +133,7 @@ impl Head {
     /// LENS SET to any lens of lens.cal.
     pub(super) fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
         let mut renderer = Renderer::new(gpu, PixelFormat::I420, Filter::Mip)?;
-        renderer.expect_lens_models(self.gate.settings().lenses().models());
+        renderer.expect_lenses(self.gate.settings().lenses().all());
         Ok(renderer)
     }
 

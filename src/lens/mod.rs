@@ -77,6 +77,10 @@ impl PixelAffine {
     }
 }
 
+/// The bit of [`Lens::shader_model`] that says the lens is a pair (PAIR_BIT in
+/// shaders/lens.wgsl).
+pub const PAIR_BIT: u32 = 256;
+
 /// How far past the frame's edge (pixels) a position still counts as inside: positions that
 /// land exactly on the edge (the debug view's outer rows do) must not depend on rounding, and
 /// the GPU computes them in f32.
@@ -157,6 +161,12 @@ impl Lens {
         }
     }
 
+    /// The code the GPU's pipelines are built for: the model's (`Model::code`), with
+    /// [`PAIR_BIT`] for a pair (whose code the single lenses' pipelines leave out).
+    pub fn shader_model(&self) -> u32 {
+        self.radial.model.code() | if self.pair.is_some() { PAIR_BIT } else { 0 }
+    }
+
     /// Whether two pixel positions lie in the same lens's image (always, but for a pair).
     pub fn same_image(&self, a: DVec2, b: DVec2) -> bool {
         self.pair
@@ -180,7 +190,10 @@ impl Lens {
 
     /// Radius of the image circle in pixels (mean over both axes).
     pub fn circle_radius(&self) -> f64 {
-        let half_fov = self.pair.as_ref().map_or(self.half_fov, |p| p.first.half_fov);
+        let half_fov = self
+            .pair
+            .as_ref()
+            .map_or(self.half_fov, |p| p.first.half_fov);
         self.radial.r_of_theta(half_fov).unwrap_or(0.0) * self.affine.mean_scale()
     }
 
@@ -295,9 +308,9 @@ impl Lenses {
         self.lenses.iter().map(|l| (l.id, l.name.clone())).collect()
     }
 
-    /// The lens models of every lens.
-    pub fn models(&self) -> impl Iterator<Item = &Model> {
-        self.lenses.iter().map(|l| &l.radial.model)
+    /// Every lens, in lens.cal's order.
+    pub fn all(&self) -> impl Iterator<Item = &Lens> {
+        self.lenses.iter()
     }
 
     /// The lens `id` as a `width` × `height` frame (a source's actual size) sees it, after

@@ -2,9 +2,10 @@
 //! frame plan exactly. Slow and simple on purpose; it is the oracle the GPU renderer is
 //! tested against, with the same filtering (`render::mip`): each pixel takes a trilinear
 //! sample of the fisheye's mip chain at the footprint its quad neighbours give (those the
-//! same view draws).
+//! same view draws, in the same image of a lens pair).
 
 use super::mip::{Pyramid, lod};
+use super::stitch::Stitches;
 use crate::frame::{FrameError, PixelFormat, PlaneLayout};
 use crate::plan::paint::render_pixels;
 use crate::plan::{Filter, FramePlan, PlannedView};
@@ -12,7 +13,8 @@ use glam::DVec2;
 use image::RgbImage;
 
 /// Renders the output frame; pixels of no view, and pixels whose ray falls outside the lens's
-/// image circle or the fisheye frame, are black. Fisheye pixels outside the lens's imaged box
+/// image circle or the fisheye frame, are black. A lens pair's seam is blended first
+/// (`render::stitch`), as the GPU renderer does. Fisheye pixels outside the lens's imaged box
 /// count as black (they reach the output only through coarse mip levels at the rim).
 pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage {
     assert_eq!(
@@ -20,6 +22,14 @@ pub fn render(plan: &FramePlan, fisheye: &RgbImage, filter: Filter) -> RgbImage 
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
+    if plan.lens.pair.is_some() {
+        // A pair's seam is blended in the frame's bytes, as the GPU renderer takes them.
+        let layout = PlaneLayout::tight(PixelFormat::Rgba, fisheye.width(), fisheye.height())
+            .expect("a fisheye frame has pixels");
+        let data = crate::frame::yuv::encode(fisheye, &layout);
+        return render_frame(plan, &data, &layout, filter, PixelFormat::Rgba)
+            .expect("the frame is of its own layout");
+    }
     let pyramid = Pyramid::kept(fisheye, &plan.lens.imaged_box());
     render_from(plan, &pyramid, filter, false)
 }
@@ -41,7 +51,8 @@ pub fn render_frame(
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    let pyramid = Pyramid::from_frame(data, layout, &plan.lens.imaged_box());
+    let stitched = Stitches::default().stitched(&plan.lens, layout, data);
+    let pyramid = Pyramid::from_frame(&stitched, layout, &plan.lens.imaged_box());
     Ok(render_from(plan, &pyramid, filter, output.is_yuv()))
 }
 
@@ -65,7 +76,11 @@ fn render_from(plan: &FramePlan, pyramid: &Pyramid, filter: Filter, quad_chroma:
         let level = match filter {
             Filter::Bilinear => 0.0,
             Filter::Mip => {
-                let neighbour = |nx, ny| draws(view, nx, ny).then(|| land(view, nx, ny)).flatten();
+                // A neighbour in the other image of a lens pair does not count either.
+                let neighbour = |nx, ny| {
+                    let n = draws(view, nx, ny).then(|| land(view, nx, ny)).flatten()?;
+                    plan.lens.same_image(q, n).then_some(n)
+                };
                 lod(q, neighbour(x ^ 1, y), neighbour(x, y ^ 1))
             }
         };

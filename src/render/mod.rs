@@ -12,3 +12,4 @@ pub mod cpu;
 pub mod gpu;
 pub mod mip;
 pub mod shutter_fit;
+pub mod stitch;

@@ -39,3 +39,25 @@ impl World for PanoramaWorld {
         bilinear_wrap_x(&self.image, self.point(ray))
     }
 }
+
+/// A panorama of photographs: `photos` in cells of a grid of `columns` across the whole
+/// longitude and rows of the same height (each photo scaled to fill its cell), taken in turn
+/// and shifted by one per row; the rows start half a cell above the top, so that the horizon
+/// runs through the middle of a row of photographs rather than along their edges.
+pub fn mosaic(photos: &[RgbImage], width: u32, height: u32, columns: u32) -> RgbImage {
+    assert!(!photos.is_empty() && columns > 0, "photographs to lay out");
+    let cell = (width / columns, (height / 4).max(1));
+    let scaled: Vec<RgbImage> = photos
+        .iter()
+        .map(|p| image::imageops::resize(p, cell.0, cell.1, image::imageops::FilterType::Triangle))
+        .collect();
+    let mut out = RgbImage::new(width, height);
+    for (x, y, px) in out.enumerate_pixels_mut() {
+        let shifted = y + cell.1 / 2;
+        let (col, row) = ((x / cell.0).min(columns - 1), shifted / cell.1);
+        let photo = &scaled[((row * columns + col + row) as usize) % scaled.len()];
+        let (px_x, px_y) = ((x - col * cell.0).min(cell.0 - 1), shifted % cell.1);
+        *px = *photo.get_pixel(px_x, px_y);
+    }
+    out
+}

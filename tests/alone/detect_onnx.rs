@@ -6,8 +6,8 @@
 
 use crate::common;
 
-use common::ctl;
 use common::gcs::reported;
+use common::{ctl, photos};
 use digiview::detect::scan::model_views;
 use digiview::geometry::rotation::direction;
 use digiview::scene::PanoramaWorld;
@@ -18,20 +18,6 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
-
-/// Where setup.sh unpacks darknet's photographs.
-fn photos() -> PathBuf {
-    let cache = std::env::var_os("XDG_CACHE_HOME")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(&std::env::var_os("HOME").unwrap()).join(".cache"));
-    let dir = cache.join("digiview/darknet/usr/share/darknet/data");
-    assert!(
-        dir.join("person.jpg").is_file(),
-        "{}: no photographs; run scripts/setup.sh",
-        dir.display()
-    );
-    dir
-}
 
 /// A photograph laid on the plane tangent to the sky at `yaw`, `pitch` (its top towards the
 /// zenith).

@@ -32,6 +32,21 @@ use std::path::PathBuf;
 pub const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// The shipped lens.cal.
+/// Where setup.sh unpacks darknet's photographs (person, dog, horses, kite, giraffe, eagle,
+/// scream): real pictures for the tests that need them.
+pub fn photos() -> PathBuf {
+    let cache = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| std::path::Path::new(&std::env::var_os("HOME").unwrap()).join(".cache"));
+    let dir = cache.join("digiview/darknet/usr/share/darknet/data");
+    assert!(
+        dir.join("person.jpg").is_file(),
+        "{}: no photographs; run scripts/setup.sh",
+        dir.display()
+    );
+    dir
+}
+
 pub fn lens_cal_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("lens-cal/lens.cal")
 }

@@ -337,7 +337,7 @@ fn lens_models_named_ahead_are_drawn_from_the_first_frame_without_a_build() {
         .map(|name| (name, seen(name, &state)))
         .collect();
     let mut r = renderer(PixelFormat::I420, Filter::Mip);
-    r.expect_lens_models(lenses.iter().map(|(_, (lens, _))| &lens.radial.model));
+    r.expect_lenses(lenses.iter().map(|(_, (lens, _))| lens));
     draw(&mut r, &lenses[0].1, &state);
     let built = r.pipelines();
     for (name, other) in &lenses[1..] {

@@ -50,6 +50,7 @@ mod rolling_shutter;
 mod rtsp_wire;
 mod rules_table;
 mod services;
+mod sphere;
 mod stills_geotag;
 mod thermal;
 mod thermal_layer;

@@ -100,14 +100,14 @@ pub(super) fn read_pair(f: &Fields, lenses: &[LensEntry]) -> Result<LensEntry, L
         Some((angles, _)) => angles.map(|a| a.0),
         None => [0.0; 3],
     };
-    if rotation.iter().any(|a| !(a.abs() <= 0.5)) {
+    if rotation.iter().any(|a| a.is_nan() || a.abs() > 0.5) {
         return Err(f.invalid(
             "rotation",
             "each angle must be within 28deg of the back-to-back pose (roll, pitch, yaw)".into(),
         ));
     }
     let baseline = f.get::<[f64; 3]>("baseline")?.map_or([0.0; 3], |b| b.0);
-    if baseline.iter().any(|b| !(b.abs() <= 1.0)) {
+    if baseline.iter().any(|b| b.is_nan() || b.abs() > 1.0) {
         return Err(f.invalid(
             "baseline",
             "must be metres, each within 1 m (x, y, z)".into(),
@@ -115,14 +115,14 @@ pub(super) fn read_pair(f: &Fields, lenses: &[LensEntry]) -> Result<LensEntry, L
     }
     let feather = f
         .get::<Angle>("feather")?
-        .map_or(DEFAULT_FEATHER_DEG.to_radians(), |a| a.0 .0);
+        .map_or(DEFAULT_FEATHER_DEG.to_radians(), |a| a.0.0);
     if !(0.0..=MAX_FEATHER_DEG.to_radians()).contains(&feather) {
-        return Err(f.invalid(
-            "feather",
-            format!("must be 0 to {MAX_FEATHER_DEG}deg"),
-        ));
+        return Err(f.invalid("feather", format!("must be 0 to {MAX_FEATHER_DEG}deg")));
     }
-    let provenance = f.get::<Provenance>("provenance")?.map(|p| p.0).unwrap_or_default();
+    let provenance = f
+        .get::<Provenance>("provenance")?
+        .map(|p| p.0)
+        .unwrap_or_default();
     f.no_others()?;
     Ok(LensEntry {
         name,

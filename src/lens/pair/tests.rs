@@ -26,7 +26,9 @@ fn every_direction_lands_in_the_frame_and_comes_back_the_same_ray() {
     let lens = dual();
     assert_eq!(lens.fov(), 2.0 * PI);
     for ray in sphere(20_000) {
-        let p = lens.project(ray).unwrap_or_else(|| panic!("{ray} not seen"));
+        let p = lens
+            .project(ray)
+            .unwrap_or_else(|| panic!("{ray} not seen"));
         assert!(lens.in_frame(p), "{ray} → {p}");
         let back = lens.unproject(p).unwrap();
         assert!(back.distance(ray) < 1e-9, "{ray} → {p} → {back}");
@@ -49,7 +51,11 @@ fn the_back_lens_takes_what_lies_behind_and_the_seam_is_halfway() {
     let seam = DVec3::new(0.3, 0.7, 0.0).normalize();
     assert!((pair.first_weight(seam) - 0.5).abs() < 1e-12);
     let front = DVec3::new(0.3, 0.7, 0.2).normalize();
-    assert_eq!(pair.first_weight(front), 1.0, "11.5deg in front of the seam");
+    assert_eq!(
+        pair.first_weight(front),
+        1.0,
+        "11.5deg in front of the seam"
+    );
     assert_eq!(pair.first_weight(-front), 0.0);
 }
 
@@ -97,7 +103,10 @@ fn parse(extra: &str) -> Result<LensCal, crate::lens::LensError> {
 fn a_pair_that_cannot_be_one_source_is_refused_saying_why() {
     let base = "name = \"P\"\nlens_id = 9\n";
     for (fields, says) in [
-        ("lenses = [\"DUALF\"]", "lenses: must name two lenses (got 1)"),
+        (
+            "lenses = [\"DUALF\"]",
+            "lenses: must name two lenses (got 1)",
+        ),
         (
             "lenses = [\"DUALF\", \"NOPE\"]",
             "no `[[lens]]` named `NOPE` before this pair",
@@ -114,10 +123,7 @@ fn a_pair_that_cannot_be_one_source_is_refused_saying_why() {
             "lenses = [\"DUALF\", \"DUALB\"]\nrotation = [\"40deg\", 0, 0]",
             "rotation: each angle must be within 28deg",
         ),
-        (
-            "lenses = [\"DUALF\", \"DUALB\"]\nlens_id = 0",
-            "lens_id",
-        ),
+        ("lenses = [\"DUALF\", \"DUALB\"]\nlens_id = 0", "lens_id"),
     ] {
         let e = parse(&format!("{base}{fields}\n")).unwrap_err().to_string();
         assert!(e.contains(says), "{fields}: {e}");

@@ -9,6 +9,7 @@ use crate::geometry::Projection;
 use crate::geometry::shutter::KNOTS;
 use crate::layout::Rect;
 use crate::lens::Lens;
+use crate::lens::pair::Part;
 use crate::plan::{FramePlan, PlannedView, ViewMap};
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
@@ -29,8 +30,16 @@ pub struct GpuLens {
     pub counts: [u32; 4],
     pub pol: [[f32; 4]; OCAM_POL / 4],
     pub invpol: [[f32; 4]; OCAM_INVPOL / 4],
+    /// A lens pair's second lens, as the first's fields above (zero for one lens; the
+    /// offset's z is 1 for a pair), and the rotation into its frame (quaternion xyzw).
+    pub second_affine: [f32; 4],
+    pub second_inverse: [f32; 4],
+    pub second_offset: [f32; 4],
+    pub second_limits: [f32; 4],
+    pub second_k: [f32; 4],
+    pub second_from_first: [f32; 4],
 }
-const _: () = assert!(size_of::<GpuLens>() == 224);
+const _: () = assert!(size_of::<GpuLens>() == 320);
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -46,7 +55,7 @@ pub struct GpuParams {
     /// `ShutterTable::knots`, quaternions (x, y, z, w).
     pub shutter: [[f32; 4]; KNOTS],
 }
-const _: () = assert!(size_of::<GpuParams>() == 64 + 224 + 16 + 16 * KNOTS);
+const _: () = assert!(size_of::<GpuParams>() == 64 + 320 + 16 + 16 * KNOTS);
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -78,8 +87,6 @@ fn packed<const N: usize>(coefficients: &[f64]) -> [[f32; 4]; N] {
 }
 
 pub fn gpu_lens(lens: &Lens) -> Result<GpuLens, GpuError> {
-    let m = lens.affine.matrix;
-    let inv = m.inverse();
     let c = lens.radial.model.coefficients();
     if c.pol.len() > OCAM_POL || c.invpol.len() > OCAM_INVPOL {
         return Err(GpuError::Lens {
@@ -92,27 +99,58 @@ pub fn gpu_lens(lens: &Lens) -> Result<GpuLens, GpuError> {
             ),
         });
     }
-    let r_limit = lens.radial.r_of_theta(lens.half_fov).unwrap_or(0.0);
-    Ok(GpuLens {
-        affine: [m.x_axis.x, m.x_axis.y, m.y_axis.x, m.y_axis.y].map(|v| v as f32),
-        inverse: [inv.x_axis.x, inv.x_axis.y, inv.y_axis.x, inv.y_axis.y].map(|v| v as f32),
-        offset_frame: [
-            lens.affine.offset.x as f32,
-            lens.affine.offset.y as f32,
-            lens.width as f32,
-            lens.height as f32,
-        ],
-        limits: [
-            lens.half_fov as f32,
-            r_limit as f32,
-            lens.radial.limits.theta_max as f32,
-            lens.radial.limits.r_max.min(f32::MAX as f64) as f32,
-        ],
-        k: c.k.map(|v| v as f32),
+    let first = Part {
+        radial: lens.radial.clone(),
+        affine: lens.affine,
+        half_fov: lens
+            .pair
+            .as_ref()
+            .map_or(lens.half_fov, |p| p.first.half_fov),
+    };
+    let [affine, inverse, offset, limits, k] = part_fields(&first);
+    let mut out = GpuLens {
+        affine,
+        inverse,
+        offset_frame: [offset[0], offset[1], lens.width as f32, lens.height as f32],
+        limits,
+        k,
         counts: [c.pol.len() as u32, c.invpol.len() as u32, 0, 0],
         pol: packed(c.pol),
         invpol: packed(c.invpol),
-    })
+        ..GpuLens::zeroed()
+    };
+    if let Some(pair) = &lens.pair {
+        let [affine, inverse, offset, limits, k] = part_fields(&pair.second);
+        let q = pair.second_from_first;
+        out.second_affine = affine;
+        out.second_inverse = inverse;
+        out.second_offset = [offset[0], offset[1], 1.0, 0.0];
+        out.second_limits = limits;
+        out.second_k = k;
+        out.second_from_first = [q.x, q.y, q.z, q.w].map(|v| v as f32);
+    }
+    Ok(out)
+}
+
+/// One lens's matrix, inverse, principal point, limits (half field of view, normalized radius
+/// there, the model's θ and radius limits) and coefficients, as `GpuLens` holds them.
+fn part_fields(part: &Part) -> [[f32; 4]; 5] {
+    let m = part.affine.matrix;
+    let inv = m.inverse();
+    let r_limit = part.radial.r_of_theta(part.half_fov).unwrap_or(0.0);
+    let o = part.affine.offset;
+    [
+        [m.x_axis.x, m.x_axis.y, m.y_axis.x, m.y_axis.y].map(|v| v as f32),
+        [inv.x_axis.x, inv.x_axis.y, inv.y_axis.x, inv.y_axis.y].map(|v| v as f32),
+        [o.x as f32, o.y as f32, 0.0, 0.0],
+        [
+            part.half_fov as f32,
+            r_limit as f32,
+            part.radial.limits.theta_max as f32,
+            part.radial.limits.r_max.min(f32::MAX as f64) as f32,
+        ],
+        part.radial.model.coefficients().k.map(|v| v as f32),
+    ]
 }
 
 fn columns(m: DMat3) -> [[f32; 4]; 3] {

@@ -8,7 +8,7 @@
 
 use super::{Gpu, GpuError, shaders};
 use crate::frame::PixelFormat;
-use crate::lens::Model;
+use crate::lens::Lens;
 use crate::plan::Filter;
 use std::collections::HashMap;
 use std::sync::mpsc;
@@ -24,7 +24,7 @@ const ALL_KINDS: u32 = 0x1f;
 /// What the draw pipelines are built for: every override constant of shaders/render.wgsl.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(super) struct DrawKey {
-    /// `Model::code`.
+    /// `Lens::shader_model`: the model's code, and whether the lens is a pair.
     pub lens_model: u32,
     pub output: PixelFormat,
     pub filter: Filter,
@@ -396,10 +396,10 @@ impl Pipelines {
         }
     }
 
-    /// See `Renderer::expect_lens_models`.
-    pub fn expect_lens_models<'a>(&mut self, models: impl IntoIterator<Item = &'a Model>) {
+    /// See `Renderer::expect_lenses`.
+    pub fn expect_lenses<'a>(&mut self, lenses: impl IntoIterator<Item = &'a Lens>) {
         self.expected_models.clear();
-        for code in models.into_iter().map(Model::code) {
+        for code in lenses.into_iter().map(Lens::shader_model) {
             if !self.expected_models.contains(&code) {
                 self.expected_models.push(code);
             }

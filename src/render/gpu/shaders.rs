@@ -13,17 +13,17 @@ pub const MIP: &str = include_str!("../../../shaders/mip.wgsl");
 pub const VIEWS: &str = include_str!("../../../shaders/views.wgsl");
 pub const RENDER: &str = include_str!("../../../shaders/render.wgsl");
 
-/// `radial_r(theta)`: the normalized radius of the model whose code is the LENS_MODEL
+/// `radial_r(theta, k)`: the normalized radius of the model whose code is the LENS_MODEL
 /// override, by its twin `NAME_r` in shaders/lens.wgsl; negative for an unknown code.
 pub fn lens_models() -> String {
     let cases: String = Model::NAMES
         .iter()
         .enumerate()
-        .map(|(code, name)| format!("        case {code}u: {{ return {name}_r(theta); }}\n"))
+        .map(|(code, name)| format!("        case {code}u: {{ return {name}_r(theta, k); }}\n"))
         .collect();
     format!(
         "// Made from the lens models' registry (src/lens/models/mod.rs).\n\
-         fn radial_r(theta: f32) -> f32 {{\n    switch LENS_MODEL {{\n{cases}        \
+         fn radial_r(theta: f32, k: vec4f) -> f32 {{\n    switch LENS_MODEL & (PAIR_BIT - 1u) {{\n{cases}        \
          default: {{ return -1.0; }}\n    }}\n}}\n"
     )
 }
@@ -66,7 +66,7 @@ mod tests {
     #[test]
     fn every_lens_model_has_its_wgsl_twin() {
         for name in Model::NAMES {
-            let twin = format!("fn {name}_r(theta: f32) -> f32");
+            let twin = format!("fn {name}_r(theta: f32, k: vec4f) -> f32");
             assert!(LENS.contains(&twin), "shaders/lens.wgsl lacks {twin}");
         }
     }

@@ -47,7 +47,7 @@ fn constants() -> Vec<(String, f64)> {
 
 #[test]
 fn every_wgsl_constant_with_a_rust_twin_has_its_value() {
-    let twins: [(&str, f64); 20] = [
+    let twins: [(&str, f64); 21] = [
         ("FORMAT_RGBA", PixelFormat::Rgba.shader_code() as f64),
         ("FORMAT_I420", PixelFormat::I420.shader_code() as f64),
         ("FORMAT_NV12", PixelFormat::Nv12.shader_code() as f64),
@@ -68,6 +68,7 @@ fn every_wgsl_constant_with_a_rust_twin_has_its_value() {
         ("KR", yuv::KR as f32 as f64),
         ("KB", yuv::KB as f32 as f64),
         ("KG", yuv::KG as f32 as f64),
+        ("PAIR_BIT", crate::lens::PAIR_BIT as f64),
     ];
     let wgsl = constants();
     for (name, rust) in twins {
@@ -143,7 +144,13 @@ fn every_wgsl_struct_with_a_rust_twin_has_its_layout() {
             k,
             counts,
             pol,
-            invpol
+            invpol,
+            second_affine,
+            second_inverse,
+            second_offset,
+            second_limits,
+            second_k,
+            second_from_first
         ]
     );
     same_layout!(GpuView, "View", [rect, kind, m0, m1, m2, p]);

@@ -21,10 +21,11 @@ mod output;
 mod staged;
 
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
-use crate::lens::Model;
+use crate::lens::Lens;
 use crate::plan::Filter;
 use crate::plan::FramePlan;
 use crate::render::mip::ImagedBox;
+use crate::render::stitch::Stitches;
 use image::RgbImage;
 use output::Output;
 pub use output::OutputId;
@@ -74,6 +75,8 @@ pub struct Renderer {
     in_flight: VecDeque<InFlight>,
     /// The thermal layer's passes, made with the first frame that has one.
     layer: Option<LayerPass>,
+    /// A lens pair's seam, blended into each frame before it is uploaded.
+    stitches: Stitches,
 }
 
 impl Renderer {
@@ -98,6 +101,7 @@ impl Renderer {
             next_id: 0,
             in_flight: VecDeque::new(),
             layer: None,
+            stitches: Stitches::default(),
         })
     }
 
@@ -155,8 +159,8 @@ impl Renderer {
     /// their generic draw pipelines too, so a switch to one of them is drawn at once instead
     /// of waiting for a compilation (lavapipe: a second or two with a cold shader cache).
     /// Ignored with [`Renderer::fixed_view_kinds`].
-    pub fn expect_lens_models<'a>(&mut self, models: impl IntoIterator<Item = &'a Model>) {
-        self.pipelines.expect_lens_models(models);
+    pub fn expect_lenses<'a>(&mut self, lenses: impl IntoIterator<Item = &'a Lens>) {
+        self.pipelines.expect_lenses(lenses);
     }
 
     /// How many pipelines the renderer holds (every pass, every set of override constants
@@ -336,6 +340,8 @@ impl Renderer {
         plan: &FramePlan,
     ) -> Result<Option<RenderedFrame>, GpuError> {
         let started = Instant::now();
+        let stitched = self.stitches.stitched(&plan.lens, input, data);
+        let data = &stitched[..];
         self.prepare(data, input, plan)?;
         let id = self.next_id;
         let slot = (id % RING as u64) as usize;

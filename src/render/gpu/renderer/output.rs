@@ -136,7 +136,7 @@ impl Output {
             .iter()
             .fold(shutter, |kinds, v| kinds | 1 << v.kind[0]);
         let wanted = DrawKey {
-            lens_model: plan.lens.radial.model.code(),
+            lens_model: plan.lens.shader_model(),
             output: self.format,
             filter: self.filter,
             input: input.padded.format,

@@ -1,0 +1,230 @@
+//! The seam of a lens pair, blended in the frame before either renderer reads it. Both
+//! renderers draw each ray from the one lens that sees it best (`lens::pair`); here each
+//! pixel of either image near the seam takes the blend the ray it sees should have: its own
+//! lens's colour and the other lens's for the same ray, weighted by a smooth step across the
+//! feather. Both images then hold the same colour for a ray in the overlap, so the switch from
+//! one lens to the other shows nothing.
+//!
+//! The taps (which pixel, where the other lens sees its ray, with what weight) are worked out
+//! once per pair and frame layout; a frame then costs one bilinear sample per tap. Only the
+//! band the views can reach is done: the feather, and [`REACH`] beyond it on the side a lens
+//! is not chosen (mip filtering reads a little past where a view's rays land).
+
+use crate::frame::{PixelFormat, PlaneLayout, PlaneRows};
+use crate::lens::Lens;
+use crate::lens::pair::{Pair, Side, other, weight_of};
+use glam::DVec2;
+use rayon::prelude::*;
+use std::borrow::Cow;
+
+/// How far past the feather's edge (radians of margin) a lens's pixels still take the blend:
+/// what a coarse mip level at the seam reads from the side that is not drawn.
+pub const REACH: f64 = 0.035;
+
+/// One pixel of one plane that takes the blend.
+#[derive(Clone, Copy, Debug)]
+struct Tap {
+    /// Byte offset of the pixel's first channel.
+    dst: u32,
+    /// Byte offset of the top-left of the four pixels the other lens's sample reads.
+    src: u32,
+    /// The sample's position between them, in 256ths.
+    fx: u8,
+    fy: u8,
+    /// The other lens's share, in 255ths.
+    weight: u8,
+}
+
+/// One plane's taps: how many channels a pixel has and how far apart rows are.
+#[derive(Clone, Debug)]
+struct PlaneTaps {
+    channels: u32,
+    stride: u32,
+    taps: Vec<Tap>,
+}
+
+/// Where a frame of one layout from one lens pair takes the seam's blend.
+#[derive(Clone, Debug)]
+pub struct Stitch {
+    layout: PlaneLayout,
+    planes: Vec<PlaneTaps>,
+}
+
+impl Stitch {
+    /// The taps for frames of `layout` through `lens`; None for a lens that is not a pair.
+    pub fn new(lens: &Lens, layout: &PlaneLayout) -> Option<Stitch> {
+        let pair = lens.pair.as_ref()?;
+        let rows = layout.planes();
+        let planes = match layout.format {
+            PixelFormat::Rgba => vec![plane_taps(pair, &rows[0], 4, 1.0)],
+            PixelFormat::Nv12 => vec![
+                plane_taps(pair, &rows[0], 1, 1.0),
+                plane_taps(pair, &rows[1], 2, 2.0),
+            ],
+            PixelFormat::I420 => vec![
+                plane_taps(pair, &rows[0], 1, 1.0),
+                plane_taps(pair, &rows[1], 1, 2.0),
+                plane_taps(pair, &rows[2], 1, 2.0),
+            ],
+        };
+        Some(Stitch {
+            layout: *layout,
+            planes,
+        })
+    }
+
+    /// The layout these taps are for.
+    pub fn layout(&self) -> &PlaneLayout {
+        &self.layout
+    }
+
+    /// Pixels that take the blend, over every plane.
+    pub fn taps(&self) -> usize {
+        self.planes.iter().map(|p| p.taps.len()).sum()
+    }
+
+    /// Blends the seam of a frame of this layout in place. Every tap reads the frame as it
+    /// came (the blended values are worked out before any is written).
+    pub fn apply(&self, data: &mut [u8]) {
+        for plane in &self.planes {
+            let c = plane.channels as usize;
+            let values: Vec<[u8; 4]> = plane
+                .taps
+                .par_iter()
+                .map(|t| blended(data, t, c, plane.stride as usize))
+                .collect();
+            for (t, v) in plane.taps.iter().zip(values) {
+                let at = t.dst as usize;
+                data[at..at + c].copy_from_slice(&v[..c]);
+            }
+        }
+    }
+}
+
+/// The taps of the last lens and layout asked for, kept while they stay the same: what a
+/// renderer holds.
+#[derive(Debug, Default)]
+pub struct Stitches {
+    last: Option<(Lens, PlaneLayout, Option<Stitch>)>,
+}
+
+impl Stitches {
+    /// A frame's bytes with the seam blended, for frames of `layout` through `lens` (the
+    /// bytes as they are for a lens that is not a pair).
+    pub fn stitched<'a>(
+        &mut self,
+        lens: &Lens,
+        layout: &PlaneLayout,
+        data: &'a [u8],
+    ) -> Cow<'a, [u8]> {
+        if lens.pair.is_none() {
+            return Cow::Borrowed(data);
+        }
+        let fresh = self
+            .last
+            .as_ref()
+            .is_none_or(|(l, at, _)| l != lens || at != layout);
+        if fresh {
+            self.last = Some((lens.clone(), *layout, Stitch::new(lens, layout)));
+        }
+        match self.last.as_ref().and_then(|(_, _, s)| s.as_ref()) {
+            Some(stitch) if data.len() == layout.size as usize => {
+                let mut out = data.to_vec();
+                stitch.apply(&mut out);
+                Cow::Owned(out)
+            }
+            _ => Cow::Borrowed(data),
+        }
+    }
+}
+
+/// A tap's blended value, channel by channel (alpha kept).
+fn blended(data: &[u8], t: &Tap, channels: usize, stride: usize) -> [u8; 4] {
+    let (fx, fy) = (t.fx as u64, t.fy as u64);
+    let s = t.src as usize;
+    let mut out = [0u8; 4];
+    for (ch, slot) in out.iter_mut().enumerate().take(channels) {
+        let own = data[t.dst as usize + ch] as u64;
+        if channels == 4 && ch == 3 {
+            *slot = own as u8;
+            continue;
+        }
+        let at = |o: usize| data[s + o + ch] as u64;
+        let top = at(0) * (256 - fx) + at(channels) * fx;
+        let bottom = at(stride) * (256 - fx) + at(stride + channels) * fx;
+        let sample = top * (256 - fy) + bottom * fy; // 16 fractional bits
+        let w = t.weight as u64;
+        let mixed = ((own * (255 - w)) << 16) + sample * w;
+        *slot = ((mixed + (255 << 15)) / (255 << 16)) as u8;
+    }
+    out
+}
+
+/// The taps of one plane whose pixels are `scale` frame pixels across.
+fn plane_taps(pair: &Pair, rows: &PlaneRows, channels: u32, scale: f64) -> PlaneTaps {
+    let width = rows.bytes / channels;
+    let taps = (0..rows.rows)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            (0..width).filter_map(move |x| {
+                let tap = tap_at(pair, x, y, scale, (width, rows.rows))?;
+                let dst = rows.offset + y * rows.stride + x * channels;
+                let src = rows.offset + tap.1 * rows.stride + tap.0 * channels;
+                Some(Tap {
+                    dst,
+                    src,
+                    fx: tap.2,
+                    fy: tap.3,
+                    weight: tap.4,
+                })
+            })
+        })
+        .collect();
+    PlaneTaps {
+        channels,
+        stride: rows.stride,
+        taps,
+    }
+}
+
+/// Plane pixel (x, y)'s tap, if it takes the blend: the other lens's sample's top-left
+/// pixel and fractions, and its share.
+fn tap_at(
+    pair: &Pair,
+    x: u32,
+    y: u32,
+    scale: f64,
+    size: (u32, u32),
+) -> Option<(u32, u32, u8, u8, u8)> {
+    // The plane pixel's centre in frame pixels, and back.
+    let to_frame = |p: DVec2| (p + 0.5) * scale - 0.5;
+    let to_plane = |q: DVec2| (q + 0.5) / scale - 0.5;
+    let q = to_frame(DVec2::new(x as f64, y as f64));
+    let side = pair.side_at(q);
+    let ray = pair.unproject(q)?;
+    let (_, d) = pair.best(ray);
+    // The margin difference as this pixel's own lens sees it: positive where it is chosen.
+    let own = if side == Side::First { d } else { -d };
+    if own >= pair.feather / 2.0 || own < -(pair.feather / 2.0 + REACH) {
+        return None;
+    }
+    let share = 1.0 - weight_of(own, pair.feather);
+    let there = to_plane(pair.project_in(other(side), ray)?);
+    // The other lens's sample must lie within the plane with its right and lower neighbours.
+    let max = DVec2::new(size.0 as f64 - 1.001, size.1 as f64 - 1.001);
+    if there.x < 0.0 || there.y < 0.0 || there.x > max.x || there.y > max.y {
+        return None;
+    }
+    let base = there.floor();
+    let f = ((there - base) * 256.0).round().min(DVec2::splat(255.0));
+    Some((
+        base.x as u32,
+        base.y as u32,
+        f.x as u8,
+        f.y as u8,
+        (share * 255.0).round() as u8,
+    ))
+}
+
+#[cfg(test)]
+mod tests;
