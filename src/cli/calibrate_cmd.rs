@@ -234,7 +234,7 @@ fn coefficients(model: &Model) -> String {
 }
 
 /// Today's date (UTC), YYYY-MM-DD.
-fn today() -> String {
+pub(super) fn today() -> String {
     let days = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs() / 86400) as i64;

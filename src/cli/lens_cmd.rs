@@ -34,6 +34,10 @@ pub enum LensCommand {
     /// lens.cal entry (--write adds it), with the fit's error and which parts of the image
     /// circle the board covered.
     Calibrate(super::calibrate_cmd::CalibrateArgs),
+    /// Measure a lens pair's rotation (how its second lens sits from back to back) from a
+    /// frame of any scene with detail around the seam: prints the fitted angles, how well the
+    /// two lenses then agree, and the pair's lens.cal table (--write puts it in place).
+    PairFit(super::pair_fit_cmd::PairFitArgs),
     /// Draw a calibration board to print: an AprilGrid of tag36h11 tags, as Kalibr's.
     Board {
         /// The board: cols=N,rows=N,tag=LENGTH[,spacing=RATIO] (tag measured across its black
@@ -124,6 +128,7 @@ pub fn run(flag: Option<&Path>, cmd: LensCommand) -> Result<()> {
             output_entry(flag, &entry, &args)
         }
         LensCommand::Calibrate(args) => super::calibrate_cmd::run(flag, args),
+        LensCommand::PairFit(args) => super::pair_fit_cmd::run(flag, args),
     }
 }
 

@@ -170,14 +170,14 @@ fn replace_file(path: &Path, body: &str) -> Result<()> {
     Ok(())
 }
 
-/// The text with the `[[lens]]` table that starts on 1-based `line` replaced by `table`: its
+/// The text with the `[[lens]]` (or `[[pair]]`) table that starts on 1-based `line` replaced by `table`: its
 /// keys go, its comments stay above the new table (marked as the replaced entry's notes), and
 /// the comments above it and before the next table stay where they are.
 fn replace_table(text: &str, line: usize, table: &str) -> String {
     let lines: Vec<&str> = text.lines().collect();
     let start = line - 1;
     let mut end = (start + 1..lines.len())
-        .find(|&i| lines[i].trim_start().starts_with("[[lens]]"))
+        .find(|&i| lines[i].trim_start().starts_with("[["))
         .unwrap_or(lines.len());
     while end > start + 1 && {
         let l = lines[end - 1].trim_start();

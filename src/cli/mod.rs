@@ -11,6 +11,7 @@ mod lens_cmd;
 mod lens_entry;
 pub mod locate;
 mod output;
+mod pair_fit_cmd;
 mod readout_args;
 mod readout_cmd;
 mod render_cmd;
@@ -148,7 +149,14 @@ impl StateArgs {
             None => State::default(),
         };
         if let Some(l) = &self.lens {
-            s.settings.lens = cal.find(l)?.lens_id;
+            let entry = cal.find(l)?;
+            s.settings.lens = entry.lens_id;
+            // A pair's two images come in one frame of its own shape: the sensor's, until a
+            // source or --size says otherwise.
+            if entry.pair.is_some() {
+                (s.settings.sensor.width, s.settings.sensor.height) = (entry.width, entry.height);
+                s.settings.sensor.roi = None;
+            }
         }
         if let Some(v) = self.layout {
             s.settings.output.layout = LayoutMode::try_from(v).context("--layout")?;

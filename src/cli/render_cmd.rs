@@ -110,6 +110,14 @@ pub struct SynthArgs {
     /// files: frames/%03d.png).
     #[arg(long, requires = "board", conflicts_with = "board_pose")]
     board_sweep: Option<usize>,
+    /// Draw a frame of the dual-fisheye pair lens.cal calls DUAL (both images side by side,
+    /// at the pair's frame size unless --size says otherwise): --lens DUAL, shorter.
+    #[arg(long, conflicts_with_all = ["truth", "equirect", "board"])]
+    dual: bool,
+    /// With a lens pair: draw it with its second lens turned ROLL,PITCH,YAW from back to
+    /// back (e.g. 2deg,0,0) rather than as lens.cal has it, to make frames of a known pose.
+    #[arg(long, value_parser = parse_rotation)]
+    pair_rotation: Option<[f64; 3]>,
     /// Capture the fisheye frame row by row, as a rolling-shutter camera does.
     #[command(flatten)]
     readout: ReadoutArgs,
@@ -229,6 +237,13 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
         .then(|| output::image_output(&args.out, &world_file))
         .transpose()?;
     let mut state_args = args.state.clone();
+    if args.dual {
+        let pair = cal
+            .find("DUAL")
+            .context("--dual draws the pair lens.cal calls DUAL")?;
+        state_args.lens = Some(pair.name.clone());
+        state_args.size = state_args.size.or(Some((pair.width, pair.height)));
+    }
     // Without --truth, --size names the fisheye frame (as in `synth --size 3840x2160`).
     let mut sensor = args.sensor;
     if !args.truth && args.equirect.is_none() && sensor.is_none() {
@@ -255,8 +270,15 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
         Box::new(PanoramaWorld::new(img))
     };
     let sensor = (state.settings.sensor.width, state.settings.sensor.height);
-    let lens =
+    let mut lens =
         Lenses::new(cal).for_frame(state.settings.lens, sensor, state.settings.sensor.roi())?;
+    if let Some(rotation) = args.pair_rotation {
+        lens = turned_pair(cal, state.settings.lens, rotation)?.for_frame(
+            sensor.0,
+            sensor.1,
+            state.settings.sensor.roi(),
+        );
+    }
     if let Some(board) = &args.board {
         return super::calibrate_cmd::synth_boards(
             board,
@@ -285,4 +307,30 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
     };
     bar.finish_and_clear();
     save(&img, target.expect("made without a board"))
+}
+
+/// `--pair-rotation`: three angles, roll,pitch,yaw (each radians, or degrees with "deg").
+fn parse_rotation(text: &str) -> Result<[f64; 3]> {
+    let angles: Vec<f64> = text
+        .split(',')
+        .map(crate::units::parse_angle)
+        .collect::<Result<_, _>>()?;
+    let Ok(angles) = <[f64; 3]>::try_from(angles) else {
+        anyhow::bail!("{text}: three angles, roll,pitch,yaw (e.g. 2deg,0,0)");
+    };
+    Ok(angles)
+}
+
+/// The pair `id` of lens.cal with its second lens turned `rotation` from back to back.
+fn turned_pair(cal: &LensCal, id: u8, rotation: [f64; 3]) -> Result<crate::lens::Lens> {
+    let entry = cal.by_id(id).context("the lens is not in lens.cal")?;
+    let Some(pair) = &entry.pair else {
+        anyhow::bail!(
+            "--pair-rotation: {} is a single lens, not a pair",
+            entry.name
+        );
+    };
+    let mut pair = pair.clone();
+    pair.rotation = rotation;
+    Ok(pair.lens(&entry.name, entry.lens_id))
 }

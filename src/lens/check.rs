@@ -1,6 +1,6 @@
 //! `digiview lens check`: is a lens.cal entry self-consistent and usable?
 
-use super::LensEntry;
+use super::{LensEntry, Side};
 use glam::{DVec2, DVec3};
 use std::f64::consts::PI;
 
@@ -17,6 +17,9 @@ pub struct Finding {
 /// within 1e-3 px over the whole image circle, the declared circle radius matches the model,
 /// and the principal point lies in the frame.
 pub fn check(entry: &LensEntry) -> Vec<Finding> {
+    if entry.pair.is_some() {
+        return check_pair(entry);
+    }
     let lens = entry.lens();
     let mut out = vec![];
     let limit = lens.radial.limits.theta_max;
@@ -74,6 +77,69 @@ pub fn check(entry: &LensEntry) -> Vec<Finding> {
     out.push(Finding {
         ok: visible,
         what: "the image centre sees the scene".into(),
+    });
+    out
+}
+
+/// Checks a pair (its lenses are checked as entries of their own): every direction is seen
+/// and its ray comes back through the pixel it lands on, each lens's image circle lies in
+/// its own part of the frame, and the fields overlap by more than the seam's blend needs.
+fn check_pair(entry: &LensEntry) -> Vec<Finding> {
+    let lens = entry.lens();
+    let pair = lens.pair.as_ref().expect("a pair");
+    let mut worst: f64 = 0.0;
+    let mut unseen = 0;
+    let scale = lens.affine.mean_scale();
+    for ring in 0..=80 {
+        let theta = PI * ring as f64 / 80.0;
+        for k in 0..96 {
+            let phi = 2.0 * PI * k as f64 / 96.0;
+            let ray = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            match lens.project(ray).and_then(|p| lens.unproject(p)) {
+                Some(back) => worst = worst.max((back - ray).length() * scale),
+                None => unseen += 1,
+            }
+        }
+    }
+    let mut out = vec![Finding {
+        ok: unseen == 0 && worst < ROUND_TRIP_PX,
+        what: format!(
+            "every direction is seen and comes back through its pixel: worst {worst:.1e} px, \
+             {unseen} unseen (limit {ROUND_TRIP_PX:e} px)"
+        ),
+    }];
+    for (side, part) in [(Side::First, &pair.first), (Side::Second, &pair.second)] {
+        let strays = (0..360)
+            .filter_map(|k| {
+                let a = (k as f64).to_radians();
+                let rim = DVec3::new(
+                    part.half_fov.sin() * a.cos(),
+                    part.half_fov.sin() * a.sin(),
+                    part.half_fov.cos(),
+                );
+                part.project(rim)
+            })
+            .filter(|p| pair.side_at(*p) != side || !lens.in_frame(*p))
+            .count();
+        out.push(Finding {
+            ok: strays == 0,
+            what: format!("the {side:?} lens's image circle lies in its own part of the frame ({strays} of 360 rim points outside)").to_lowercase(),
+        });
+    }
+    let overlap = pair.first.half_fov + pair.second.half_fov - PI;
+    // Both lenses must see the whole blend: half the feather either side of the seam.
+    let needed = pair.feather / 2.0;
+    out.push(Finding {
+        ok: overlap >= needed,
+        what: format!(
+            "the fields overlap by {:.2}deg, as much as the seam's blend takes ({:.2}deg)",
+            overlap.to_degrees(),
+            needed.to_degrees()
+        ),
     });
     out
 }

@@ -18,6 +18,7 @@ pub mod check;
 pub mod import;
 pub mod models;
 pub mod pair;
+pub mod pair_fit;
 pub mod samples;
 
 pub use calfile::{LensCal, LensEntry, LensError, Provenance};

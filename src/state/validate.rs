@@ -87,6 +87,15 @@ impl Settings {
                 ));
             }
         }
+        let (sw, sh) = (self.sensor.width as u64, self.sensor.height as u64);
+        let (lw, lh) = (lens.width as u64, lens.height as u64);
+        if lens.pair.is_some() && self.sensor.roi.is_none() && (sw * lh).abs_diff(sh * lw) > sw {
+            return invalid(format!(
+                "lens {} sees two images side by side in a {lw}x{lh} frame; the sensor is \
+                 {sw}x{sh}: a frame of that shape is needed",
+                lens.name
+            ));
+        }
         Ok(())
     }
 

@@ -14,6 +14,7 @@ use digiview::geometry::rotation::MOUNT_FROM_LENS;
 use digiview::image_ops::{bilinear, pixel, psnr};
 use digiview::layout::Rect;
 use digiview::lens::pair::{PairPose, correction};
+use digiview::lens::pair_fit::fit_pair;
 use digiview::lens::{Lens, Side};
 use digiview::modes::{LayoutMode, OverlayMode};
 use digiview::plan::{Filter, FramePlan};
@@ -45,10 +46,15 @@ fn world() -> &'static PanoramaWorld {
 
 /// The DUAL pair with the back lens turned by `roll` (about its axis) from back to back.
 fn pair(roll: f64) -> Lens {
+    posed([roll, 0.0, 0.0])
+}
+
+/// The DUAL pair with the back lens turned by roll, pitch and yaw from back to back.
+fn posed([roll, pitch, yaw]: [f64; 3]) -> Lens {
     let cal = lens_cal();
     let lens = |n: &str| cal.find(n).unwrap().lens();
     let pose = PairPose {
-        correction: correction(roll, 0.0, 0.0),
+        correction: correction(roll, pitch, yaw),
         baseline: DVec3::ZERO,
         feather: 4.0 * DEG,
     };
@@ -289,3 +295,126 @@ fn views_across_the_seam_match_ground_truth(gpu: &Gpu) {
 }
 
 on_each_backend!(views_across_the_seam_match_ground_truth);
+
+/// A frame's right half (the second lens's image) made `gain` times as bright.
+fn brighter_second(frame: &mut RgbImage, gain: f64) {
+    let half = frame.width() / 2;
+    for (x, _, p) in frame.enumerate_pixels_mut() {
+        if x >= half {
+            p.0 = p.0.map(|c| (c as f64 * gain).round().min(255.0) as u8);
+        }
+    }
+}
+
+#[test]
+fn the_pair_fit_finds_the_back_lens_turned_2_degrees_from_what_both_lenses_see() {
+    let truth = [2.0, 0.4, -0.3];
+    let s = state(ON_THE_SEAM);
+    let mut frame = fisheye(world(), &posed(truth.map(|a| a * DEG)), &s);
+    // The back lens's exposure is not the front's: the fit must not care.
+    brighter_second(&mut frame, 1.5);
+    let luma = image::DynamicImage::ImageRgb8(frame).to_luma8();
+    let fit = fit_pair(&pair(0.0), &luma, |line| eprintln!("{line}")).unwrap();
+    let got = fit.rotation.map(f64::to_degrees);
+    eprintln!(
+        "fitted roll, pitch, yaw {got:.4?}deg (sigma {:.4?}deg) for {truth:?}; rms luma \
+         difference {:.2} -> {:.2} over {} rays; gain {:.3}",
+        fit.sigma.map(f64::to_degrees),
+        fit.before_rms,
+        fit.after_rms,
+        fit.rays,
+        fit.gain
+    );
+    for (g, t) in got.iter().zip(truth) {
+        assert!((g - t).abs() <= 0.05, "{got:.4?} against {truth:?}");
+    }
+    assert!(fit.after_rms < fit.before_rms / 3.0);
+}
+
+/// `digiview` with the lens.cal at `cal`.
+fn digiview(args: &[&str], cal: &std::path::Path) -> std::process::Output {
+    let out = super::cli::digiview(args, cal);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "digiview {args:?}: {err}");
+    out
+}
+
+#[test]
+fn synth_dual_then_pair_fit_write_then_render_looks_straight_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let cal = dir.path().join("lens.cal");
+    std::fs::copy(super::cli::shipped(), &cal).unwrap();
+    let pano = dir.path().join("pano.png");
+    world().image.save(&pano).unwrap();
+    let (frame, up) = (dir.path().join("pair.png"), dir.path().join("up.png"));
+    let p = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    digiview(
+        &[
+            "synth",
+            "--dual",
+            "--world",
+            &p(&pano),
+            "--size",
+            "1920x960",
+        ]
+        .into_iter()
+        .chain([
+            "--pair-rotation",
+            "2deg,0.4deg,-0.3deg",
+            "--out",
+            &p(&frame),
+        ])
+        .collect::<Vec<_>>(),
+        &cal,
+    );
+    assert_eq!(image::image_dimensions(&frame).unwrap(), (1920, 960));
+    let fit = digiview(
+        &["lens", "pair-fit", "DUAL", "--frame", &p(&frame), "--write"],
+        &cal,
+    );
+    let said = String::from_utf8_lossy(&fit.stdout);
+    eprintln!("{said}");
+    let angle = |name: &str| -> f64 {
+        let after = said.split(&format!("{name} ")).nth(1).unwrap();
+        after.split("deg").next().unwrap().parse().unwrap()
+    };
+    let got = [angle("roll"), angle("pitch"), angle("yaw")];
+    for (g, want) in got.iter().zip([2.0, 0.4, -0.3]) {
+        assert!((g - want).abs() <= 0.05, "{said}");
+    }
+    let shown = digiview(&["lens", "show", "DUAL"], &cal);
+    let shown = String::from_utf8_lossy(&shown.stdout);
+    assert!(shown.contains("rotation = [\"1.99") || shown.contains("rotation = [\"2.00"));
+    assert!(shown.contains("by = \"digiview lens pair-fit\""), "{shown}");
+    digiview(&["lens", "check", "DUAL"], &cal);
+    // Straight up, through the back lens: the sky of the panorama, not black.
+    digiview(
+        &[
+            "render",
+            "--input",
+            &p(&frame),
+            "--lens",
+            "DUAL",
+            "--layout",
+            "0",
+        ]
+        .into_iter()
+        .chain([
+            "--cam",
+            "0:pitch=90deg,fov=90deg,lock=7",
+            "--backend",
+            "cpu",
+        ])
+        .chain(["--size", "640x480", "--out", &p(&up)])
+        .collect::<Vec<_>>(),
+        &cal,
+    );
+    let up = image::open(&up).unwrap().to_rgb8();
+    // The view's middle (the frame's sides are the layout's bars).
+    let middle = image::imageops::crop_imm(&up, 120, 60, 360, 360).to_image();
+    let black = middle
+        .pixels()
+        .filter(|p| p.0.iter().all(|&c| c < 8))
+        .count();
+    assert!(black < 100, "{black} black pixels of {}", 360 * 360);
+}
