@@ -15,7 +15,10 @@ use crate::lens::Lens;
 use crate::lens::pair::{Pair, Side, other, weight_of};
 use glam::DVec2;
 use rayon::prelude::*;
+use gains::{Component, Matching};
 use std::borrow::Cow;
+
+pub mod gains;
 
 /// How far past the feather's edge (radians of margin) a lens's pixels still take the blend:
 /// what a coarse mip level at the seam reads from the side that is not drawn.
@@ -33,21 +36,28 @@ struct Tap {
     fy: u8,
     /// The other lens's share, in 255ths.
     weight: u8,
+    /// Whether the pixel is the second lens's.
+    second: bool,
 }
 
-/// One plane's taps: how many channels a pixel has and how far apart rows are.
+/// One plane's taps: where its rows lie, how many channels a pixel has, how many frame
+/// pixels across one of its pixels is.
 #[derive(Clone, Debug)]
 struct PlaneTaps {
+    rows: PlaneRows,
     channels: u32,
-    stride: u32,
+    scale: f64,
     taps: Vec<Tap>,
 }
 
-/// Where a frame of one layout from one lens pair takes the seam's blend.
+/// Where a frame of one layout from one lens pair takes the seam's blend, and which parts of
+/// the frame are which lens's (for the exposure match, `gains`).
 #[derive(Clone, Debug)]
 pub struct Stitch {
     layout: PlaneLayout,
     planes: Vec<PlaneTaps>,
+    pair: Pair,
+    components: Vec<Component>,
 }
 
 impl Stitch {
@@ -70,6 +80,8 @@ impl Stitch {
         Some(Stitch {
             layout: *layout,
             planes,
+            pair: (**pair).clone(),
+            components: gains::components(layout.format),
         })
     }
 
@@ -88,10 +100,11 @@ impl Stitch {
     pub fn apply(&self, data: &mut [u8]) {
         for plane in &self.planes {
             let c = plane.channels as usize;
+            let stride = plane.rows.stride as usize;
             let values: Vec<[u8; 4]> = plane
                 .taps
                 .par_iter()
-                .map(|t| blended(data, t, c, plane.stride as usize))
+                .map(|t| blended(data, t, c, stride))
                 .collect();
             for (t, v) in plane.taps.iter().zip(values) {
                 let at = t.dst as usize;
@@ -106,6 +119,7 @@ impl Stitch {
 #[derive(Debug, Default)]
 pub struct Stitches {
     last: Option<(Lens, PlaneLayout, Option<Stitch>)>,
+    matching: Matching,
 }
 
 impl Stitches {
@@ -126,22 +140,110 @@ impl Stitches {
             .is_none_or(|(l, at, _)| l != lens || at != layout);
         if fresh {
             self.last = Some((lens.clone(), *layout, Stitch::new(lens, layout)));
+            self.matching = Matching::default();
         }
         match self.last.as_ref().and_then(|(_, _, s)| s.as_ref()) {
             Some(stitch) if data.len() == layout.size as usize => {
+                self.matching
+                    .update(&stitch.components, &stitch.means(data));
                 let mut out = data.to_vec();
+                stitch.correct(&mut out, &self.matching.tables(&stitch.components));
                 stitch.apply(&mut out);
                 Cow::Owned(out)
             }
             _ => Cow::Borrowed(data),
         }
     }
+
+    /// How far apart the last pair's lenses are, by component (`gains::Matching::apart`):
+    /// what the operator is told of the match. Empty before a pair's first frame.
+    pub fn apart(&self) -> Vec<f64> {
+        match self.last.as_ref().and_then(|(_, _, s)| s.as_ref()) {
+            Some(stitch) => self.matching.apart(&stitch.components),
+            None => Vec::new(),
+        }
+    }
+}
+
+impl Stitch {
+    /// Each component's mean over the overlap as the first and the second lens see it.
+    fn means(&self, data: &[u8]) -> Vec<(f64, f64)> {
+        self.components
+            .iter()
+            .map(|c| {
+                let plane = &self.planes[c.plane];
+                let (ch, n) = (c.channel, plane.channels as usize);
+                let stride = plane.rows.stride as usize;
+                let (a, b, count) = plane
+                    .taps
+                    .par_iter()
+                    .map(|t| {
+                        let own = data[t.dst as usize + ch] as f64;
+                        let other = sample(data, t, ch, n, stride) as f64 / 65536.0;
+                        let (a, b) = if t.second { (other, own) } else { (own, other) };
+                        (a, b, 1.0)
+                    })
+                    .reduce(|| (0.0, 0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
+                (a / f64::max(count, 1.0), b / f64::max(count, 1.0))
+            })
+            .collect()
+    }
+
+    /// Puts each component of each lens's part of the frame through its table.
+    fn correct(&self, data: &mut [u8], tables: &[[[u8; 256]; 2]]) {
+        for (c, table) in self.components.iter().zip(tables) {
+            let plane = &self.planes[c.plane];
+            let (n, rows) = (plane.channels as usize, plane.rows);
+            let width = (rows.bytes as usize) / n;
+            for y in 0..rows.rows {
+                let start = (rows.offset + y * rows.stride) as usize;
+                let row = &mut data[start..start + width * n];
+                let (split, right_is_second) = self.split(plane, y, width);
+                for (x, px) in row.chunks_exact_mut(n).enumerate() {
+                    let second = (x >= split) == right_is_second;
+                    px[c.channel] = table[usize::from(second)][px[c.channel] as usize];
+                }
+            }
+        }
+    }
+
+    /// Where plane row `y` passes from one lens's part to the other's: the first column of
+    /// the part that lies right, and whether that part is the second lens's.
+    fn split(&self, plane: &PlaneTaps, y: u32, width: usize) -> (usize, bool) {
+        let at = |x: usize| {
+            let q = (DVec2::new(x as f64, y as f64) + 0.5) * plane.scale - 0.5;
+            self.pair.side_at(q) == Side::Second
+        };
+        let (left, right) = (at(0), at(width - 1));
+        if left == right {
+            return (if right { 0 } else { width }, right);
+        }
+        // The side changes once along a row (a half plane): find where.
+        let (mut lo, mut hi) = (0, width - 1);
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if at(mid) == left {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        (hi, right)
+    }
+}
+
+/// The other lens's bilinear sample of a tap's channel `ch`, in 65536ths.
+fn sample(data: &[u8], t: &Tap, ch: usize, channels: usize, stride: usize) -> u64 {
+    let (fx, fy) = (t.fx as u64, t.fy as u64);
+    let s = t.src as usize;
+    let at = |o: usize| data[s + o + ch] as u64;
+    let top = at(0) * (256 - fx) + at(channels) * fx;
+    let bottom = at(stride) * (256 - fx) + at(stride + channels) * fx;
+    top * (256 - fy) + bottom * fy
 }
 
 /// A tap's blended value, channel by channel (alpha kept).
 fn blended(data: &[u8], t: &Tap, channels: usize, stride: usize) -> [u8; 4] {
-    let (fx, fy) = (t.fx as u64, t.fy as u64);
-    let s = t.src as usize;
     let mut out = [0u8; 4];
     for (ch, slot) in out.iter_mut().enumerate().take(channels) {
         let own = data[t.dst as usize + ch] as u64;
@@ -149,10 +251,7 @@ fn blended(data: &[u8], t: &Tap, channels: usize, stride: usize) -> [u8; 4] {
             *slot = own as u8;
             continue;
         }
-        let at = |o: usize| data[s + o + ch] as u64;
-        let top = at(0) * (256 - fx) + at(channels) * fx;
-        let bottom = at(stride) * (256 - fx) + at(stride + channels) * fx;
-        let sample = top * (256 - fy) + bottom * fy; // 16 fractional bits
+        let sample = sample(data, t, ch, channels, stride);
         let w = t.weight as u64;
         let mixed = ((own * (255 - w)) << 16) + sample * w;
         *slot = ((mixed + (255 << 15)) / (255 << 16)) as u8;
@@ -167,7 +266,7 @@ fn plane_taps(pair: &Pair, rows: &PlaneRows, channels: u32, scale: f64) -> Plane
         .into_par_iter()
         .flat_map_iter(|y| {
             (0..width).filter_map(move |x| {
-                let tap = tap_at(pair, x, y, scale, (width, rows.rows))?;
+                let (tap, second) = tap_at(pair, x, y, scale, (width, rows.rows))?;
                 let dst = rows.offset + y * rows.stride + x * channels;
                 let src = rows.offset + tap.1 * rows.stride + tap.0 * channels;
                 Some(Tap {
@@ -176,26 +275,28 @@ fn plane_taps(pair: &Pair, rows: &PlaneRows, channels: u32, scale: f64) -> Plane
                     fx: tap.2,
                     fy: tap.3,
                     weight: tap.4,
+                    second,
                 })
             })
         })
         .collect();
     PlaneTaps {
+        rows: *rows,
         channels,
-        stride: rows.stride,
+        scale,
         taps,
     }
 }
 
 /// Plane pixel (x, y)'s tap, if it takes the blend: the other lens's sample's top-left
-/// pixel and fractions, and its share.
+/// pixel and fractions, and its share; and whether the pixel is the second lens's.
 fn tap_at(
     pair: &Pair,
     x: u32,
     y: u32,
     scale: f64,
     size: (u32, u32),
-) -> Option<(u32, u32, u8, u8, u8)> {
+) -> Option<((u32, u32, u8, u8, u8), bool)> {
     // The plane pixel's centre in frame pixels, and back.
     let to_frame = |p: DVec2| (p + 0.5) * scale - 0.5;
     let to_plane = |q: DVec2| (q + 0.5) / scale - 0.5;
@@ -217,13 +318,14 @@ fn tap_at(
     }
     let base = there.floor();
     let f = ((there - base) * 256.0).round().min(DVec2::splat(255.0));
-    Some((
+    let tap = (
         base.x as u32,
         base.y as u32,
         f.x as u8,
         f.y as u8,
         (share * 255.0).round() as u8,
-    ))
+    );
+    Some((tap, side == Side::Second))
 }
 
 #[cfg(test)]

@@ -91,3 +91,61 @@ fn a_frame_of_one_lens_has_no_seam_and_a_pair_touches_only_a_band() {
     // The feather (4deg) and the reach (2deg) of two circles of 950 px: about 6%.
     assert!((0.03..0.10).contains(&share), "{share:.3}");
 }
+
+/// A 4:2:0 frame whose luma is `a` in the first lens's half and `b` in the second's, chroma
+/// `cb`, `cr` and `cb2`, `cr2` likewise.
+fn exposed(layout: &PlaneLayout, luma: (u8, u8), cb: (u8, u8), cr: (u8, u8)) -> Vec<u8> {
+    let mut data = halves(layout, luma.0, luma.1);
+    let chroma = layout.planes()[1];
+    for y in 0..chroma.rows {
+        let start = (chroma.offset + y * chroma.stride) as usize;
+        let row = &mut data[start..start + chroma.bytes as usize];
+        let half = row.len() / 2;
+        for (i, px) in row.chunks_exact_mut(2).enumerate() {
+            let second = i * 2 >= half;
+            px[0] = if second { cb.1 } else { cb.0 };
+            px[1] = if second { cr.1 } else { cr.0 };
+        }
+    }
+    data
+}
+
+/// Luma at a frame position (nearest pixel) and the NV12 chroma there.
+fn yuv_at(layout: &PlaneLayout, data: &[u8], p: DVec2) -> [u8; 3] {
+    let (x, y) = (p.x.round() as u32, p.y.round() as u32);
+    let (u, v) = layout.chroma_at(x / 2, y / 2);
+    [data[(y * layout.stride + x) as usize], data[u], data[v]]
+}
+
+#[test]
+fn a_second_lens_half_again_as_bright_and_warmer_is_matched_halfway_and_slowly() {
+    let layout = PlaneLayout::aligned(PixelFormat::Nv12, 960, 480, 64).unwrap();
+    let lens = dual(960, 480);
+    let pair = lens.pair.as_ref().unwrap();
+    let deep = DVec3::new(0.6, 0.3, 0.3).normalize();
+    let (front, back) = (
+        pair.project_in(Side::First, deep).unwrap(),
+        pair.project_in(Side::Second, -deep).unwrap(),
+    );
+    let mut stitches = Stitches::default();
+    let even = exposed(&layout, (100, 100), (128, 128), (128, 128));
+    let out = stitches.stitched(&lens, &layout, &even);
+    assert_eq!(yuv_at(&layout, &out, front), [100, 128, 128]);
+    // Luma 16 + 84 against 16 + 126 (1.5 times above black); the back lens 6 codes bluer.
+    let uneven = exposed(&layout, (100, 142), (128, 134), (128, 122));
+    let out = stitches.stitched(&lens, &layout, &uneven).into_owned();
+    let (f, b) = (yuv_at(&layout, &out, front), yuv_at(&layout, &out, back));
+    assert!(b[0] - f[0] > 35, "one frame on, the match has barely moved: {f:?} {b:?}");
+    for _ in 0..120 {
+        stitches.stitched(&lens, &layout, &uneven);
+    }
+    let out = stitches.stitched(&lens, &layout, &uneven).into_owned();
+    let (f, b) = (yuv_at(&layout, &out, front), yuv_at(&layout, &out, back));
+    // Halfway: the geometric mean of 84 and 126 above black, and chroma 131 and 125.
+    let want = 16.0 + (84.0f64 * 126.0).sqrt();
+    for (v, w) in [(f[0], want), (b[0], want), (f[1], 131.0), (b[1], 131.0), (f[2], 125.0), (b[2], 125.0)] {
+        assert!((v as f64 - w).abs() <= 1.0, "{f:?} {b:?} against {want:.1}");
+    }
+    let apart = stitches.apart();
+    assert!((apart[0] - 1.5).abs() < 0.01 && (apart[1] - 6.0).abs() < 0.1, "{apart:?}");
+}
