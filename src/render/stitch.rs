@@ -13,9 +13,9 @@
 use crate::frame::{PixelFormat, PlaneLayout, PlaneRows};
 use crate::lens::Lens;
 use crate::lens::pair::{Pair, Side, other, weight_of};
+use gains::{Component, Matching};
 use glam::DVec2;
 use rayon::prelude::*;
-use gains::{Component, Matching};
 use std::borrow::Cow;
 
 pub mod gains;

@@ -38,7 +38,9 @@ pub fn components(format: PixelFormat) -> Vec<Component> {
     };
     let (luma, chroma) = (Kind::Gain { zero: 16.0 }, Kind::Offset);
     match format {
-        PixelFormat::Rgba => (0..3).map(|ch| c(0, ch, Kind::Gain { zero: 0.0 })).collect(),
+        PixelFormat::Rgba => (0..3)
+            .map(|ch| c(0, ch, Kind::Gain { zero: 0.0 }))
+            .collect(),
         PixelFormat::Nv12 => vec![c(0, 0, luma), c(1, 0, chroma), c(1, 1, chroma)],
         PixelFormat::I420 => vec![c(0, 0, luma), c(1, 0, chroma), c(2, 0, chroma)],
     }

@@ -135,7 +135,10 @@ fn a_second_lens_half_again_as_bright_and_warmer_is_matched_halfway_and_slowly()
     let uneven = exposed(&layout, (100, 142), (128, 134), (128, 122));
     let out = stitches.stitched(&lens, &layout, &uneven).into_owned();
     let (f, b) = (yuv_at(&layout, &out, front), yuv_at(&layout, &out, back));
-    assert!(b[0] - f[0] > 35, "one frame on, the match has barely moved: {f:?} {b:?}");
+    assert!(
+        b[0] - f[0] > 35,
+        "one frame on, the match has barely moved: {f:?} {b:?}"
+    );
     for _ in 0..120 {
         stitches.stitched(&lens, &layout, &uneven);
     }
@@ -143,9 +146,19 @@ fn a_second_lens_half_again_as_bright_and_warmer_is_matched_halfway_and_slowly()
     let (f, b) = (yuv_at(&layout, &out, front), yuv_at(&layout, &out, back));
     // Halfway: the geometric mean of 84 and 126 above black, and chroma 131 and 125.
     let want = 16.0 + (84.0f64 * 126.0).sqrt();
-    for (v, w) in [(f[0], want), (b[0], want), (f[1], 131.0), (b[1], 131.0), (f[2], 125.0), (b[2], 125.0)] {
+    for (v, w) in [
+        (f[0], want),
+        (b[0], want),
+        (f[1], 131.0),
+        (b[1], 131.0),
+        (f[2], 125.0),
+        (b[2], 125.0),
+    ] {
         assert!((v as f64 - w).abs() <= 1.0, "{f:?} {b:?} against {want:.1}");
     }
     let apart = stitches.apart();
-    assert!((apart[0] - 1.5).abs() < 0.01 && (apart[1] - 6.0).abs() < 0.1, "{apart:?}");
+    assert!(
+        (apart[0] - 1.5).abs() < 0.01 && (apart[1] - 6.0).abs() < 0.1,
+        "{apart:?}"
+    );
 }
