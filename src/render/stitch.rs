@@ -266,16 +266,15 @@ fn plane_taps(pair: &Pair, rows: &PlaneRows, channels: u32, scale: f64) -> Plane
         .into_par_iter()
         .flat_map_iter(|y| {
             (0..width).filter_map(move |x| {
-                let (tap, second) = tap_at(pair, x, y, scale, (width, rows.rows))?;
-                let dst = rows.offset + y * rows.stride + x * channels;
-                let src = rows.offset + tap.1 * rows.stride + tap.0 * channels;
+                let at = |x: u32, y: u32| rows.offset + y * rows.stride + x * channels;
+                let tap = tap_at(pair, (x, y), scale, (width, rows.rows))?;
                 Some(Tap {
-                    dst,
-                    src,
-                    fx: tap.2,
-                    fy: tap.3,
-                    weight: tap.4,
-                    second,
+                    dst: at(x, y),
+                    src: at(tap.src.0, tap.src.1),
+                    fx: tap.fx,
+                    fy: tap.fy,
+                    weight: tap.weight,
+                    second: tap.second,
                 })
             })
         })
@@ -288,15 +287,18 @@ fn plane_taps(pair: &Pair, rows: &PlaneRows, channels: u32, scale: f64) -> Plane
     }
 }
 
+/// Where a tap's other-lens sample starts: a plane pixel (x, y).
+struct PlaneTap {
+    src: (u32, u32),
+    fx: u8,
+    fy: u8,
+    weight: u8,
+    second: bool,
+}
+
 /// Plane pixel (x, y)'s tap, if it takes the blend: the other lens's sample's top-left
 /// pixel and fractions, and its share; and whether the pixel is the second lens's.
-fn tap_at(
-    pair: &Pair,
-    x: u32,
-    y: u32,
-    scale: f64,
-    size: (u32, u32),
-) -> Option<((u32, u32, u8, u8, u8), bool)> {
+fn tap_at(pair: &Pair, (x, y): (u32, u32), scale: f64, size: (u32, u32)) -> Option<PlaneTap> {
     // The plane pixel's centre in frame pixels, and back.
     let to_frame = |p: DVec2| (p + 0.5) * scale - 0.5;
     let to_plane = |q: DVec2| (q + 0.5) / scale - 0.5;
@@ -318,14 +320,13 @@ fn tap_at(
     }
     let base = there.floor();
     let f = ((there - base) * 256.0).round().min(DVec2::splat(255.0));
-    let tap = (
-        base.x as u32,
-        base.y as u32,
-        f.x as u8,
-        f.y as u8,
-        (share * 255.0).round() as u8,
-    );
-    Some((tap, side == Side::Second))
+    Some(PlaneTap {
+        src: (base.x as u32, base.y as u32),
+        fx: f.x as u8,
+        fy: f.y as u8,
+        weight: (share * 255.0).round() as u8,
+        second: side == Side::Second,
+    })
 }
 
 #[cfg(test)]
