@@ -85,7 +85,8 @@ pub struct SynthArgs {
     /// Where to write the image (.png or .jpg).
     #[arg(long)]
     out: PathBuf,
-    /// The world: `grid` (procedural) or an equirectangular panorama image.
+    /// The world: `grid` (procedural), an equirectangular panorama image, or `photos:DIR`, a
+    /// panorama laid out from the photographs (JPEG, PNG) in DIR.
     #[arg(long, default_value = "grid")]
     world: String,
     /// Draw the exact output frame for the state instead of the fisheye frame.
@@ -263,6 +264,8 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
     }
     let world: Box<dyn World> = if args.world == "grid" {
         Box::new(GridWorld::default())
+    } else if let Some(dir) = args.world.strip_prefix("photos:") {
+        Box::new(PanoramaWorld::new(photo_panorama(Path::new(dir))?))
     } else {
         let img = image::open(&args.world)
             .with_context(|| format!("reading the panorama {}", args.world))?
@@ -333,4 +336,33 @@ fn turned_pair(cal: &LensCal, id: u8, rotation: [f64; 3]) -> Result<crate::lens:
     let mut pair = pair.clone();
     pair.rotation = rotation;
     Ok(pair.lens(&entry.name, entry.lens_id))
+}
+
+/// `--world photos:DIR`: the photographs in DIR (JPEG and PNG, by name) laid out as a 4096x2048
+/// panorama, eight across (`scene::panorama::mosaic`).
+fn photo_panorama(dir: &Path) -> Result<RgbImage> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("reading the photographs in {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            let ext = p.extension().and_then(|e| e.to_str()).unwrap_or("");
+            matches!(ext.to_ascii_lowercase().as_str(), "jpg" | "jpeg" | "png")
+        })
+        .collect();
+    paths.sort();
+    if paths.is_empty() {
+        anyhow::bail!(
+            "{}: no photographs (.jpg, .jpeg, .png) to lay out",
+            dir.display()
+        );
+    }
+    let photos = paths
+        .iter()
+        .map(|p| {
+            image::open(p)
+                .map(|i| i.to_rgb8())
+                .with_context(|| format!("reading {}", p.display()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(crate::scene::panorama::mosaic(&photos, 4096, 2048, 8))
 }
