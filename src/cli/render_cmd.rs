@@ -262,16 +262,7 @@ pub fn synth(cal: &LensCal, args: SynthArgs) -> Result<()> {
     {
         anyhow::bail!("--equirect {w}x{h}: each side is 2..={MAX_EQUIRECT}");
     }
-    let world: Box<dyn World> = if args.world == "grid" {
-        Box::new(GridWorld::default())
-    } else if let Some(dir) = args.world.strip_prefix("photos:") {
-        Box::new(PanoramaWorld::new(photo_panorama(Path::new(dir))?))
-    } else {
-        let img = image::open(&args.world)
-            .with_context(|| format!("reading the panorama {}", args.world))?
-            .to_rgb8();
-        Box::new(PanoramaWorld::new(img))
-    };
+    let world = world_of(&args.world)?;
     let sensor = (state.settings.sensor.width, state.settings.sensor.height);
     let mut lens =
         Lenses::new(cal).for_frame(state.settings.lens, sensor, state.settings.sensor.roi())?;
@@ -336,6 +327,20 @@ fn turned_pair(cal: &LensCal, id: u8, rotation: [f64; 3]) -> Result<crate::lens:
     let mut pair = pair.clone();
     pair.rotation = rotation;
     Ok(pair.lens(&entry.name, entry.lens_id))
+}
+
+/// `--world`: the grid, a panorama image, or a panorama of the photographs in a directory.
+fn world_of(spec: &str) -> Result<Box<dyn World>> {
+    if spec == "grid" {
+        return Ok(Box::new(GridWorld::default()));
+    }
+    let image = match spec.strip_prefix("photos:") {
+        Some(dir) => photo_panorama(Path::new(dir))?,
+        None => image::open(spec)
+            .with_context(|| format!("reading the panorama {spec}"))?
+            .to_rgb8(),
+    };
+    Ok(Box::new(PanoramaWorld::new(image)))
 }
 
 /// `--world photos:DIR`: the photographs in DIR (JPEG and PNG, by name) laid out as a 4096x2048

@@ -130,10 +130,16 @@ impl Head {
     }
 
     /// The stream's renderer: I420 out, mip filtering, ready from its first frame for a
-    /// LENS SET to any lens of lens.cal.
+    /// LENS SET to any lens of lens.cal of the kind the source's frames are for: a single
+    /// lens, or a pair (whose frames no single lens takes, nor the other way round, so the
+    /// other kind's pipelines would only lengthen a first start).
     pub(super) fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
         let mut renderer = Renderer::new(gpu, PixelFormat::I420, Filter::Mip)?;
-        renderer.expect_lenses(self.gate.settings().lenses().all());
+        let lenses = self.gate.settings().lenses();
+        let pair = lenses
+            .get(self.settings().lens)
+            .is_some_and(|l| l.pair.is_some());
+        renderer.expect_lenses(lenses.all().filter(|l| l.pair.is_some() == pair));
         Ok(renderer)
     }
 

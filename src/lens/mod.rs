@@ -10,7 +10,8 @@
 //! to pixels: diag(fx, fy) for the classic models, OCam's (c, d, e) matrix for Scaramuzza's.
 //! `calfile` reads and writes lens.cal, `import` other tools' calibrations, `calibrate` makes
 //! them from pictures of a board, `check` tests an entry, and [`Lenses`] looks a state's lens
-//! up.
+//! up. `pair` makes two fisheyes back to back one lens that sees the whole sphere, and
+//! `pair_fit` measures how the two sit.
 
 pub mod calfile;
 pub mod calibrate;

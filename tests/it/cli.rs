@@ -234,8 +234,8 @@ fn import_writes_a_new_lens_and_replaces_only_when_asked() {
     let list = String::from_utf8_lossy(&digiview(&["lens", "list"], &cal).stdout).into_owned();
     assert_eq!(
         list.lines().count(),
-        6,
-        "header, four shipped lenses, one imported: {list}"
+        9,
+        "header, seven shipped lenses, one imported: {list}"
     );
     assert!(list.contains("double_sphere"));
     // A shipped lens in the middle of the file: its notes, and every other comment, stay.

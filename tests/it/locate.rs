@@ -137,7 +137,9 @@ fn lens_cal_is_looked_for_flag_first_then_environment_directory_user_config_buil
     let (names, log) = lens_names(&place, &[]);
     assert_eq!(
         names,
-        ["CIL216", "CIL018", "LN007", "BOSON320"],
+        [
+            "CIL216", "CIL018", "LN007", "BOSON320", "DUALF", "DUALB", "DUAL"
+        ],
         "built in: {log}"
     );
 
@@ -215,7 +217,12 @@ fn importing_without_a_lens_cal_starts_the_users_own_from_the_built_in_one() {
         "{log}"
     );
     let (names, _) = lens_names(&place, &[]);
-    assert_eq!(names, ["CIL216", "CIL018", "LN007", "BOSON320", "KAL"]);
+    assert_eq!(
+        names,
+        [
+            "CIL216", "CIL018", "LN007", "BOSON320", "DUALF", "DUALB", "DUAL", "KAL"
+        ]
+    );
 }
 
 #[test]

@@ -414,7 +414,12 @@ fn settings_are_parameters_described_by_a_definition_file_served_over_mavlink_ft
         .filter(|n| n.has_tag_name("option"))
         .map(|n| n.attribute("name").unwrap())
         .collect();
-    assert_eq!(lenses, ["CIL216", "CIL018", "LN007", "BOSON320"]);
+    assert_eq!(
+        lenses,
+        [
+            "CIL216", "CIL018", "LN007", "BOSON320", "DUALF", "DUALB", "DUAL"
+        ]
+    );
 
     // Every parameter listed with its value from the live state.
     gcs.forget();

@@ -206,6 +206,8 @@ impl LensCal {
                 ..entry
             });
         }
+        // In the file's order (pairs are read after every lens, whose names they use).
+        entries.sort_by_key(|e| e.line);
         Ok(LensCal {
             path: path.into(),
             entries,

@@ -90,7 +90,7 @@ pub(super) fn read_pair(f: &Fields, lenses: &[LensEntry]) -> Result<LensEntry, L
             .ok_or_else(|| {
                 f.invalid(
                     "lenses",
-                    format!("no `[[lens]]` named `{wanted}` before this pair"),
+                    format!("no `[[lens]]` named `{wanted}` in the file"),
                 )
             })
     };

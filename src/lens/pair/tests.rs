@@ -109,7 +109,7 @@ fn a_pair_that_cannot_be_one_source_is_refused_saying_why() {
         ),
         (
             "lenses = [\"DUALF\", \"NOPE\"]",
-            "no `[[lens]]` named `NOPE` before this pair",
+            "no `[[lens]]` named `NOPE` in the file",
         ),
         (
             "lenses = [\"DUALF\", \"CIL216\"]",
