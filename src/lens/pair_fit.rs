@@ -109,7 +109,7 @@ pub fn fit_pair(
     if seen < rays.len() / 4 {
         return Err(PairFitError::TooFlat(seen));
     }
-    let sensitivity = sharp.sensitivity(p);
+    let (sensitivity, sigma) = sharp.spread(p);
     for (angle, change) in ["roll", "pitch", "yaw"].into_iter().zip(sensitivity) {
         if change < LEAST_SENSITIVITY {
             return Err(PairFitError::Unpinned { angle, change });
@@ -118,7 +118,7 @@ pub fn fit_pair(
     Ok(PairFit {
         rotation: p,
         sensitivity,
-        sigma: sharp.sigma(p),
+        sigma,
         before_rms: rms(&before),
         after_rms: rms(&after),
         rays: seen,
@@ -249,27 +249,22 @@ impl Problem<'_> {
         p
     }
 
-    /// The rms change of the residuals a 0.1° change of each angle makes, at `p`.
-    fn sensitivity(&self, p: [f64; 3]) -> [f64; 3] {
+    /// From one Jacobian at `p`: the rms change of the residuals a 0.1° change of each angle
+    /// makes, and the angles' formal standard errors, σ² (JᵀJ)⁻¹.
+    fn spread(&self, p: [f64; 3]) -> ([f64; 3], [f64; 3]) {
         let (r, j) = self.jacobian(p);
         let (jtj, _) = normal(&r, &j);
         let n = r.len().max(1) as f64;
-        [0, 1, 2].map(|k| (jtj.col(k)[k] / n).sqrt() * 0.1f64.to_radians())
-    }
-
-    /// Formal standard errors at `p`: σ² (JᵀJ)⁻¹.
-    fn sigma(&self, p: [f64; 3]) -> [f64; 3] {
-        let (r, j) = self.jacobian(p);
-        let dof = (r.len() as f64 - 5.0).max(1.0);
-        let var = r.iter().map(|x| x * x).sum::<f64>() / dof;
-        let (jtj, _) = normal(&r, &j);
-        match jtj.determinant().abs() > 0.0 {
+        let sensitivity = [0, 1, 2].map(|k| (jtj.col(k)[k] / n).sqrt() * 0.1f64.to_radians());
+        let var = r.iter().map(|x| x * x).sum::<f64>() / (n - 5.0).max(1.0);
+        let sigma = match jtj.determinant().abs() > 0.0 {
             true => {
                 let inv = jtj.inverse();
                 [0, 1, 2].map(|k| (var * inv.col(k)[k]).sqrt())
             }
             false => [f64::INFINITY; 3],
-        }
+        };
+        (sensitivity, sigma)
     }
 }
 

@@ -57,7 +57,6 @@ struct PlaneTaps {
 /// the frame are which lens's (for the exposure match, `gains`).
 #[derive(Clone, Debug)]
 pub struct Stitch {
-    layout: PlaneLayout,
     planes: Vec<PlaneTaps>,
     pair: Pair,
     components: Vec<Component>,
@@ -81,16 +80,10 @@ impl Stitch {
             ],
         };
         Some(Stitch {
-            layout: *layout,
             planes,
             pair: (**pair).clone(),
             components: gains::components(layout.format),
         })
-    }
-
-    /// The layout these taps are for.
-    pub fn layout(&self) -> &PlaneLayout {
-        &self.layout
     }
 
     /// Pixels that take the blend, over every plane.

@@ -237,8 +237,8 @@ impl LensCal {
     }
 }
 
-/// One `[[lens]]` table: the fields every lens has, then its model's own.
-fn read_entry(f: &Fields) -> Result<LensEntry, LensError> {
+/// The name and lens_id every table of lens.cal has, `[[lens]]` and `[[pair]]`.
+fn name_and_id(f: &Fields) -> Result<(String, u8), LensError> {
     let (name, _) = f.required::<String>("name")?;
     let name = name.trim().to_string();
     if name.is_empty() {
@@ -247,6 +247,12 @@ fn read_entry(f: &Fields) -> Result<LensEntry, LensError> {
     let (lens_id, _) = f.required::<i64>("lens_id")?;
     let lens_id = u8::try_from(lens_id)
         .map_err(|_| f.invalid("lens_id", format!("must be 0..=255 (got {lens_id})")))?;
+    Ok((name, lens_id))
+}
+
+/// One `[[lens]]` table: the fields every lens has, then its model's own.
+fn read_entry(f: &Fields) -> Result<LensEntry, LensError> {
+    let (name, lens_id) = name_and_id(f)?;
     let dim = |key: &'static str| -> Result<u32, LensError> {
         let (v, _) = f.required::<i64>(key)?;
         u32::try_from(v)

@@ -67,14 +67,7 @@ impl PairOf {
 
 /// Reads a `[[pair]]` table, whose lenses are among `lenses` (the file's `[[lens]]` entries).
 pub(super) fn read_pair(f: &Fields, lenses: &[LensEntry]) -> Result<LensEntry, LensError> {
-    let (name, _) = f.required::<String>("name")?;
-    let name = name.trim().to_string();
-    if name.is_empty() {
-        return Err(f.invalid("name", "must not be empty".into()));
-    }
-    let (lens_id, _) = f.required::<i64>("lens_id")?;
-    let lens_id = u8::try_from(lens_id)
-        .map_err(|_| f.invalid("lens_id", format!("must be 0..=255 (got {lens_id})")))?;
+    let (name, lens_id) = super::name_and_id(f)?;
     let (names, _) = f.required::<Vec<String>>("lenses")?;
     let [first, second] = names.as_slice() else {
         return Err(f.invalid(
