@@ -103,25 +103,27 @@ impl ViewPacing {
 /// The span over which a view's own stream's rate is measured.
 pub const RATE_SPAN: Duration = Duration::from_secs(2);
 
-/// The rate a view's own stream really has: its frames over the last [`RATE_SPAN`].
+/// The rate a view's own stream really has: its frames over the last [`RATE_SPAN`] of its own
+/// timestamps, as a client plays them (frames leave an encoder that is catching up faster
+/// than they were made).
 #[derive(Default)]
 pub(super) struct RateMeter {
-    frames: VecDeque<Instant>,
+    frames: VecDeque<Duration>,
 }
 
 impl RateMeter {
-    /// A frame went out at `now`; the rate since the oldest one kept, frames per second, once
-    /// half a span is covered.
-    pub fn tick(&mut self, now: Instant) -> Option<f64> {
-        self.frames.push_back(now);
+    /// A frame stamped `pts` went out; the rate since the oldest one kept, frames per second,
+    /// once half a span is covered.
+    pub fn tick(&mut self, pts: Duration) -> Option<f64> {
+        self.frames.push_back(pts);
         while self
             .frames
             .front()
-            .is_some_and(|t| now.duration_since(*t) > RATE_SPAN)
+            .is_some_and(|t| pts.saturating_sub(*t) > RATE_SPAN)
         {
             self.frames.pop_front();
         }
-        let span = now.duration_since(*self.frames.front()?).as_secs_f64();
+        let span = pts.saturating_sub(*self.frames.front()?).as_secs_f64();
         (span >= RATE_SPAN.as_secs_f64() / 2.0).then(|| (self.frames.len() - 1) as f64 / span)
     }
 }
@@ -211,10 +213,9 @@ mod tests {
     }
 
     #[test]
-    fn a_streams_rate_is_its_frames_over_the_last_two_seconds() {
+    fn a_streams_rate_is_its_frames_over_the_last_two_seconds_of_its_timestamps() {
         let mut m = RateMeter::default();
-        let t0 = Instant::now();
-        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let at = Duration::from_millis;
         // Nothing said before a second is covered.
         assert_eq!(m.tick(at(0)), None);
         assert_eq!(m.tick(at(500)), None);

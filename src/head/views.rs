@@ -221,11 +221,14 @@ impl Head {
             }
             let head = self.clone();
             // The rate its stream really has, from the units that leave its encoder (one
-            // behind drops frames it was given): what VIDEO_STREAM_INFORMATION says.
+            // behind drops frames it was given) by their timestamps: what
+            // VIDEO_STREAM_INFORMATION says.
             let meter = Mutex::new(RateMeter::default());
             match Encoder::new(&self.cfg.encoder, fps, move |au| {
-                let rate = meter.locked().tick(Instant::now());
-                head.gate.sensed().set_view_rate(i, rate);
+                if let Some(pts) = au.buffer.pts() {
+                    let rate = meter.locked().tick(pts.into());
+                    head.gate.sensed().set_view_rate(i, rate);
+                }
                 head.outputs.clients.push_view(i, &au.buffer);
                 head.outputs.capture.on_view_access_unit(i, &au);
                 for p in &head.outputs.view_publishers[i] {
