@@ -28,6 +28,8 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use image::RgbImage;
 use std::sync::OnceLock;
 
+mod v360;
+
 /// The pair frame's size: half the shipped rig's 3840x1920.
 const FRAME: (u32, u32) = (1920, 960);
 
@@ -122,10 +124,20 @@ struct Rendered {
 /// `views` rendered from the frame lens `drawn` captures, through lens `lens` (the pair as
 /// lens.cal has it, which may not be how it was drawn).
 fn render(gpu: &Gpu, drawn: &Lens, lens: &Lens, views: [(f64, f64); 4]) -> Rendered {
+    render_with(gpu, (drawn, lens), views, Filter::Mip)
+}
+
+/// [`render`] with the GPU's filter `filter`.
+fn render_with(
+    gpu: &Gpu,
+    (drawn, lens): (&Lens, &Lens),
+    views: [(f64, f64); 4],
+    filter: Filter,
+) -> Rendered {
     let s = state(views);
     let frame = fisheye(world(), drawn, &s);
     let plan = FramePlan::new(&s, lens).unwrap();
-    let mut renderer = renderer_on(gpu, PixelFormat::Rgba, Filter::Mip);
+    let mut renderer = renderer_on(gpu, PixelFormat::Rgba, filter);
     let got = render_image(&mut renderer, &frame, &plan).unwrap().to_rgb();
     let mut alone_render = |side| {
         let (s, lens) = alone(&s, drawn, side);
