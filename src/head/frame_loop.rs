@@ -129,10 +129,8 @@ impl Head {
         Ok(chosen.gpu)
     }
 
-    /// The stream's renderer: I420 out, mip filtering, ready from its first frame for a
-    /// LENS SET to any lens of lens.cal of the kind the source's frames are for: a single
-    /// lens, or a pair (whose frames no single lens takes, nor the other way round, so the
-    /// other kind's pipelines would only lengthen a first start).
+    /// The stream's renderer: I420 out, mip filtering, ready from its first frame for a LENS
+    /// SET to any lens of lens.cal of the source's kind (single or pair; not the other's).
     pub(super) fn renderer(&self, gpu: &Gpu) -> Result<Renderer, GpuError> {
         let mut renderer = Renderer::new(gpu, PixelFormat::I420, Filter::Mip)?;
         let lenses = self.gate.settings().lenses();

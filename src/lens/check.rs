@@ -1,5 +1,6 @@
 //! `digiview lens check`: is a lens.cal entry self-consistent and usable?
 
+use super::pair::Mask;
 use super::{LensEntry, Side};
 use glam::{DVec2, DVec3};
 use std::f64::consts::PI;
@@ -141,5 +142,42 @@ fn check_pair(entry: &LensEntry) -> Vec<Finding> {
             needed.to_degrees()
         ),
     });
+    out.extend(
+        pair.masks
+            .iter()
+            .enumerate()
+            .map(|(i, m)| mask_finding(pair, i, m)),
+    );
     out
+}
+
+/// How much of what mask `i` hides the other lens sees unhidden (so the view shows it, not
+/// the airframe), over the pixels of the polygon in its lens's image, every fourth each way.
+fn mask_finding(pair: &crate::lens::pair::Pair, i: usize, mask: &Mask) -> Finding {
+    let (lo, hi) = mask.points.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let (mut inside, mut filled) = (0usize, 0usize);
+    for y in (lo.y as i64..=hi.y as i64).step_by(4) {
+        for x in (lo.x as i64..=hi.x as i64).step_by(4) {
+            let p = DVec2::new(x as f64, y as f64);
+            let Some(ray) = pair.unproject(p).filter(|_| mask.contains(p)) else {
+                continue;
+            };
+            inside += 1;
+            let other = crate::lens::pair::other(pair.side_at(p));
+            let there = pair.project_in(other, ray);
+            filled += there.is_some_and(|q| pair.masks.iter().all(|m| !m.contains(q))) as usize;
+        }
+    }
+    let share = filled as f64 / inside.max(1) as f64;
+    Finding {
+        ok: inside > 0 && share >= 0.99,
+        what: format!(
+            "mask {}: the other lens sees {:.0}% of what it hides (the rest shows the airframe)",
+            i + 1,
+            share * 100.0
+        ),
+    }
 }

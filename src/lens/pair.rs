@@ -8,11 +8,15 @@
 //!
 //! The pair's frame is the first lens's: a ray there turns into the second lens's frame by
 //! [`Pair::second_from_first`], the nominal back-to-back pose (a half turn about the image's
-//! down axis, so both images stand upright) followed by the calibrated correction.
+//! down axis, so both images stand upright) followed by the calibrated correction. What the
+//! airframe hides from one lens is drawn from the other ([`mask`]).
 
 use super::{Lens, PixelAffine, Radial};
 use glam::{DQuat, DVec2, DVec3};
+pub use mask::Mask;
 use std::f64::consts::PI;
+
+pub mod mask;
 
 /// One lens of a pair, in the pair's frame of pixels.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,6 +63,8 @@ pub struct Pair {
     pub baseline: DVec3,
     /// Width of the blend across the seam, radians of margin difference.
     pub feather: f64,
+    /// What the airframe hides, in frame pixels: drawn from the other lens.
+    pub masks: Vec<Mask>,
 }
 
 /// The nominal back-to-back pose: the second lens looks the other way, turned a half turn
@@ -134,8 +140,24 @@ impl Pair {
         Pair {
             first: part(&self.first),
             second: part(&self.second),
+            masks: self
+                .masks
+                .iter()
+                .map(|m| m.rescaled(scale, origin))
+                .collect(),
             ..self.clone()
         }
+    }
+
+    /// The share of the other lens's colour that frame point `p` (in lens `side`'s image)
+    /// takes for the airframe: what its masks say, easing in over the feather's width in that
+    /// lens's pixels.
+    pub fn masked(&self, side: Side, p: DVec2) -> f64 {
+        let part = match side {
+            Side::First => &self.first,
+            Side::Second => &self.second,
+        };
+        mask::masked_share(&self.masks, p, self.feather * part.affine.mean_scale())
     }
 }
 
@@ -211,6 +233,7 @@ impl Lens {
             second_from_first: pose.correction * back_to_back(),
             baseline: pose.baseline,
             feather: pose.feather,
+            masks: pose.masks,
         };
         Lens {
             name: name.to_string(),
@@ -223,12 +246,13 @@ impl Lens {
 }
 
 /// How a pair's lenses sit and blend: lens.cal's `[[pair]]` fields.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct PairPose {
     /// The correction after the nominal back-to-back turn ([`correction`]).
     pub correction: DQuat,
     pub baseline: DVec3,
     pub feather: f64,
+    pub masks: Vec<Mask>,
 }
 
 #[cfg(test)]

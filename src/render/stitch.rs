@@ -8,7 +8,8 @@
 //! The taps (which pixel, where the other lens sees its ray, with what weight) are worked out
 //! once per pair and frame layout; a frame then costs one bilinear sample per tap. Only the
 //! band the views can reach is done: the feather, and [`REACH`] beyond it on the side a lens
-//! is not chosen (mip filtering reads a little past where a view's rays land).
+//! is not chosen (mip filtering reads a little past where a view's rays land). Pixels the
+//! pair's masks cover (what the airframe hides) take the other lens's colour the same way.
 
 use crate::frame::{PixelFormat, PlaneLayout, PlaneRows};
 use crate::lens::Lens;
@@ -41,6 +42,9 @@ struct Tap {
     weight: u8,
     /// Whether the pixel is the second lens's.
     second: bool,
+    /// Whether the exposure match reads it: in the seam's band, and neither lens's colour
+    /// the airframe (a mask's).
+    matched: bool,
 }
 
 /// One plane's taps: where its rows lie, how many channels a pixel has, how many frame
@@ -175,6 +179,7 @@ impl Stitch {
                     .taps
                     .par_iter()
                     .step_by(MEAN_STRIDE)
+                    .filter(|t| t.matched)
                     .map(|t| {
                         let own = data[t.dst as usize + ch] as f64;
                         let other = sample(data, t, ch, n, stride) as f64 / 65536.0;
@@ -282,6 +287,7 @@ fn plane_taps(pair: &Pair, rows: &PlaneRows, channels: u32, scale: f64) -> Plane
                     fy: tap.fy,
                     weight: tap.weight,
                     second: tap.second,
+                    matched: tap.matched,
                 })
             })
         })
@@ -301,6 +307,7 @@ struct PlaneTap {
     fy: u8,
     weight: u8,
     second: bool,
+    matched: bool,
 }
 
 /// Plane pixel (x, y)'s tap, if it takes the blend: the other lens's sample's top-left
@@ -315,11 +322,28 @@ fn tap_at(pair: &Pair, (x, y): (u32, u32), scale: f64, size: (u32, u32)) -> Opti
     let (_, d) = pair.best(ray);
     // The margin difference as this pixel's own lens sees it: positive where it is chosen.
     let own = if side == Side::First { d } else { -d };
-    if own >= pair.feather / 2.0 || own < -(pair.feather / 2.0 + REACH) {
+    // No view reads a lens's pixels further than REACH past the feather into the other's part.
+    if own < -(pair.feather / 2.0 + REACH) {
         return None;
     }
-    let share = 1.0 - weight_of(own, pair.feather);
-    let there = to_plane(pair.project_in(other(side), ray)?);
+    let seam = own < pair.feather / 2.0;
+    let airframe = pair.masked(side, q);
+    if !seam && airframe <= 0.0 {
+        return None;
+    }
+    let elsewhere = pair.project_in(other(side), ray)?;
+    // The other lens's colour only where it does not see the airframe itself.
+    let hidden_there = pair.masked(other(side), elsewhere) > 0.0;
+    if !seam && hidden_there {
+        return None;
+    }
+    let seam_share = if seam {
+        1.0 - weight_of(own, pair.feather)
+    } else {
+        0.0
+    };
+    let share = seam_share.max(airframe);
+    let there = to_plane(elsewhere);
     // The other lens's sample must lie within the plane with its right and lower neighbours.
     let max = DVec2::new(size.0 as f64 - 1.001, size.1 as f64 - 1.001);
     if there.x < 0.0 || there.y < 0.0 || there.x > max.x || there.y > max.y {
@@ -333,6 +357,7 @@ fn tap_at(pair: &Pair, (x, y): (u32, u32), scale: f64, size: (u32, u32)) -> Opti
         fy: f.y as u8,
         weight: (share * 255.0).round() as u8,
         second: side == Side::Second,
+        matched: seam && airframe <= 0.0 && !hidden_there,
     })
 }
 

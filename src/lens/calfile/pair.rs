@@ -5,10 +5,10 @@
 
 use super::fields::{Fields, TomlWriter};
 use super::{LensEntry, LensError, Provenance};
-use crate::lens::pair::{PairPose, correction};
+use crate::lens::pair::{Mask, PairPose, correction};
 use crate::lens::{Lens, Model};
 use crate::units::Angle;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 /// The feather a pair blends its seam over where lens.cal says none.
 pub const DEFAULT_FEATHER_DEG: f64 = 4.0;
@@ -27,6 +27,8 @@ pub struct PairOf {
     pub baseline: [f64; 3],
     /// The seam's blend width, radians.
     pub feather: f64,
+    /// What the airframe hides: polygons in the frame's pixels, each within one lens's image.
+    pub masks: Vec<Mask>,
 }
 
 impl PairOf {
@@ -36,6 +38,7 @@ impl PairOf {
             correction: correction(roll, pitch, yaw),
             baseline: DVec3::from_array(self.baseline),
             feather: self.feather,
+            masks: self.masks.clone(),
         }
     }
 
@@ -62,6 +65,19 @@ impl PairOf {
         ));
         out.list("baseline", &self.baseline);
         out.line(format!("feather = \"{:.2}deg\"", self.feather.to_degrees()));
+        if !self.masks.is_empty() {
+            let polygon = |m: &Mask| {
+                let points: Vec<String> = m
+                    .points
+                    .iter()
+                    .map(|p| format!("[{}, {}]", p.x, p.y))
+                    .collect();
+                format!("  [{}],", points.join(", "))
+            };
+            out.line("masks = [".into());
+            self.masks.iter().for_each(|m| out.line(polygon(m)));
+            out.line("]".into());
+        }
     }
 }
 
@@ -112,6 +128,7 @@ pub(super) fn read_pair(f: &Fields, lenses: &[LensEntry]) -> Result<LensEntry, L
     if !(0.0..=MAX_FEATHER_DEG.to_radians()).contains(&feather) {
         return Err(f.invalid("feather", format!("must be 0 to {MAX_FEATHER_DEG}deg")));
     }
+    let masks = read_masks(f, &first, &second)?;
     let provenance = f
         .get::<Provenance>("provenance")?
         .map(|p| p.0)
@@ -128,11 +145,47 @@ pub(super) fn read_pair(f: &Fields, lenses: &[LensEntry]) -> Result<LensEntry, L
             rotation,
             baseline,
             feather,
+            masks,
             first: first.clone(),
             second,
         })),
         ..first
     })
+}
+
+/// The pair's `masks`: polygons of at least three points, each inside the lenses' frame and
+/// within one lens's image (on one side of the line halfway between their centres, as
+/// `Pair::side_at` tells them apart).
+fn read_masks(f: &Fields, first: &LensEntry, second: &LensEntry) -> Result<Vec<Mask>, LensError> {
+    let Some((polygons, _)) = f.get::<Vec<Vec<[f64; 2]>>>("masks")? else {
+        return Ok(vec![]);
+    };
+    let (w, h) = (first.width as f64, first.height as f64);
+    let (a, b) = (first.lens().affine.offset, second.lens().affine.offset);
+    polygons
+        .into_iter()
+        .enumerate()
+        .map(|(i, points)| {
+            let bad = |why: &str| f.invalid("masks", format!("polygon {}: {why}", i + 1));
+            if points.len() < 3 {
+                return Err(bad("needs at least three points [x, y]"));
+            }
+            let points: Vec<DVec2> = points.into_iter().map(DVec2::from_array).collect();
+            let outside =
+                |p: &DVec2| !(p.is_finite() && p.x >= 0.0 && p.y >= 0.0 && p.x <= w && p.y <= h);
+            if points.iter().any(outside) {
+                return Err(bad(&format!("every point must lie in the {w}x{h} frame")));
+            }
+            let first_side = |p: &DVec2| (*p - (a + b) * 0.5).dot(b - a) <= 0.0;
+            let on_first = points.iter().filter(|p| first_side(p)).count();
+            if on_first != 0 && on_first != points.len() {
+                return Err(bad(
+                    "must lie within one lens's image (one half of the frame)",
+                ));
+            }
+            Ok(Mask { points })
+        })
+        .collect()
 }
 
 /// The two lenses must share a frame (the pair's) and a model (the GPU draws one model a

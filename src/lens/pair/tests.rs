@@ -66,6 +66,7 @@ fn a_twist_of_the_back_lens_turns_its_image_about_its_centre() {
         correction: correction(2f64.to_radians(), 0.0, 0.0),
         baseline: DVec3::ZERO,
         feather: 0.0,
+        masks: vec![],
     };
     let cal = shipped();
     let first = cal.find("DUALF").unwrap().lens();
@@ -124,6 +125,18 @@ fn a_pair_that_cannot_be_one_source_is_refused_saying_why() {
             "rotation: each angle must be within 28deg",
         ),
         ("lenses = [\"DUALF\", \"DUALB\"]\nlens_id = 0", "lens_id"),
+        (
+            "lenses = [\"DUALF\", \"DUALB\"]\nmasks = [[[10, 10], [20, 10]]]",
+            "masks: polygon 1: needs at least three points",
+        ),
+        (
+            "lenses = [\"DUALF\", \"DUALB\"]\nmasks = [[[1, 1], [9, 1], [9, 9]], [[0, 0], [5000, 0], [0, 5]]]",
+            "masks: polygon 2: every point must lie in the 3840x1920 frame",
+        ),
+        (
+            "lenses = [\"DUALF\", \"DUALB\"]\nmasks = [[[1800, 900], [2000, 900], [1900, 1000]]]",
+            "masks: polygon 1: must lie within one lens's image",
+        ),
     ] {
         let e = parse(&format!("{base}{fields}\n")).unwrap_err().to_string();
         assert!(e.contains(says), "{fields}: {e}");
@@ -134,7 +147,8 @@ fn a_pair_that_cannot_be_one_source_is_refused_saying_why() {
 fn a_pair_written_out_reads_back_the_same() {
     let cal = parse(
         "name = \"P\"\nlens_id = 9\nlenses = [\"DUALF\", \"DUALB\"]\n\
-         rotation = [\"2deg\", \"-0.5deg\", \"0.25deg\"]\nfeather = \"6deg\"\n",
+         rotation = [\"2deg\", \"-0.5deg\", \"0.25deg\"]\nfeather = \"6deg\"\n\
+         masks = [[[100, 900], [300, 880.5], [310, 1000]], [[3000, 10], [3100, 10], [3050, 90]]]\n",
     )
     .unwrap();
     let entry = cal.find("P").unwrap();
@@ -147,5 +161,38 @@ fn a_pair_written_out_reads_back_the_same() {
         assert!((x - y).abs() < 1e-7, "{:?} {:?}", a.rotation, b.rotation);
     }
     assert!((a.feather - b.feather).abs() < 1e-6);
+    assert_eq!(a.masks, b.masks);
+    assert_eq!(a.masks[0].points[1], DVec2::new(300.0, 880.5));
+    // The lens carries them, in its frame's pixels; at half size, halved.
+    let half = again.lens().for_frame(1920, 960, None);
+    let masks = &half.pair.as_ref().unwrap().masks;
+    assert!(masks[1].contains(DVec2::new(1525.0, 20.0)));
+    assert!(!masks[1].contains(DVec2::new(3050.0, 40.0)));
     assert_eq!((again.lens_id, &again.name), (9, &"P".to_string()));
+}
+
+#[test]
+fn lens_check_says_how_much_of_what_a_mask_hides_the_other_lens_sees() {
+    let cal = parse(
+        "name = \"P\"\nlens_id = 9\nlenses = [\"DUALF\", \"DUALB\"]\n\
+         masks = [[[1800, 900], [1915, 900], [1915, 1020], [1800, 1020]], \
+         [[900, 900], [1000, 900], [950, 1000]]]\n",
+    )
+    .unwrap();
+    let found = crate::lens::check::check(cal.find("P").unwrap());
+    let said: Vec<_> = found
+        .iter()
+        .filter(|f| f.what.starts_with("mask"))
+        .collect();
+    assert_eq!(said.len(), 2, "{found:?}");
+    assert!(
+        said[0].ok && said[0].what.contains("sees 100%"),
+        "{:?}",
+        said[0]
+    );
+    assert!(
+        !said[1].ok && said[1].what.contains("sees 0%"),
+        "{:?}",
+        said[1]
+    );
 }

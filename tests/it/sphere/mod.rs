@@ -28,6 +28,7 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use image::RgbImage;
 use std::sync::OnceLock;
 
+mod mask;
 mod v360;
 
 /// The pair frame's size: half the shipped rig's 3840x1920.
@@ -59,6 +60,7 @@ fn posed([roll, pitch, yaw]: [f64; 3]) -> Lens {
         correction: correction(roll, pitch, yaw),
         baseline: DVec3::ZERO,
         feather: 4.0 * DEG,
+        masks: vec![],
     };
     let dual = cal.find("DUAL").unwrap();
     Lens::paired(&lens("DUALF"), &lens("DUALB"), "DUAL", dual.lens_id, pose)
