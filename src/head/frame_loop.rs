@@ -460,6 +460,7 @@ impl Head {
                 GpuError::Failed(_) | GpuError::Device { .. } => RenderFailure::Gpu(e.to_string()),
                 other => RenderFailure::Frame(other.to_string()),
             })?;
+        *self.meters.lenses.locked() = renderer.lenses_matched();
         let cam = self.cfg.klv_camera;
         let time_us = unix_us(frame.captured_us);
         let klv = ViewMetadata::of_camera(&plan, &s, cam, time_us).map(|m| {
@@ -481,19 +482,4 @@ impl Head {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::health;
-
-    #[test]
-    fn the_status_is_running_with_frames_error_once_the_source_fails_and_idle_before_any() {
-        assert_eq!(health(true, false, true), Some(true));
-        assert_eq!(health(false, false, true), Some(false), "silent");
-        assert_eq!(health(true, true, true), Some(false), "failed");
-        assert_eq!(health(false, true, false), Some(false), "failed first");
-        assert_eq!(
-            health(false, false, false),
-            None,
-            "waiting for the first frame"
-        );
-    }
-}
+mod tests;

@@ -47,6 +47,9 @@ pub struct Health {
     pub readout_ms: f64,
     /// The adapter that renders, its backend, and why it was chosen.
     pub gpu: Option<crate::render::choose::GpuChoice>,
+    /// A lens pair's exposure match: how far the second lens is from the first (empty for
+    /// one lens).
+    pub lenses: String,
 }
 
 /// The counters at one moment.
@@ -125,6 +128,9 @@ impl std::fmt::Display for Health {
         if !self.exposure.is_empty() {
             write!(f, ", {}", self.exposure)?;
         }
+        if !self.lenses.is_empty() {
+            write!(f, ", {}", self.lenses)?;
+        }
         if let Some(e) = &self.source_down {
             write!(f, ", source down: {e}")?;
         }
@@ -194,6 +200,7 @@ impl Head {
             demo_score: self.observers.demo_score.locked().clone(),
             readout_ms: self.cfg.readout.time_ms,
             gpu: self.meters.gpu.locked().clone(),
+            lenses: self.meters.lenses.locked().clone(),
         }
     }
 

@@ -138,6 +138,8 @@ pub struct Meters {
     pub health: Mutex<health::Health>,
     /// The adapter the frame loop renders on, and why (None until it has one).
     pub gpu: Mutex<Option<GpuChoice>>,
+    /// A lens pair's exposure match as the last frame left it (empty for one lens).
+    pub lenses: Mutex<String>,
 }
 
 /// Counters the frame loop keeps and the health log reads.

@@ -155,6 +155,30 @@ impl Stitches {
         }
     }
 
+    /// What the operator is told of the match: how far the second lens is from the first,
+    /// component by component, e.g. `second lens: luma x1.48, Cb +0.0, Cr -1.0 (each
+    /// corrected halfway)`. Empty before a pair's first frame.
+    pub fn said(&self) -> String {
+        let Some((_, layout, Some(_))) = &self.last else {
+            return String::new();
+        };
+        let names: &[&str] = match layout.format {
+            PixelFormat::Rgba => &["R", "G", "B"],
+            PixelFormat::Nv12 | PixelFormat::I420 => &["luma", "Cb", "Cr"],
+        };
+        let parts: Vec<String> = self
+            .apart()
+            .iter()
+            .zip(names)
+            .enumerate()
+            .map(|(i, (x, name))| match (layout.format, i) {
+                (PixelFormat::Rgba, _) | (_, 0) => format!("{name} x{x:.2}"),
+                _ => format!("{name} {x:+.1}"),
+            })
+            .collect();
+        format!("second lens: {} (each corrected halfway)", parts.join(", "))
+    }
+
     /// How far apart the last pair's lenses are, by component (`gains::Matching::apart`):
     /// what the operator is told of the match. Empty before a pair's first frame.
     pub fn apart(&self) -> Vec<f64> {

@@ -65,6 +65,7 @@ function showStatus(s) {
       rows.push(['views alone', `${v.views_alone[0].toFixed(1)} fps, ${v.views_alone[1].toFixed(1)} ms each`]);
     }
     if (v.exposure) rows.push(['exposure', v.exposure]);
+    if (v.lenses) rows.push(['lens pair', v.lenses]);
     if (v.source_down) rows.push(['source down', v.source_down]);
     if (v.thermal) rows.push(...thermalRows(v.thermal));
   }

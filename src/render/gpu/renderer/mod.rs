@@ -445,6 +445,12 @@ impl Renderer {
         drawn.into_iter().map(|f| self.read_back(f)).collect()
     }
 
+    /// What the operator is told of a pair's exposure match (`Stitches::said`; empty for a
+    /// single lens).
+    pub fn lenses_matched(&self) -> String {
+        self.stitches.said()
+    }
+
     /// Renders one frame and waits for it.
     pub fn render(
         &mut self,
