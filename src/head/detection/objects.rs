@@ -26,7 +26,8 @@ pub(super) type Adopted = Vec<(usize, u64, u32)>;
 
 impl Head {
     /// Takes on each camera's click not taken on yet: the tracked object under it (its box
-    /// reaching the clicked one, the nearest), else a new object seeded there at full score.
+    /// reaching the clicked one; found more than once before seen once, then the nearest),
+    /// else a new object seeded there at full score.
     /// The next [`Head::show`] makes the camera follow it.
     pub(super) fn adopt_clicks(&self, tracker: &mut Tracker, state: &State, adopted: &mut Adopted) {
         for (i, cam) in state.settings.cameras.iter().enumerate() {
@@ -41,12 +42,22 @@ impl Head {
             }
             let t = f.since_us as f64 * 1e-6;
             let clicked = AngularBox::new(f.yaw, f.pitch, f.size, f.size);
+            // Under the click, a track found again since it was made before one seen once (a
+            // blob of the last scan beside a mover is more often noise than the mover), then
+            // the nearest.
             let under = tracker
                 .objects()
                 .iter()
-                .map(|o| (o.id, o.at(t).angle_to(&clicked), o.bbox.size()))
-                .filter(|&(_, away, size)| away <= (size + f.size) / 2.0)
-                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|o| {
+                    (
+                        o.id,
+                        o.at(t).angle_to(&clicked),
+                        o.bbox.size(),
+                        o.seen <= o.born,
+                    )
+                })
+                .filter(|&(_, away, size, _)| away <= (size + f.size) / 2.0)
+                .min_by(|a, b| a.3.cmp(&b.3).then(a.1.total_cmp(&b.1)))
                 .map(|(id, ..)| id);
             let class = match self.cfg.detection.detector {
                 Detector::Motion => MOVING,
