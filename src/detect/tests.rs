@@ -385,3 +385,29 @@ fn a_crop_finds_only_its_own_object_not_another_thing_beside_it() {
         det(10.0, -20.0, 4.0, 0.8).bbox.centre
     );
 }
+
+/// A click lands on an object anywhere on its way since its last sighting: an operator's
+/// picture lags, and a scan starved of CPU time leaves the object's last box and its
+/// prediction far apart.
+#[test]
+fn a_click_finds_an_object_where_it_was_on_its_way_since_it_was_seen() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    // 4°/s east, last seen at t = 1 s at yaw 14°.
+    t.scan(&s, 0.0, vec![det(10.0, -30.0, 4.0, 0.8)], everywhere);
+    t.scan(&s, 1.0, vec![det(14.0, -30.0, 4.0, 0.8)], everywhere);
+    let o = t.get(0).unwrap();
+    let click = |yaw: f64| AngularBox::new(yaw * DEG, -30.0 * DEG, 1.0 * DEG, 1.0 * DEG);
+    // At t = 2.5 s it should be at 20°: a click at 17° (where it was at 1.75 s) is 0° from
+    // its way, though 3° from where it should be now and from where it was seen.
+    let on_the_way = o.nearest_since_seen(2.5, &click(17.0)) / DEG;
+    assert!(on_the_way < 0.3, "{on_the_way}");
+    assert!(o.at(2.5).angle_to(&click(17.0)) / DEG > 2.5);
+    // Behind its last sighting or past where it should be now is as far as the nearer end.
+    let behind = o.nearest_since_seen(2.5, &click(11.0)) / DEG;
+    let ahead = o.nearest_since_seen(2.5, &click(23.0)) / DEG;
+    assert!(
+        (2.5..3.0).contains(&behind) && (2.5..3.0).contains(&ahead),
+        "{behind} {ahead}"
+    );
+}

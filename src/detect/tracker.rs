@@ -59,6 +59,18 @@ impl Object {
             ..self.bbox
         }
     }
+
+    /// How close to `target` the object came between its last sighting and time `t` (its
+    /// last box, then where it should have been on the way), in radians: what an operator
+    /// clicked in a picture that lags the scans is somewhere on that way.
+    pub fn nearest_since_seen(&self, t: f64, target: &AngularBox) -> f64 {
+        const STEPS: u32 = 8;
+        let span = (t - self.seen).max(0.0);
+        (0..=STEPS)
+            .map(|k| self.at(self.seen + span * f64::from(k) / f64::from(STEPS)))
+            .map(|b| b.angle_to(target))
+            .fold(f64::INFINITY, f64::min)
+    }
 }
 
 /// Why a score changed.

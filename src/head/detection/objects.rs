@@ -42,16 +42,17 @@ impl Head {
             }
             let t = f.since_us as f64 * 1e-6;
             let clicked = AngularBox::new(f.yaw, f.pitch, f.size, f.size);
-            // Under the click, a track found again since it was made before one seen once (a
-            // blob of the last scan beside a mover is more often noise than the mover), then
-            // the nearest.
+            // Under the click (anywhere on its way since it was last seen: the operator's
+            // picture and the scans both lag), a track found again since it was made before
+            // one seen once (a blob of the last scan beside a mover is more often noise than
+            // the mover), then the nearest.
             let under = tracker
                 .objects()
                 .iter()
                 .map(|o| {
                     (
                         o.id,
-                        o.at(t).angle_to(&clicked),
+                        o.nearest_since_seen(t, &clicked),
                         o.bbox.size(),
                         o.seen <= o.born,
                     )
