@@ -228,7 +228,8 @@ fn a_stopped_render_leaves_no_file_and_a_cut_input_is_reported() {
     let clip = dir.path().join("long.mp4");
     test_clip(&clip, 900);
     let out = dir.path().join("out.mp4");
-    // Ctrl-C two seconds into a render of 30 s of video.
+    // Ctrl-C into a render of 30 s of video, once it has written something (its partial
+    // file, or its first image): how long that takes depends on the machine.
     let interrupted = |out: &Path| {
         let child = Command::new(env!("CARGO_BIN_EXE_digiview"))
             .args(["render", "--input", clip.to_str().unwrap(), "--out"])
@@ -237,7 +238,23 @@ fn a_stopped_render_leaves_no_file_and_a_cut_input_is_reported() {
             .stderr(std::process::Stdio::piped())
             .spawn()
             .unwrap();
-        std::thread::sleep(std::time::Duration::from_secs(2));
+        let written = || {
+            let entries = std::fs::read_dir(out.parent().unwrap())
+                .into_iter()
+                .flatten();
+            entries.flatten().any(|e| {
+                e.file_name() != "long.mp4"
+                    && e.metadata().is_ok_and(|m| m.is_file() && m.len() > 0)
+            })
+        };
+        let start = std::time::Instant::now();
+        while !written() {
+            assert!(
+                start.elapsed() < std::time::Duration::from_secs(60),
+                "render wrote nothing in 60 s"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
         // SAFETY: a signal to the child this test started and has not waited for yet.
         let sent = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
         assert_eq!(sent, 0);

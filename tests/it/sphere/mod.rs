@@ -29,6 +29,8 @@ use image::RgbImage;
 use std::sync::OnceLock;
 
 mod mask;
+mod scan;
+mod shutter;
 mod stream;
 mod v360;
 
@@ -148,8 +150,20 @@ fn render_with(
         render_image(&mut renderer, &frame, &plan).unwrap().to_rgb()
     };
     let (first, second) = (alone_render(Side::First), alone_render(Side::Second));
-    let mut one = first.clone();
-    let pair = drawn.pair.as_ref().unwrap();
+    Rendered {
+        gpu: got,
+        cpu: cpu::render(&plan, &frame, Filter::Mip),
+        one: best_of(&plan, drawn, [first, second]),
+        truth: truth(world(), &plan, &s),
+        plan,
+    }
+}
+
+/// The single-lens ground truth of `plan` (drawn through `pair`): each pixel from the render
+/// through the lens that sees it best alone (`first`, `second`).
+fn best_of(plan: &FramePlan, pair: &Lens, [first, second]: [RgbImage; 2]) -> RgbImage {
+    let mut one = first;
+    let pair = pair.pair.as_ref().unwrap();
     for v in &plan.views {
         for (x, y) in pixels_of(v.rect) {
             let p = DVec2::new((x - v.rect.x) as f64 + 0.5, (y - v.rect.y) as f64 + 0.5);
@@ -159,13 +173,7 @@ fn render_with(
             }
         }
     }
-    Rendered {
-        gpu: got,
-        cpu: cpu::render(&plan, &frame, Filter::Mip),
-        one,
-        truth: truth(world(), &plan, &s),
-        plan,
-    }
+    one
 }
 
 /// The luma of a pixel (BT.709).
