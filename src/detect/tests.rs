@@ -411,3 +411,48 @@ fn a_click_finds_an_object_where_it_was_on_its_way_since_it_was_seen() {
         "{behind} {ahead}"
     );
 }
+
+/// Two movers crossing, seen as one blob for two scans: the one the blob is taken as keeps
+/// going where it went (not to the blob's middle, nor with the jump as its velocity), and
+/// each is found again on its own way after.
+#[test]
+fn a_blob_of_two_crossing_objects_moves_neither() {
+    let s = DetectionSettings::default();
+    let mut t = Tracker::new();
+    // One going east along pitch -30°, one going west along pitch -33°, 3° across, 6°/s.
+    let east = |k: f64| det(10.0 + 2.0 * k, -30.0, 3.0, 0.8);
+    let west = |k: f64| det(30.0 - 2.0 * k, -33.0, 3.0, 0.8);
+    for k in 0..4 {
+        t.scan(
+            &s,
+            k as f64 / 3.0,
+            vec![east(k as f64), west(k as f64)],
+            everywhere,
+        );
+    }
+    // Scans 4 and 5: one box 8° wide over both, centred between them.
+    for k in [4.0, 5.0] {
+        let blob = det(20.0, -31.5, 8.0, 0.8);
+        t.scan(&s, k / 3.0, vec![blob], everywhere);
+    }
+    for id in [0, 1] {
+        let o = t.get(id).unwrap();
+        let (yaw, _) = o.at(5.0 / 3.0).yaw_pitch();
+        let (want, _) = if id == 0 { east(5.0) } else { west(5.0) }.bbox.yaw_pitch();
+        assert!(
+            (yaw - want).abs() / DEG < 0.5 && o.bbox.size() / DEG < 4.0,
+            "object {id} at yaw {:.2}°, {:.2}° across; it is at {:.2}°",
+            yaw / DEG,
+            o.bbox.size() / DEG,
+            want / DEG
+        );
+    }
+    // Apart again, each is found on its own way.
+    let c = t.scan(&s, 2.0, vec![east(6.0), west(6.0)], everywhere);
+    assert!(
+        c.iter().all(|c| c.why == Why::FoundByScan) && c.len() == 2,
+        "{c:?}"
+    );
+    let yaw = |id| t.get(id).unwrap().bbox.yaw_pitch().0 / DEG;
+    assert!((yaw(0) - 22.0).abs() < 0.1 && (yaw(1) - 18.0).abs() < 0.1);
+}

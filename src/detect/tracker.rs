@@ -51,6 +51,10 @@ const TRAIL: usize = 4;
 /// 30 km/h seen from 100 m.
 const CATCH_UP_RATE: f64 = 5.0 * std::f64::consts::PI / 180.0;
 
+/// How much larger than the object a box must be, at once, to be it merged with something
+/// else (see `merged`), radians.
+const MERGED_GROWTH: f64 = 2.0 * std::f64::consts::PI / 180.0;
+
 impl Object {
     /// Where the object should be at time `t`, moving as it did.
     pub fn at(&self, t: f64) -> AngularBox {
@@ -328,7 +332,10 @@ impl Tracker {
 /// raised by `bonus` (up to [`MAX_SCORE`]).
 fn found_again(o: &mut Object, d: &Detection, t: f64, bonus: u8) -> Change {
     let from = o.score;
-    if t > o.seen + 1e-3 {
+    if merged(o, d) {
+        // Two things crossing, seen as one blob: the object is there, going as it went.
+        o.bbox.centre = o.at(t).centre;
+    } else if t > o.seen + 1e-3 {
         // Measured from the oldest sighting within the last MAX_PREDICTION seconds: a
         // detector's boxes wander by a fraction of their size, and over a longer baseline
         // that wander is a smaller part of the motion.
@@ -344,7 +351,9 @@ fn found_again(o: &mut Object, d: &Detection, t: f64, bonus: u8) -> Change {
             DVec3::ZERO
         };
     }
-    o.bbox = d.bbox;
+    if !merged(o, d) {
+        o.bbox = d.bbox;
+    }
     o.class = d.class;
     o.confidence = d.confidence;
     o.seen = t;
@@ -355,6 +364,16 @@ fn found_again(o: &mut Object, d: &Detection, t: f64, bonus: u8) -> Change {
         from,
         to: o.score,
     }
+}
+
+/// Whether box `d`, taken as object `o`, is `o` merged with something beside it: grown at
+/// once by more than half and by more than [`MERGED_GROWTH`] (a detector's boxes wander by a
+/// pixel or two of a scan view, about a third of a degree). Its centre lies between the two
+/// and its size is neither's, so it moves the object nowhere (two movers crossing gave the
+/// one it was taken as a velocity 4° off, and its ring left it while they were one blob).
+fn merged(o: &Object, d: &Detection) -> bool {
+    let (was, is) = (o.bbox.size(), d.bbox.size());
+    is > 1.5 * was && is - was > MERGED_GROWTH
 }
 
 /// `o` missed: its score lowered by `penalty` (0 drops it).
