@@ -332,7 +332,8 @@ impl Tracker {
 /// raised by `bonus` (up to [`MAX_SCORE`]).
 fn found_again(o: &mut Object, d: &Detection, t: f64, bonus: u8) -> Change {
     let from = o.score;
-    if merged(o, d) {
+    let merged = merged(o, d);
+    if merged {
         // Two things crossing, seen as one blob: the object is there, going as it went.
         o.bbox.centre = o.at(t).centre;
     } else if t > o.seen + 1e-3 {
@@ -351,7 +352,7 @@ fn found_again(o: &mut Object, d: &Detection, t: f64, bonus: u8) -> Change {
             DVec3::ZERO
         };
     }
-    if !merged(o, d) {
+    if !merged {
         o.bbox = d.bbox;
     }
     o.class = d.class;
