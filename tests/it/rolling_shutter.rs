@@ -30,16 +30,16 @@ on_each_backend!(
 );
 
 const RATE: f64 = 90.0 * DEG;
-const READOUT_MS: f64 = 25.0;
+pub(crate) const READOUT_MS: f64 = 25.0;
 
 #[derive(Clone, Copy, Debug)]
-enum Turn {
+pub(crate) enum Turn {
     Yaw,
     Roll,
 }
 
 /// The attitude `dt_us` after the middle row, turning at [`RATE`] about `turn` from `base`.
-fn turning(base: Euler, turn: Turn) -> impl Fn(f64) -> Euler + Sync {
+pub(crate) fn turning(base: Euler, turn: Turn) -> impl Fn(f64) -> Euler + Sync {
     move |dt_us| {
         let a = RATE * dt_us * 1e-6;
         match turn {

@@ -19,15 +19,14 @@ fn the_detection_scan_sees_the_whole_sphere_through_the_pair(gpu: &Gpu) {
     let size = (MOTION_VIEWS.width, MOTION_VIEWS.height);
     let mut renderer = renderer_on(gpu, PixelFormat::Rgba, Filter::Mip);
     let mut draw = |plan: &FramePlan| render_image(&mut renderer, &frame, plan).unwrap().to_rgb();
-    let mut front_sees = 0;
-    let [first, second] = [Side::First, Side::Second].map(|side| {
+    let [front, back] = [Side::First, Side::Second].map(|side| {
         let (s, one) = alone(&s, &lens, side);
         let to_lens = FramePlan::new(&s, &one).unwrap().lens_from_world;
-        if side == Side::First {
-            front_sees = visible(&one, to_lens, MOTION_VIEWS).0.len();
-        }
-        draw(&FramePlan::mosaic(&one, to_lens, &aims, size, columns))
+        (one, to_lens)
     });
+    let front_sees = visible(&front.0, front.1, MOTION_VIEWS).0.len();
+    let [first, second] = [front, back]
+        .map(|(one, to_lens)| draw(&FramePlan::mosaic(&one, to_lens, &aims, size, columns)));
     eprintln!(
         "scan views seen: {} of {all} through the pair, {front_sees} through the front lens alone",
         seen.len()

@@ -3,6 +3,7 @@
 //! by a global shutter, on the seam, straight up and straight down; uncorrected, it is not.
 
 use super::*;
+use crate::rolling_shutter::{READOUT_MS, Turn, turning};
 use digiview::geometry::lens_from_world;
 use digiview::geometry::shutter::{Readout, ShutterTable};
 use digiview::scene::synth::rolling_fisheye;
@@ -10,14 +11,10 @@ use digiview::scene::synth::rolling_fisheye;
 fn a_rolling_shutter_pair_turning_in_yaw_is_dewarped_as_a_global_shutter_one(gpu: &Gpu) {
     let lens = pair(2.0 * DEG);
     let s = state([(0.0, 0.0), (95.0, 12.0), (0.0, 80.0), (180.0, -80.0)]);
-    let readout = Readout::top_to_bottom(25.0);
-    let base = s.vehicle.attitude.euler();
-    let attitude = |dt_us: f64| Euler {
-        yaw: base.yaw + 90.0 * DEG * dt_us * 1e-6,
-        ..base
-    };
+    let readout = Readout::top_to_bottom(READOUT_MS);
+    let attitude = turning(s.vehicle.attitude.euler(), Turn::Yaw);
     let mount = s.settings.mount.euler();
-    let rolling = rolling_fisheye(world(), &lens, &s, &readout, attitude);
+    let rolling = rolling_fisheye(world(), &lens, &s, &readout, &attitude);
     let still = fisheye(world(), &lens, &s);
     let global = FramePlan::new(&s, &lens).unwrap();
     let size = (lens.width, lens.height);
