@@ -114,12 +114,17 @@ impl Head {
     fn demo_camera(&self) -> Result<(DemoCamera, Flight), HeadError> {
         let d = &self.cfg.demo;
         let state = self.state();
-        let lens = self.gate.settings().lenses().for_frame(
+        let settings = self.gate.settings();
+        let lenses = settings.lenses();
+        let (width, height) = lenses
+            .get(state.settings.lens)
+            .map_or((d.width, d.height), |lens| d.size_for(lens));
+        let lens = lenses.for_frame(
             state.settings.lens,
-            (d.width, d.height),
+            (width, height),
             state.settings.sensor.roi(),
         )?;
-        let layout = PlaneLayout::tight(d.format, d.width, d.height)?;
+        let layout = PlaneLayout::tight(d.format, width, height)?;
         let camera = DemoCamera::new(&lens, layout, state.settings.mount.euler())
             .with_readout(d.readout_ms)
             .in_world(GridWorld::demo(d.movers));
@@ -138,9 +143,7 @@ impl Head {
             lap: 90.0,
         };
         info!(
-            "source: demo, {}x{} {} at {} fps, {}",
-            d.width,
-            d.height,
+            "source: demo, {width}x{height} {} at {} fps, {}",
             d.format,
             d.fps,
             match (d.spin, d.motion) {

@@ -63,6 +63,19 @@ impl Default for DemoConfig {
     }
 }
 
+impl DemoConfig {
+    /// The frame the demo draws through `lens`: its own size, but for a lens pair, whose two
+    /// images come side by side in a frame of the pair's shape (a frame of another shape would
+    /// squeeze them), its height at the pair's shape (even).
+    pub fn size_for(&self, lens: &Lens) -> (u32, u32) {
+        if lens.pair.is_none() {
+            return (self.width, self.height);
+        }
+        let wide = self.height as u64 * lens.width as u64 / lens.height.max(1) as u64;
+        ((wide as u32 & !1).max(2), self.height)
+    }
+}
+
 /// The simulated flight: a circle about the world origin, nose along the track, banked into
 /// the turn, with a slow pitch sway.
 #[derive(Clone, Debug, PartialEq)]
@@ -438,5 +451,25 @@ mod tests {
             ..flight.clone()
         };
         assert_eq!(still.pose(12.0), (Euler::new(0.3, 0.0, 0.0), hover));
+    }
+
+    #[test]
+    fn the_demo_draws_a_lens_pair_in_the_pairs_shape_and_one_lens_at_its_own_size() {
+        let cal = crate::lens::LensCal::load(std::path::Path::new("lens-cal/lens.cal")).unwrap();
+        let lenses = crate::lens::Lenses::new(&cal);
+        let demo = DemoConfig::default();
+        let dual = lenses.named("DUAL").unwrap();
+        assert_eq!((dual.width, dual.height), (3840, 1920));
+        assert_eq!(demo.size_for(dual), (1440, 720));
+        let one = lenses
+            .get(crate::state::State::default().settings.lens)
+            .unwrap();
+        assert_eq!(demo.size_for(one), (1280, 720));
+        let small = DemoConfig {
+            width: 640,
+            height: 481,
+            ..demo
+        };
+        assert_eq!(small.size_for(dual), (962, 481));
     }
 }

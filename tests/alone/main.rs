@@ -23,6 +23,7 @@ mod payload_video;
 mod rolling_video;
 mod serve_video;
 mod services;
+mod sphere_flying;
 mod thermal_look;
 mod thermal_stream;
 mod tracking;

@@ -1,0 +1,133 @@
+//! The lens pair on the flying demo (issue 59): `serve --lens DUAL` draws the demo's world
+//! through the two lenses back to back while the vehicle flies its circle and banks. A view
+//! held straight up shows the sky (one fisheye looking down shows black there), the ground
+//! station is told where it looks, and the tracker's rings stay on the movers as they do on
+//! one fisheye (the scans and tiles go through the pair). Alone: the tracker runs on the CPU
+//! time the video leaves.
+
+use crate::common;
+
+use common::autopilot::free_udp_port;
+use common::gcs::{Gcs, REQUEST, accepted, cameras, http_get, params};
+use common::serve::Serve;
+use common::viewer::Viewer;
+use digiview::modes::{LayoutMode, OverlayMode};
+use glam::{DQuat, EulerRot};
+use image::RgbImage;
+use mavlink::MessageData;
+use mavlink::dialects::common::*;
+use serde_json::Value;
+use std::time::Duration;
+
+const W: u32 = 1280;
+const H: u32 = 720;
+
+fn score(serve: &Serve) -> Value {
+    let url = format!("{}api/status", serve.http.as_ref().unwrap());
+    let (code, body) = http_get(&url);
+    assert_eq!(code, 200);
+    serde_json::from_slice::<Value>(&body).unwrap()["video"]["demo_score"].clone()
+}
+
+/// The rings scored so far: (count, within 10 px).
+fn rings(s: &Value) -> (u64, u64) {
+    let n = |k: &str| s["rings"][k].as_u64().unwrap_or(0);
+    (n("count"), n("within"))
+}
+
+/// BT.709 luma of each pixel of `img` within `rect`.
+fn lumas(img: &RgbImage, rect: digiview::layout::Rect) -> Vec<f64> {
+    let mut out = Vec::new();
+    for y in rect.y..rect.bottom() {
+        for x in rect.x..rect.right() {
+            let p = img.get_pixel(x, y).0.map(f64::from);
+            out.push(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
+        }
+    }
+    out
+}
+
+#[test]
+fn through_the_pair_a_view_held_straight_up_shows_the_sky_while_the_demo_flies_and_tracks() {
+    let _alone = crate::one_at_a_time();
+    let port = free_udp_port();
+    let link = format!("udpin:127.0.0.1:{port}");
+    // Four views; camera 1 held 80° up (locked to the world, so the bank does not move it).
+    let serve = Serve::start_video(&[
+        "--lens",
+        "DUAL",
+        "--mavlink",
+        &link,
+        "--detector",
+        "motion",
+        "--size",
+        &format!("{W}x{H}"),
+        "--layout",
+        "4",
+        "--overlay",
+        "0",
+        "--cam",
+        "1:yaw=0,pitch=80deg,fov=60deg,lock=7",
+    ]);
+    let gcs = Gcs::connect(port);
+    let (system, seen) = cameras(&gcs);
+    assert!(seen.contains(&101), "{seen:?}");
+
+    // The sky, all of it: no pixel of the view black (the front lens alone draws none of it)
+    // and none off the sky's smooth gradient by much (a seam or a stray ground pixel would).
+    let layout = digiview::layout::layout(W, H, LayoutMode::Four, OverlayMode::None).unwrap();
+    let up = layout.views[1].0;
+    let inner = digiview::layout::Rect::new(up.x + 4, up.y + 4, up.w - 8, up.h - 8);
+    let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());
+    for _ in 0..3 {
+        let sky = lumas(&viewer.frame_after(Duration::from_secs(2)), inner);
+        let mean = sky.iter().sum::<f64>() / sky.len() as f64;
+        let (lo, hi) = sky
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        println!("the view straight up: luma {lo:.1} to {hi:.1}, mean {mean:.1}");
+        assert!(lo > 60.0, "a pixel of the sky view at luma {lo:.1}");
+        assert!(hi - lo < 24.0, "the sky view spans luma {lo:.1} to {hi:.1}");
+    }
+    drop(viewer);
+
+    // The ground station is told the view looks 80° up, at no point on the ground.
+    let got = accepted(
+        gcs.command(
+            system,
+            101,
+            REQUEST,
+            params(&[CAMERA_FOV_STATUS_DATA::ID as f32]),
+        ),
+        "camera fov status",
+    );
+    let fov = got
+        .iter()
+        .find_map(|m| match m {
+            MavMessage::CAMERA_FOV_STATUS(f) => Some(f.clone()),
+            _ => None,
+        })
+        .expect("CAMERA_FOV_STATUS");
+    let [w, x, y, z] = fov.q.map(f64::from);
+    let (_, pitch, _) = DQuat::from_xyzw(x, y, z, w).to_euler(EulerRot::ZYX);
+    println!("CAMERA_FOV_STATUS of camera 1: {fov:?}");
+    assert!((pitch.to_degrees() - 80.0).abs() < 1.0, "pitch {pitch}");
+    assert!((fov.hfov - 60.0).abs() < 0.01, "hfov {}", fov.hfov);
+    assert_eq!((fov.lat_image, fov.lon_image), (i32::MAX, i32::MAX));
+
+    // The tracker through the pair: its rings on the movers, as the issue that built it asks
+    // of one fisheye (95% within 10 px).
+    let before = rings(&score(&serve));
+    std::thread::sleep(Duration::from_secs(12));
+    let last = score(&serve);
+    let (count, within) = rings(&last);
+    let (count, within) = (count - before.0, within - before.1);
+    println!("through the pair: {within} of {count} rings within 10 px; {last}");
+    assert!(count >= 30, "{count} rings");
+    assert!(
+        within as f64 >= 0.95 * count as f64,
+        "{within} of {count} rings within 10 px"
+    );
+    let precision = last["precision"].as_f64().unwrap();
+    assert!(precision >= 0.95, "precision {precision}: {last}");
+}
