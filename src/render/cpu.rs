@@ -51,8 +51,9 @@ pub fn render_frame(
         (plan.lens.width, plan.lens.height),
         "the plan's lens must be scaled to the fisheye frame"
     );
-    let stitched = Stitches::default().stitched(&plan.lens, layout, data);
-    let pyramid = Pyramid::from_frame(&stitched, layout, &plan.lens.imaged_box());
+    let mut stitches = Stitches::default();
+    let stitched = stitches.stitched(&plan.lens, layout, data);
+    let pyramid = Pyramid::from_frame(stitched, layout, &plan.lens.imaged_box());
     Ok(render_from(plan, &pyramid, filter, output.is_yuv()))
 }
 

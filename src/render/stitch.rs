@@ -17,7 +17,6 @@ use crate::lens::pair::{Pair, Side, other, weight_of};
 use gains::{Component, Matching};
 use glam::DVec2;
 use rayon::prelude::*;
-use std::borrow::Cow;
 
 pub mod gains;
 
@@ -54,7 +53,10 @@ struct PlaneTaps {
     rows: PlaneRows,
     channels: u32,
     scale: f64,
+    /// In the order of their pixels, row by row.
     taps: Vec<Tap>,
+    /// Where each row's taps begin in `taps`, and past the last.
+    row_starts: Vec<u32>,
 }
 
 /// Where a frame of one layout from one lens pair takes the seam's blend, and which parts of
@@ -95,23 +97,127 @@ impl Stitch {
         self.planes.iter().map(|p| p.taps.len()).sum()
     }
 
-    /// Blends the seam of a frame of this layout in place. Every tap reads the frame as it
-    /// came (the blended values are worked out before any is written).
-    pub fn apply(&self, data: &mut [u8]) {
-        for plane in &self.planes {
-            let c = plane.channels as usize;
-            let stride = plane.rows.stride as usize;
-            let values: Vec<[u8; 4]> = plane
-                .taps
-                .par_iter()
-                .map(|t| blended(data, t, c, stride))
-                .collect();
-            for (t, v) in plane.taps.iter().zip(values) {
-                let at = t.dst as usize;
-                data[at..at + c].copy_from_slice(&v[..c]);
-            }
+    /// `data` into `out` (the same length): each lens's part of the frame put through its
+    /// tables (per component, the first lens's and the second's), and the seam blended from
+    /// the values so corrected. Rows go in parallel; every value is read from `data`.
+    fn stitch_into(&self, data: &[u8], out: &mut [u8], tables: &[[[u8; 256]; 2]]) {
+        self.copy_outside_planes(data, out);
+        for (p, plane) in self.planes.iter().enumerate() {
+            let chans = self.channel_tables(p, tables);
+            self.copy_corrected(plane, data, out, &chans);
+            blend_into(plane, data, out, &chans);
         }
     }
+
+    /// Plane `p`'s tables, channel by channel: None for a channel not matched (alpha).
+    fn channel_tables(&self, p: usize, tables: &[[[u8; 256]; 2]]) -> Vec<Option<[[u8; 256]; 2]>> {
+        (0..self.planes[p].channels as usize)
+            .map(|ch| {
+                let c = self
+                    .components
+                    .iter()
+                    .position(|c| c.plane == p && c.channel == ch);
+                c.map(|i| tables[i])
+            })
+            .collect()
+    }
+
+    /// The bytes no plane's rows hold (none in a tight layout), as they are.
+    fn copy_outside_planes(&self, data: &[u8], out: &mut [u8]) {
+        let mut spans: Vec<(usize, usize)> = self
+            .planes
+            .iter()
+            .map(|p| span(&p.rows, data.len()))
+            .collect();
+        spans.sort_unstable();
+        let mut from = 0;
+        for (start, end) in spans.into_iter().chain([(data.len(), data.len())]) {
+            if start > from {
+                out[from..start].copy_from_slice(&data[from..start]);
+            }
+            from = from.max(end);
+        }
+    }
+
+    /// A plane's rows into `out`, each pixel's matched channels through its lens's tables.
+    fn copy_corrected(
+        &self,
+        plane: &PlaneTaps,
+        data: &[u8],
+        out: &mut [u8],
+        chans: &[Option<[[u8; 256]; 2]>],
+    ) {
+        let n = plane.channels as usize;
+        let width = (plane.rows.bytes as usize) / n;
+        let (start, end) = span(&plane.rows, data.len());
+        let stride = plane.rows.stride as usize;
+        let unchanged = chans.iter().flatten().all(|t| t.iter().all(is_identity));
+        out[start..end]
+            .par_chunks_mut(stride)
+            .zip(data[start..end].par_chunks(stride))
+            .enumerate()
+            .for_each(|(y, (row, from))| {
+                row.copy_from_slice(from);
+                if unchanged {
+                    return;
+                }
+                let (split, right_is_second) = self.split(plane, y as u32, width);
+                let sides = if right_is_second { [0, 1] } else { [1, 0] };
+                let len = (width * n).min(row.len());
+                let pixels = row[..len].chunks_exact_mut(n);
+                for (x, px) in pixels.enumerate() {
+                    let side = sides[usize::from(x >= split)];
+                    for (v, table) in px.iter_mut().zip(chans) {
+                        if let Some(t) = table {
+                            *v = t[side][*v as usize];
+                        }
+                    }
+                }
+            });
+    }
+}
+
+/// Where a plane's rows lie in a buffer of `len` bytes.
+fn span(rows: &PlaneRows, len: usize) -> (usize, usize) {
+    let start = (rows.offset as usize).min(len);
+    (
+        start,
+        ((rows.offset + rows.stride * rows.rows) as usize).min(len),
+    )
+}
+
+fn is_identity(table: &[u8; 256]) -> bool {
+    table.iter().enumerate().all(|(i, &v)| v as usize == i)
+}
+
+/// Blends a plane's taps into `out`, rows in parallel: each tap's own value and the other
+/// lens's bilinear sample, both read from `data` through their lens's tables.
+fn blend_into(plane: &PlaneTaps, data: &[u8], out: &mut [u8], chans: &[Option<[[u8; 256]; 2]>]) {
+    let (c, stride) = (plane.channels as usize, plane.rows.stride as usize);
+    let (start, end) = span(&plane.rows, data.len());
+    out[start..end]
+        .par_chunks_mut(stride)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let base = start + y * stride;
+            let (from, to) = (
+                plane.row_starts[y] as usize,
+                plane.row_starts[y + 1] as usize,
+            );
+            for t in &plane.taps[from..to] {
+                let own_side = usize::from(t.second);
+                for (ch, table) in chans.iter().enumerate() {
+                    // Alpha keeps the pixel's own.
+                    let Some(table) = table else { continue };
+                    let own = table[own_side][data[t.dst as usize + ch] as usize] as u64;
+                    let other = &table[1 - own_side];
+                    let sample = sample(data, t, (ch, c, stride), |v| other[v as usize]);
+                    let w = t.weight as u64;
+                    let mixed = ((own * (255 - w)) << 16) + sample * w;
+                    row[t.dst as usize - base + ch] = ((mixed + (255 << 15)) / (255 << 16)) as u8;
+                }
+            }
+        });
 }
 
 /// The taps of the last lens and layout asked for, kept while they stay the same: what a
@@ -120,19 +226,21 @@ impl Stitch {
 pub struct Stitches {
     last: Option<(Lens, PlaneLayout, Option<Stitch>)>,
     matching: Matching,
+    /// The last stitched frame (its allocation kept from frame to frame).
+    stitched: Vec<u8>,
 }
 
 impl Stitches {
     /// A frame's bytes with the seam blended, for frames of `layout` through `lens` (the
     /// bytes as they are for a lens that is not a pair).
     pub fn stitched<'a>(
-        &mut self,
+        &'a mut self,
         lens: &Lens,
         layout: &PlaneLayout,
         data: &'a [u8],
-    ) -> Cow<'a, [u8]> {
+    ) -> &'a [u8] {
         if lens.pair.is_none() {
-            return Cow::Borrowed(data);
+            return data;
         }
         let fresh = self
             .last
@@ -146,12 +254,12 @@ impl Stitches {
             Some(stitch) if data.len() == layout.size as usize => {
                 self.matching
                     .update(&stitch.components, &stitch.means(data));
-                let mut out = data.to_vec();
-                stitch.correct(&mut out, &self.matching.tables(&stitch.components));
-                stitch.apply(&mut out);
-                Cow::Owned(out)
+                let tables = self.matching.tables(&stitch.components);
+                self.stitched.resize(data.len(), 0);
+                stitch.stitch_into(data, &mut self.stitched, &tables);
+                &self.stitched
             }
-            _ => Cow::Borrowed(data),
+            _ => data,
         }
     }
 
@@ -206,7 +314,7 @@ impl Stitch {
                     .filter(|t| t.matched)
                     .map(|t| {
                         let own = data[t.dst as usize + ch] as f64;
-                        let other = sample(data, t, ch, n, stride) as f64 / 65536.0;
+                        let other = sample(data, t, (ch, n, stride), |v| v) as f64 / 65536.0;
                         let (a, b) = if t.second { (other, own) } else { (own, other) };
                         (a, b, 1.0)
                     })
@@ -214,33 +322,6 @@ impl Stitch {
                 (a / f64::max(count, 1.0), b / f64::max(count, 1.0))
             })
             .collect()
-    }
-
-    /// Puts each component of each lens's part of the frame through its table, rows in
-    /// parallel.
-    fn correct(&self, data: &mut [u8], tables: &[[[u8; 256]; 2]]) {
-        for (c, table) in self.components.iter().zip(tables) {
-            let plane = &self.planes[c.plane];
-            let (n, rows) = (plane.channels as usize, plane.rows);
-            let width = (rows.bytes as usize) / n;
-            let start = rows.offset as usize;
-            let end = ((rows.offset + rows.stride * rows.rows) as usize).min(data.len());
-            let stride = rows.stride as usize;
-            data[start..end]
-                .par_chunks_mut(stride)
-                .enumerate()
-                .for_each(|(y, row)| {
-                    let (split, right_is_second) = self.split(plane, y as u32, width);
-                    let (left, right) = if right_is_second { (0, 1) } else { (1, 0) };
-                    let (a, b) = row[..width * n].split_at_mut(split.min(width) * n);
-                    for px in a.chunks_exact_mut(n) {
-                        px[c.channel] = table[left][px[c.channel] as usize];
-                    }
-                    for px in b.chunks_exact_mut(n) {
-                        px[c.channel] = table[right][px[c.channel] as usize];
-                    }
-                });
-        }
     }
 
     /// Where plane row `y` passes from one lens's part to the other's: the first column of
@@ -268,31 +349,20 @@ impl Stitch {
     }
 }
 
-/// The other lens's bilinear sample of a tap's channel `ch`, in 65536ths.
-fn sample(data: &[u8], t: &Tap, ch: usize, channels: usize, stride: usize) -> u64 {
+/// The other lens's bilinear sample of a tap's channel `ch`, each value put through
+/// `through` first, in 65536ths.
+fn sample(
+    data: &[u8],
+    t: &Tap,
+    (ch, channels, stride): (usize, usize, usize),
+    through: impl Fn(u8) -> u8,
+) -> u64 {
     let (fx, fy) = (t.fx as u64, t.fy as u64);
     let s = t.src as usize;
-    let at = |o: usize| data[s + o + ch] as u64;
+    let at = |o: usize| through(data[s + o + ch]) as u64;
     let top = at(0) * (256 - fx) + at(channels) * fx;
     let bottom = at(stride) * (256 - fx) + at(stride + channels) * fx;
     top * (256 - fy) + bottom * fy
-}
-
-/// A tap's blended value, channel by channel (alpha kept).
-fn blended(data: &[u8], t: &Tap, channels: usize, stride: usize) -> [u8; 4] {
-    let mut out = [0u8; 4];
-    for (ch, slot) in out.iter_mut().enumerate().take(channels) {
-        let own = data[t.dst as usize + ch] as u64;
-        if channels == 4 && ch == 3 {
-            *slot = own as u8;
-            continue;
-        }
-        let sample = sample(data, t, ch, channels, stride);
-        let w = t.weight as u64;
-        let mixed = ((own * (255 - w)) << 16) + sample * w;
-        *slot = ((mixed + (255 << 15)) / (255 << 16)) as u8;
-    }
-    out
 }
 
 /// The taps of one plane whose pixels are `scale` frame pixels across.
@@ -315,12 +385,20 @@ fn plane_taps(pair: &Pair, rows: &PlaneRows, channels: u32, scale: f64) -> Plane
                 })
             })
         })
-        .collect();
+        .collect::<Vec<Tap>>();
+    let mut row_starts = vec![0u32; rows.rows as usize + 1];
+    for t in &taps {
+        row_starts[((t.dst - rows.offset) / rows.stride) as usize + 1] += 1;
+    }
+    for y in 0..rows.rows as usize {
+        row_starts[y + 1] += row_starts[y];
+    }
     PlaneTaps {
         rows: *rows,
         channels,
         scale,
         taps,
+        row_starts,
     }
 }
 

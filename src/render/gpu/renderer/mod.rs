@@ -22,8 +22,7 @@ mod staged;
 
 use crate::frame::{PixelFormat, PlaneLayout, yuv};
 use crate::lens::Lens;
-use crate::plan::Filter;
-use crate::plan::FramePlan;
+use crate::plan::{Filter, FramePlan};
 use crate::render::mip::ImagedBox;
 use crate::render::stitch::Stitches;
 use image::RgbImage;
@@ -340,8 +339,33 @@ impl Renderer {
         plan: &FramePlan,
     ) -> Result<Option<RenderedFrame>, GpuError> {
         let started = Instant::now();
-        let stitched = self.stitches.stitched(&plan.lens, input, data);
-        let data = &stitched[..];
+        self.with_stitched(data, input, plan, |r, data| {
+            r.queue(data, input, plan, started)
+        })
+    }
+
+    /// Calls `then` with `data` as drawn: a lens pair's seam blended (into the stitches' frame).
+    fn with_stitched<T>(
+        &mut self,
+        data: &[u8],
+        input: &PlaneLayout,
+        plan: &FramePlan,
+        then: impl FnOnce(&mut Self, &[u8]) -> T,
+    ) -> T {
+        let mut stitches = std::mem::take(&mut self.stitches);
+        let done = then(self, stitches.stitched(&plan.lens, input, data));
+        self.stitches = stitches;
+        done
+    }
+
+    /// [`Renderer::push`] once the frame is as the renderer draws it.
+    fn queue(
+        &mut self,
+        data: &[u8],
+        input: &PlaneLayout,
+        plan: &FramePlan,
+        started: Instant,
+    ) -> Result<Option<RenderedFrame>, GpuError> {
         self.prepare(data, input, plan)?;
         let id = self.next_id;
         let slot = (id % RING as u64) as usize;
@@ -445,8 +469,7 @@ impl Renderer {
         drawn.into_iter().map(|f| self.read_back(f)).collect()
     }
 
-    /// What the operator is told of a pair's exposure match (`Stitches::said`; empty for a
-    /// single lens).
+    /// What the operator is told of a pair's exposure match (empty for a single lens).
     pub fn lenses_matched(&self) -> String {
         self.stitches.said()
     }

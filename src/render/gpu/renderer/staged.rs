@@ -11,7 +11,8 @@ use std::time::{Duration, Instant};
 /// [`Renderer::render_staged`]).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct StageTimes {
-    /// Copy into the upload buffer, transfer, format conversion and mip chain.
+    /// A lens pair's seam blended, copy into the upload buffer, transfer, format conversion
+    /// and mip chain.
     pub upload: Duration,
     /// The draw pass.
     pub render: Duration,
@@ -30,6 +31,18 @@ impl Renderer {
     ) -> Result<(RenderedFrame, StageTimes), GpuError> {
         while self.flush()?.is_some() {}
         let t0 = Instant::now();
+        // The upload's time includes a lens pair's seam, blended on the host first.
+        self.with_stitched(data, input, plan, |r, data| r.stages(data, input, plan, t0))
+    }
+
+    /// [`Renderer::render_staged`] once the frame is as the renderer draws it.
+    fn stages(
+        &mut self,
+        data: &[u8],
+        input: &PlaneLayout,
+        plan: &FramePlan,
+        t0: Instant,
+    ) -> Result<(RenderedFrame, StageTimes), GpuError> {
         self.prepare(data, input, plan)?;
         let id = self.next_id;
         self.next_id += 1;
