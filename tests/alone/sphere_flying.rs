@@ -47,6 +47,45 @@ fn lumas(img: &RgbImage, rect: digiview::layout::Rect) -> Vec<f64> {
     out
 }
 
+/// Camera 1's part of the composed stream, three times 2 s apart: the sky, all of it. No
+/// pixel black (the front lens alone draws none of it) and none off the sky's smooth gradient
+/// by much (a seam or a stray ground pixel would be).
+fn assert_all_sky(serve: &Serve) {
+    let layout = digiview::layout::layout(W, H, LayoutMode::Four, OverlayMode::None).unwrap();
+    let up = layout.views[1].0;
+    let inner = digiview::layout::Rect::new(up.x + 4, up.y + 4, up.w - 8, up.h - 8);
+    let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());
+    for _ in 0..3 {
+        let sky = lumas(&viewer.frame_after(Duration::from_secs(2)), inner);
+        let mean = sky.iter().sum::<f64>() / sky.len() as f64;
+        let (lo, hi) = sky
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        println!("the view straight up: luma {lo:.1} to {hi:.1}, mean {mean:.1}");
+        assert!(lo > 60.0, "a pixel of the sky view at luma {lo:.1}");
+        assert!(hi - lo < 24.0, "the sky view spans luma {lo:.1} to {hi:.1}");
+    }
+}
+
+/// CAMERA_FOV_STATUS of camera `component`, asked for by REQUEST_MESSAGE.
+fn fov_status(gcs: &Gcs, system: u8, component: u8) -> CAMERA_FOV_STATUS_DATA {
+    let got = accepted(
+        gcs.command(
+            system,
+            component,
+            REQUEST,
+            params(&[CAMERA_FOV_STATUS_DATA::ID as f32]),
+        ),
+        "camera fov status",
+    );
+    got.iter()
+        .find_map(|m| match m {
+            MavMessage::CAMERA_FOV_STATUS(f) => Some(f.clone()),
+            _ => None,
+        })
+        .expect("CAMERA_FOV_STATUS")
+}
+
 #[test]
 fn through_the_pair_a_view_held_straight_up_shows_the_sky_while_the_demo_flies_and_tracks() {
     let _alone = crate::one_at_a_time();
@@ -73,41 +112,10 @@ fn through_the_pair_a_view_held_straight_up_shows_the_sky_while_the_demo_flies_a
     let (system, seen) = cameras(&gcs);
     assert!(seen.contains(&101), "{seen:?}");
 
-    // The sky, all of it: no pixel of the view black (the front lens alone draws none of it)
-    // and none off the sky's smooth gradient by much (a seam or a stray ground pixel would).
-    let layout = digiview::layout::layout(W, H, LayoutMode::Four, OverlayMode::None).unwrap();
-    let up = layout.views[1].0;
-    let inner = digiview::layout::Rect::new(up.x + 4, up.y + 4, up.w - 8, up.h - 8);
-    let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());
-    for _ in 0..3 {
-        let sky = lumas(&viewer.frame_after(Duration::from_secs(2)), inner);
-        let mean = sky.iter().sum::<f64>() / sky.len() as f64;
-        let (lo, hi) = sky
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
-        println!("the view straight up: luma {lo:.1} to {hi:.1}, mean {mean:.1}");
-        assert!(lo > 60.0, "a pixel of the sky view at luma {lo:.1}");
-        assert!(hi - lo < 24.0, "the sky view spans luma {lo:.1} to {hi:.1}");
-    }
-    drop(viewer);
+    assert_all_sky(&serve);
 
     // The ground station is told the view looks 80° up, at no point on the ground.
-    let got = accepted(
-        gcs.command(
-            system,
-            101,
-            REQUEST,
-            params(&[CAMERA_FOV_STATUS_DATA::ID as f32]),
-        ),
-        "camera fov status",
-    );
-    let fov = got
-        .iter()
-        .find_map(|m| match m {
-            MavMessage::CAMERA_FOV_STATUS(f) => Some(f.clone()),
-            _ => None,
-        })
-        .expect("CAMERA_FOV_STATUS");
+    let fov = fov_status(&gcs, system, 101);
     let [w, x, y, z] = fov.q.map(f64::from);
     let (_, pitch, _) = DQuat::from_xyzw(x, y, z, w).to_euler(EulerRot::ZYX);
     println!("CAMERA_FOV_STATUS of camera 1: {fov:?}");
