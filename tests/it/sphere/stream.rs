@@ -1,5 +1,5 @@
 //! The pair through `serve` to a client: the lenses' exposure matched in the decoded stream,
-//! and told to the operator.
+//! and told to the operator (`/api/status`, and the page's status panel in Chromium).
 
 use super::*;
 
@@ -66,13 +66,28 @@ fn a_back_lens_half_again_as_bright_leaves_no_step_at_the_seam_in_the_decoded_st
     assert_eq!(code, 200);
     let status: serde_json::Value = serde_json::from_slice(&body).unwrap();
     let said = status["video"]["lenses"].as_str().unwrap_or_default();
-    let gain = said
-        .split("luma x")
-        .nth(1)
-        .and_then(|r| r.split(',').next()?.parse::<f64>().ok());
+    // "second lens: luma x1.51, Cb +0.0, ...": the luma gain about 1.5.
+    let about_half_again = |said: &str| {
+        let gain = said
+            .strip_prefix("second lens: luma x")
+            .and_then(|r| r.split(',').next()?.parse::<f64>().ok());
+        gain.is_some_and(|g| (1.45..=1.55).contains(&g))
+    };
     eprintln!("/api/status: {said}");
-    assert!(
-        gain.is_some_and(|g| (1.45..=1.55).contains(&g)),
-        "/api/status says {said:?}"
-    );
+    assert!(about_half_again(said), "/api/status says {said:?}");
+    // The page's status panel has the same row, in Chromium.
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let b = rt.block_on(common::browser::Browser::start(1024, 768));
+    rt.block_on(b.client.goto(&http)).unwrap();
+    let row = rt.block_on(b.until(
+        "the page's lens pair row",
+        std::time::Duration::from_secs(5),
+        "const row = [...document.querySelectorAll('#figures dt')]
+           .find((d) => d.textContent === 'lens pair');
+         return row ? row.nextElementSibling.textContent : null;",
+    ));
+    let row = row.as_str().unwrap_or_default();
+    eprintln!("the page: lens pair {row}");
+    assert!(about_half_again(row), "the page says {row:?}");
+    rt.block_on(b.close());
 }
