@@ -1,8 +1,8 @@
 //! The lens pair on the flying demo (issue 59): `serve --lens DUAL` draws the demo's world
 //! through the two lenses back to back while the vehicle flies its circle and banks. A view
 //! held straight up shows the sky (one fisheye looking down shows black there), the ground
-//! station is told where it looks, and the tracker's rings stay on the movers as they do on
-//! one fisheye (the scans and tiles go through the pair). Alone: the tracker runs on the CPU
+//! station is told where it looks, and the tracker's rings and tiles stay on the movers as
+//! they do on one fisheye (the scans and the tiles are drawn through the pair). Alone: the tracker runs on the CPU
 //! time the video leaves.
 
 use crate::common;
@@ -51,7 +51,7 @@ fn lumas(img: &RgbImage, rect: digiview::layout::Rect) -> Vec<f64> {
 /// pixel black (the front lens alone draws none of it) and none off the sky's smooth gradient
 /// by much (a seam or a stray ground pixel would be).
 fn assert_all_sky(serve: &Serve) {
-    let layout = digiview::layout::layout(W, H, LayoutMode::Four, OverlayMode::None).unwrap();
+    let layout = digiview::layout::layout(W, H, LayoutMode::Four, OverlayMode::Right).unwrap();
     let up = layout.views[1].0;
     let inner = digiview::layout::Rect::new(up.x + 4, up.y + 4, up.w - 8, up.h - 8);
     let viewer = Viewer::open(serve.rtsp.as_ref().unwrap());
@@ -91,7 +91,7 @@ fn through_the_pair_a_view_held_straight_up_shows_the_sky_while_the_demo_flies_a
     let _alone = crate::one_at_a_time();
     let port = free_udp_port();
     let link = format!("udpin:127.0.0.1:{port}");
-    // Four views; camera 1 held 80° up (locked to the world, so the bank does not move it).
+    // Four views and the tiles' column; camera 1 held 80° up (locked to the world, so the bank does not move it).
     let serve = Serve::start_video(&[
         "--lens",
         "DUAL",
@@ -104,7 +104,7 @@ fn through_the_pair_a_view_held_straight_up_shows_the_sky_while_the_demo_flies_a
         "--layout",
         "4",
         "--overlay",
-        "0",
+        "2",
         "--cam",
         "1:yaw=0,pitch=80deg,fov=60deg,lock=7",
     ]);
@@ -138,4 +138,7 @@ fn through_the_pair_a_view_held_straight_up_shows_the_sky_while_the_demo_flies_a
     );
     let precision = last["precision"].as_f64().unwrap();
     assert!(precision >= 0.95, "precision {precision}: {last}");
+    // The tiles down the right follow the movers: none on empty ground for over a second.
+    let false_tile = last["longest_false_tile"].as_f64().unwrap();
+    assert!(false_tile <= 1.0, "a tile on no mover for {false_tile} s");
 }
