@@ -31,6 +31,7 @@ use std::sync::OnceLock;
 mod mask;
 mod scan;
 mod shutter;
+mod sources;
 mod stream;
 mod v360;
 
