@@ -14,7 +14,7 @@
 use crate::frame::{PixelFormat, PlaneLayout, PlaneRows};
 use crate::lens::Lens;
 use crate::lens::pair::{Pair, Side, other, weight_of};
-use gains::{Component, Matching};
+use gains::{Component, MOST_GAIN, MOST_OFFSET, Matching};
 use glam::DVec2;
 use rayon::prelude::*;
 
@@ -284,7 +284,14 @@ impl Stitches {
                 _ => format!("{name} {x:+.1}"),
             })
             .collect();
-        format!("second lens: {} (each corrected halfway)", parts.join(", "))
+        let how = match self.last.as_ref().and_then(|(_, _, s)| s.as_ref()) {
+            Some(stitch) if self.matching.beyond_reach(&stitch.components) => format!(
+                "more than the match corrects: each lens moved {MOST_GAIN}x or {MOST_OFFSET} \
+                 codes at most; is one covered?"
+            ),
+            _ => "each corrected halfway".to_string(),
+        };
+        format!("second lens: {} ({how})", parts.join(", "))
     }
 
     /// How far apart the last pair's lenses are, by component (`gains::Matching::apart`):

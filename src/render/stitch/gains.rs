@@ -12,6 +12,14 @@ use crate::frame::PixelFormat;
 /// frames, two thirds of a second at 30 fps, to settle).
 pub const SETTLE: f64 = 0.05;
 
+/// The most each lens's gain is corrected by, either way: lenses up to four times apart (two
+/// stops, as the sun in one lens can make them) are matched; past that, one lens is likely
+/// covered or blinded, and matching further would drag the good one towards it.
+pub const MOST_GAIN: f64 = 2.0;
+
+/// The most each lens's chroma is moved by, code values.
+pub const MOST_OFFSET: f64 = 16.0;
+
 /// How a component is corrected.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Kind {
@@ -99,6 +107,7 @@ impl Matching {
             .iter()
             .zip(apart.iter().chain(std::iter::repeat(&0.0)))
             .map(|(c, &x)| {
+                let half = halfway(c.kind, x);
                 let table = |half: f64| -> [u8; 256] {
                     std::array::from_fn(|v| {
                         let v = v as f64;
@@ -109,8 +118,28 @@ impl Matching {
                         out.round().clamp(0.0, 255.0) as u8
                     })
                 };
-                [table(x / 2.0), table(-x / 2.0)]
+                [table(half), table(-half)]
             })
             .collect()
     }
+
+    /// Whether the lenses are further apart than the match corrects ([`MOST_GAIN`],
+    /// [`MOST_OFFSET`]) in any component.
+    pub fn beyond_reach(&self, components: &[Component]) -> bool {
+        let apart = self.apart.clone().unwrap_or_default();
+        components
+            .iter()
+            .zip(&apart)
+            .any(|(c, &x)| halfway(c.kind, x) != x / 2.0)
+    }
+}
+
+/// The correction the first lens takes for lenses `x` apart (the second takes its opposite):
+/// half of it, within what the match corrects.
+fn halfway(kind: Kind, x: f64) -> f64 {
+    let most = match kind {
+        Kind::Gain { .. } => MOST_GAIN.ln(),
+        Kind::Offset => MOST_OFFSET,
+    };
+    (x / 2.0).clamp(-most, most)
 }

@@ -169,3 +169,40 @@ fn a_second_lens_half_again_as_bright_and_warmer_is_matched_halfway_and_slowly()
         "{apart:?}"
     );
 }
+
+#[test]
+fn a_lens_far_darker_than_the_other_is_matched_no_further_than_twice_and_said_so() {
+    let layout = PlaneLayout::aligned(PixelFormat::Nv12, 960, 480, 64).unwrap();
+    let lens = dual(960, 480);
+    let pair = lens.pair.as_ref().unwrap();
+    let deep = DVec3::new(0.6, 0.3, 0.3).normalize();
+    let (front, back) = (
+        pair.project_in(Side::First, deep).unwrap(),
+        pair.project_in(Side::Second, -deep).unwrap(),
+    );
+    // The back lens all but covered: 10 codes above black against the front's 150.
+    let covered = exposed(&layout, (166, 26), (128, 128), (128, 128));
+    let mut stitches = Stitches::default();
+    let out = stitches.stitched(&lens, &layout, &covered).to_vec();
+    let (f, b) = (yuv_at(&layout, &out, front), yuv_at(&layout, &out, back));
+    // Halved and doubled about black, no further: the front lens stays at 16 + 75, not
+    // dragged to the geometric mean of 150 and 10 (16 + 39).
+    assert_eq!((f[0], b[0]), (16 + 75, 16 + 20), "{f:?} {b:?}");
+    let said = stitches.said();
+    assert!(
+        said.starts_with("second lens: luma x0.07") && said.contains("is one covered?"),
+        "{said}"
+    );
+    // Lenses 1.5 times apart are still matched halfway, and said to be.
+    let mut stitches = Stitches::default();
+    stitches.stitched(
+        &lens,
+        &layout,
+        &exposed(&layout, (100, 142), (128, 128), (128, 128)),
+    );
+    assert!(
+        stitches.said().ends_with("(each corrected halfway)"),
+        "{}",
+        stitches.said()
+    );
+}
