@@ -124,16 +124,21 @@ fn yuv_at(layout: &PlaneLayout, data: &[u8], p: DVec2) -> [u8; 3] {
     [data[(y * layout.stride + x) as usize], data[u], data[v]]
 }
 
-#[test]
-fn a_second_lens_half_again_as_bright_and_warmer_is_matched_halfway_and_slowly() {
+/// A 960x480 NV12 frame's layout, the pair for it, and a pixel deep in each lens's own part
+/// (the first's, the second's), where no blend reaches.
+fn deep_in_each() -> (PlaneLayout, Lens, DVec2, DVec2) {
     let layout = PlaneLayout::aligned(PixelFormat::Nv12, 960, 480, 64).unwrap();
     let lens = dual(960, 480);
     let pair = lens.pair.as_ref().unwrap();
     let deep = DVec3::new(0.6, 0.3, 0.3).normalize();
-    let (front, back) = (
-        pair.project_in(Side::First, deep).unwrap(),
-        pair.project_in(Side::Second, -deep).unwrap(),
-    );
+    let front = pair.project_in(Side::First, deep).unwrap();
+    let back = pair.project_in(Side::Second, -deep).unwrap();
+    (layout, lens, front, back)
+}
+
+#[test]
+fn a_second_lens_half_again_as_bright_and_warmer_is_matched_halfway_and_slowly() {
+    let (layout, lens, front, back) = deep_in_each();
     let mut stitches = Stitches::default();
     let even = exposed(&layout, (100, 100), (128, 128), (128, 128));
     let out = stitches.stitched(&lens, &layout, &even);
@@ -172,14 +177,7 @@ fn a_second_lens_half_again_as_bright_and_warmer_is_matched_halfway_and_slowly()
 
 #[test]
 fn a_lens_far_darker_than_the_other_is_matched_no_further_than_twice_and_said_so() {
-    let layout = PlaneLayout::aligned(PixelFormat::Nv12, 960, 480, 64).unwrap();
-    let lens = dual(960, 480);
-    let pair = lens.pair.as_ref().unwrap();
-    let deep = DVec3::new(0.6, 0.3, 0.3).normalize();
-    let (front, back) = (
-        pair.project_in(Side::First, deep).unwrap(),
-        pair.project_in(Side::Second, -deep).unwrap(),
-    );
+    let (layout, lens, front, back) = deep_in_each();
     // The back lens all but covered: 10 codes above black against the front's 150.
     let covered = exposed(&layout, (166, 26), (128, 128), (128, 128));
     let mut stitches = Stitches::default();
