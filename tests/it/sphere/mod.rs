@@ -28,6 +28,7 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use image::RgbImage;
 use std::sync::OnceLock;
 
+mod klv;
 mod mask;
 mod scan;
 mod shutter;
