@@ -38,9 +38,9 @@ pub struct BenchArgs {
     /// Frames rendered first and not timed (pipeline builds, caches).
     #[arg(long, default_value_t = 5)]
     warmup: u32,
-    /// The fisheye input's size.
-    #[arg(long, default_value = "3840x2160", value_parser = input_size)]
-    input_size: (u32, u32),
+    /// The fisheye input's size [default: the sensor's: 3840x2160, or a lens pair's frame]
+    #[arg(long, value_parser = input_size)]
+    input_size: Option<(u32, u32)>,
     /// The fisheye input's pixel format.
     #[arg(long, value_enum, default_value = "nv12")]
     input_format: PixelFormat,
@@ -195,12 +195,11 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
         base.tracked = four_objects();
     }
     let settings = &base.settings;
-    let lens = Lenses::new(cal).for_frame(settings.lens, args.input_size, settings.sensor.roi())?;
-    let input_layout = PlaneLayout::tight(args.input_format, args.input_size.0, args.input_size.1)?;
-    let bar = spinner(&format!(
-        "synthesising the {}x{} fisheye input",
-        args.input_size.0, args.input_size.1
-    ));
+    let sensor = (settings.sensor.width, settings.sensor.height);
+    let (w, h) = args.input_size.unwrap_or(sensor);
+    let lens = Lenses::new(cal).for_frame(settings.lens, (w, h), settings.sensor.roi())?;
+    let input_layout = PlaneLayout::tight(args.input_format, w, h)?;
+    let bar = spinner(&format!("synthesising the {w}x{h} fisheye input"));
     let fish = fisheye(&GridWorld::default(), &lens, &base);
     let input = yuv::encode(&fish, &input_layout);
     bar.finish_and_clear();
@@ -214,10 +213,7 @@ pub fn bench(cal: &LensCal, args: BenchArgs) -> Result<()> {
         };
         reports.push(Report {
             measured,
-            input: format!(
-                "{}x{} {}",
-                args.input_size.0, args.input_size.1, args.input_format
-            ),
+            input: format!("{w}x{h} {}", args.input_format),
             output: format!("{}x{} {}", output.width, output.height, args.output_format),
             layout: output.layout.code(),
             overlay: output.overlay.code(),

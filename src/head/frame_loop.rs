@@ -181,6 +181,14 @@ impl Head {
             .input
             .slot
             .take_until(l.start + l.pacer.wait_until(l.start.elapsed(), period));
+        // A frame the lens cannot see is no signal, and the last one goes with it.
+        let fresh = match fresh {
+            Some((f, _)) if !self.frame_fits(&f, &state) => {
+                l.last_frame = None;
+                None
+            }
+            fresh => fresh,
+        };
         let taken = Instant::now();
         let replaced_now = self.input.slot.stats().dropped;
         let replaced = std::mem::replace(&mut l.replaced_then, replaced_now) != replaced_now;

@@ -12,10 +12,11 @@ use crate::scene::GridWorld;
 use crate::scene::synth::world_origin;
 use crate::source::demo::{DemoCamera, Flight};
 use crate::source::{Ended, SourceSpec, backoff};
+use crate::state::State;
 use crate::supervise::Locked;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
-use tracing::{error, info};
+use tracing::{error, info, warn};
 
 impl Head {
     /// Runs the source until the head stops: the demo, or a GStreamer source reopened with
@@ -67,6 +68,28 @@ impl Head {
             }
             self.set_source_error(Some(format!("camera gone: {e}")));
             self.pause(wait);
+        }
+    }
+
+    /// Whether a source's frame can be seen through the lens the settings name: a lens
+    /// pair's only in the pair's shape (unless a sensor crop says which part). When not, the
+    /// source's error says why, for the status, the page and ground stations.
+    pub(super) fn frame_fits(&self, frame: &Frame, state: &State) -> bool {
+        let s = &state.settings;
+        let settings = self.gate.settings();
+        let Some(lens) = settings.lenses().get(s.lens) else {
+            return true;
+        };
+        match lens.fits(frame.layout.width, frame.layout.height) {
+            Err(e) if s.sensor.roi.is_none() => {
+                let why = e.to_string();
+                if self.source_error().as_deref() != Some(why.as_str()) {
+                    warn!("source: {why}");
+                    self.set_source_error(Some(why));
+                }
+                false
+            }
+            _ => true,
         }
     }
 

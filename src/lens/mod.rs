@@ -255,6 +255,21 @@ impl Lens {
         p.x >= lo && p.y >= lo && p.x <= self.width as f64 + hi && p.y <= self.height as f64 + hi
     }
 
+    /// Whether a whole `width` × `height` frame can be seen through this lens: any, but for a
+    /// pair, whose two images come side by side in a frame of its own shape (within a pixel).
+    pub fn fits(&self, width: u32, height: u32) -> Result<(), LensError> {
+        let (w, h) = (width as u64, height as u64);
+        let (lw, lh) = (self.width as u64, self.height as u64);
+        if self.pair.is_some() && (w * lh).abs_diff(h * lw) > lh {
+            return Err(LensError::PairShape {
+                name: self.name.clone(),
+                lens: (self.width, self.height),
+                frame: (width, height),
+            });
+        }
+        Ok(())
+    }
+
     /// The same lens for a frame of another size, optionally after a sensor crop (ROI given in
     /// pixels of this lens's frame). The field of view is unchanged: only the pixel mapping moves.
     pub fn for_frame(&self, width: u32, height: u32, roi: Option<Roi>) -> Lens {
@@ -327,6 +342,9 @@ impl Lenses {
             path: self.path.clone(),
             id,
         })?;
+        if roi.is_none() {
+            lens.fits(width, height)?;
+        }
         Ok(lens.for_frame(width, height, roi))
     }
 }

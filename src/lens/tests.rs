@@ -227,3 +227,31 @@ fn the_boson_lens_sees_its_published_50_degrees_across_and_a_fisheye_its_whole_f
     let fisheye = cal.by_id(0).unwrap().lens().for_frame(3840, 2160, None);
     assert_eq!(fisheye.hfov(), 2.0 * fisheye.half_fov);
 }
+
+#[test]
+fn a_lens_pair_takes_frames_of_its_shape_only_and_one_lens_any() {
+    let cal = super::calfile::LensCal::load(std::path::Path::new("lens-cal/lens.cal")).unwrap();
+    let lenses = Lenses::new(&cal);
+    let dual = cal.find("DUAL").unwrap().lens_id;
+    // Within a pixel of the shape across.
+    for fits in [(3840, 1920), (1920, 960), (1440, 720), (1441, 720)] {
+        assert!(lenses.for_frame(dual, fits, None).is_ok(), "{fits:?}");
+    }
+    assert!(lenses.for_frame(dual, (1442, 720), None).is_err());
+    let e = lenses.for_frame(dual, (3840, 2160), None).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "lens DUAL sees two images side by side in a 3840x1920 frame; a 3840x2160 frame is \
+         another shape, which would squeeze them (a frame of the pair's shape is needed)"
+    );
+    // A sensor crop says which part of the frame the pair's frame is.
+    let crop = Roi {
+        x: 0.0,
+        y: 0.0,
+        width: 3840.0,
+        height: 1920.0,
+    };
+    assert!(lenses.for_frame(dual, (3840, 2160), Some(crop)).is_ok());
+    // One lens takes any frame (scaled to it).
+    assert!(lenses.for_frame(0, (640, 480), None).is_ok());
+}

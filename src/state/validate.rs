@@ -87,16 +87,13 @@ impl Settings {
                 ));
             }
         }
-        let (sw, sh) = (self.sensor.width as u64, self.sensor.height as u64);
-        let (lw, lh) = (lens.width as u64, lens.height as u64);
-        if lens.pair.is_some() && self.sensor.roi.is_none() && (sw * lh).abs_diff(sh * lw) > sw {
-            return invalid(format!(
-                "lens {} sees two images side by side in a {lw}x{lh} frame; the sensor is \
-                 {sw}x{sh}: a frame of that shape is needed",
-                lens.name
-            ));
+        match (
+            self.sensor.roi,
+            lens.fits(self.sensor.width, self.sensor.height),
+        ) {
+            (None, Err(e)) => invalid(format!("{e} (the sensor's size)")),
+            _ => Ok(()),
         }
-        Ok(())
     }
 
     /// Every field against its rule (what the protocol takes unchanged), and the bounds that

@@ -43,6 +43,16 @@ pub enum LensError {
     NoSuchId { path: PathBuf, id: u8 },
     #[error("{path}: {message}")]
     Import { path: PathBuf, message: String },
+    #[error(
+        "lens {name} sees two images side by side in a {}x{} frame; a {}x{} frame is another \
+         shape, which would squeeze them (a frame of the pair's shape is needed)",
+        lens.0, lens.1, frame.0, frame.1
+    )]
+    PairShape {
+        name: String,
+        lens: (u32, u32),
+        frame: (u32, u32),
+    },
 }
 
 /// Who made a calibration and how much to trust it.

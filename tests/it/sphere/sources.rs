@@ -72,3 +72,51 @@ fn two_sources_side_by_side_draw_the_views_of_one_pair_frame() {
     assert!(same >= 40.0, "{same:.1} dB");
     assert!(wrong < 20.0, "swapped: {wrong:.1} dB");
 }
+
+#[test]
+fn a_source_of_another_shape_than_the_pairs_is_refused_saying_why() {
+    use common::serve::Serve;
+    let dir = tempfile::tempdir().unwrap();
+    // A 16:9 camera where the pair's two images come in a 2:1 frame.
+    let wide = dir.path().join("wide.png");
+    RgbImage::from_pixel(1280, 720, image::Rgb([90, 90, 90]))
+        .save(&wide)
+        .unwrap();
+    let source = format!("image:{}", wide.display());
+    let why = "lens DUAL sees two images side by side in a 3840x1920 frame; a 1280x720 frame is \
+               another shape, which would squeeze them (a frame of the pair's shape is needed)";
+    // `serve`: no signal, and the status says why.
+    let serve = Serve::start_video(&["--source", &source, "--lens", "DUAL", "--size", "640x480"]);
+    let url = format!("{}api/status", serve.http.as_ref().unwrap());
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    let status = loop {
+        let (_, body) = common::gcs::http_get(&url);
+        let status: serde_json::Value = serde_json::from_slice(&body).unwrap_or_default();
+        if status["video"]["source_down"].is_string() || std::time::Instant::now() > deadline {
+            break status;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
+    assert_eq!(
+        (&status["status"], &status["failure"]),
+        (&3.into(), &1.into()),
+        "{status}"
+    );
+    assert_eq!(status["video"]["source_down"], why, "{status}");
+    // `render`: refused, with the same words.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_digiview"))
+        .args([
+            "render",
+            "--lens",
+            "DUAL",
+            "--input",
+            wide.to_str().unwrap(),
+            "--out",
+        ])
+        .arg(dir.path().join("out.png"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && said.contains(why), "{said}");
+    assert!(!dir.path().join("out.png").exists());
+}
