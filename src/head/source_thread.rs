@@ -80,8 +80,8 @@ impl Head {
         let Some(lens) = settings.lenses().get(s.lens) else {
             return true;
         };
-        match lens.fits(frame.layout.width, frame.layout.height) {
-            Err(e) if s.sensor.roi.is_none() => {
+        match lens.fits(frame.layout.width, frame.layout.height, s.sensor.roi()) {
+            Err(e) => {
                 let why = e.to_string();
                 if self.source_error().as_deref() != Some(why.as_str()) {
                     warn!("source: {why}");
@@ -89,7 +89,7 @@ impl Head {
                 }
                 false
             }
-            _ => true,
+            Ok(()) => true,
         }
     }
 

@@ -255,12 +255,13 @@ impl Lens {
         p.x >= lo && p.y >= lo && p.x <= self.width as f64 + hi && p.y <= self.height as f64 + hi
     }
 
-    /// Whether a whole `width` × `height` frame can be seen through this lens: any, but for a
-    /// pair, whose two images come side by side in a frame of its own shape (within a pixel).
-    pub fn fits(&self, width: u32, height: u32) -> Result<(), LensError> {
+    /// Whether a `width` × `height` frame, after the sensor crop `roi`, can be seen through
+    /// this lens: any, but for a pair, whose two images come side by side in a frame of its own
+    /// shape (within a pixel), unless a crop says which part of the frame that is.
+    pub fn fits(&self, width: u32, height: u32, roi: Option<Roi>) -> Result<(), LensError> {
         let (w, h) = (width as u64, height as u64);
         let (lw, lh) = (self.width as u64, self.height as u64);
-        if self.pair.is_some() && (w * lh).abs_diff(h * lw) > lh {
+        if self.pair.is_some() && roi.is_none() && (w * lh).abs_diff(h * lw) > lh {
             return Err(LensError::PairShape {
                 name: self.name.clone(),
                 lens: (self.width, self.height),
@@ -342,9 +343,7 @@ impl Lenses {
             path: self.path.clone(),
             id,
         })?;
-        if roi.is_none() {
-            lens.fits(width, height)?;
-        }
+        lens.fits(width, height, roi)?;
         Ok(lens.for_frame(width, height, roi))
     }
 }

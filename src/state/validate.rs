@@ -87,12 +87,10 @@ impl Settings {
                 ));
             }
         }
-        match (
-            self.sensor.roi,
-            lens.fits(self.sensor.width, self.sensor.height),
-        ) {
-            (None, Err(e)) => invalid(format!("{e} (the sensor's size)")),
-            _ => Ok(()),
+        let (w, h) = (self.sensor.width, self.sensor.height);
+        match lens.fits(w, h, self.sensor.roi()) {
+            Err(e) => invalid(format!("{e} (the sensor's size)")),
+            Ok(()) => Ok(()),
         }
     }
 
