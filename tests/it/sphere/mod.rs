@@ -85,6 +85,31 @@ fn state(views: [(f64, f64); 4]) -> State {
     s
 }
 
+/// `serve` with `source` through DUAL, one 90° view across the seam (640x480), and the last
+/// picture FFmpeg decoded from its stream, which FFmpeg took without a complaint.
+fn served_through_dual(source: &str) -> (common::serve::Serve, RgbImage) {
+    use common::serve::{Serve, until_running};
+    let serve = Serve::start_video(&[
+        "--source",
+        source,
+        "--lens",
+        "DUAL",
+        "--size",
+        "640x480",
+        "--layout",
+        "0",
+        "--cam",
+        "0:yaw=30deg,pitch=0deg,fov=90deg,lock=7",
+    ]);
+    until_running(&serve);
+    let got = crate::players::pull(serve.rtsp.clone().unwrap(), "tcp")
+        .join()
+        .unwrap();
+    let bad = crate::players::complaints(&got.log);
+    assert!(bad.is_empty(), "FFmpeg reports {bad:#?}");
+    (serve, got.last)
+}
+
 /// Views that straddle the seam: the horizon, all round, a little above and below.
 const ON_THE_SEAM: [(f64, f64); 4] = [(0.0, 0.0), (95.0, 12.0), (200.0, -12.0), (290.0, 5.0)];
 

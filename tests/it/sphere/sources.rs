@@ -5,30 +5,6 @@
 
 use super::*;
 
-/// The decoded stream of `serve` with `source` through DUAL: one view across the seam.
-fn served(source: &str) -> RgbImage {
-    use common::serve::{Serve, until_running};
-    let serve = Serve::start_video(&[
-        "--source",
-        source,
-        "--lens",
-        "DUAL",
-        "--size",
-        "640x480",
-        "--layout",
-        "0",
-        "--cam",
-        "0:yaw=30deg,pitch=0deg,fov=90deg,lock=7",
-    ]);
-    until_running(&serve);
-    let got = crate::players::pull(serve.rtsp.clone().unwrap(), "tcp")
-        .join()
-        .unwrap();
-    let bad = crate::players::complaints(&got.log);
-    assert!(bad.is_empty(), "FFmpeg reports {bad:#?}");
-    got.last
-}
-
 /// A `gst:` description of one still as a live camera would give it: NV12 at 30 fps.
 fn camera(path: &std::path::Path, pad: &str) -> String {
     format!(
@@ -51,8 +27,8 @@ fn two_sources_side_by_side_draw_the_views_of_one_pair_frame() {
     half(0).save(&front).unwrap();
     half(w / 2).save(&back).unwrap();
 
-    let one = served(&format!("image:{}", whole.display()));
-    let two = served(&format!(
+    let (_, one) = served_through_dual(&format!("image:{}", whole.display()));
+    let (_, two) = served_through_dual(&format!(
         "gst:{} {} compositor name=mix background=black sink_1::xpos={}",
         camera(&front, "sink_0"),
         camera(&back, "sink_1"),
@@ -61,7 +37,7 @@ fn two_sources_side_by_side_draw_the_views_of_one_pair_frame() {
     let all = Rect::new(0, 0, one.width(), one.height());
     let same = psnr(&one, &two, all);
     // The lenses swapped: the seam's two sides from the wrong cameras.
-    let swapped = served(&format!(
+    let (_, swapped) = served_through_dual(&format!(
         "gst:{} {} compositor name=mix background=black sink_1::xpos={}",
         camera(&back, "sink_0"),
         camera(&front, "sink_1"),

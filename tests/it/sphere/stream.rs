@@ -15,7 +15,6 @@ fn row_luma(img: &RgbImage, rows: std::ops::Range<u32>) -> f64 {
 
 #[test]
 fn a_back_lens_half_again_as_bright_leaves_no_step_at_the_seam_in_the_decoded_stream() {
-    use common::serve::{Serve, until_running};
     let dir = tempfile::tempdir().unwrap();
     // A grey world (any step at the seam is the lenses' exposure), seen by the pair with the
     // back lens 1.5 times as bright as the front (about black).
@@ -25,28 +24,10 @@ fn a_back_lens_half_again_as_bright_leaves_no_step_at_the_seam_in_the_decoded_st
     brighter_second(&mut frame, 1.5);
     let still = dir.path().join("pair.png");
     frame.save(&still).unwrap();
-    let source = format!("image:{}", still.display());
-    let serve = Serve::start_video(&[
-        "--source",
-        &source,
-        "--lens",
-        "DUAL",
-        "--size",
-        "640x480",
-        "--layout",
-        "0",
-        "--cam",
-        "0:yaw=30deg,pitch=0deg,fov=90deg,lock=7",
-    ]);
-    until_running(&serve);
-    let got = crate::players::pull(serve.rtsp.clone().unwrap(), "tcp")
-        .join()
-        .unwrap();
-    let bad = crate::players::complaints(&got.log);
-    assert!(bad.is_empty(), "FFmpeg reports {bad:#?}");
+    let (serve, last) = served_through_dual(&format!("image:{}", still.display()));
     // The view looks level: the seam is its middle row. Rows 6 to 10 degrees above and below.
-    let (above, below) = (row_luma(&got.last, 180..210), row_luma(&got.last, 270..300));
-    let across = row_luma(&got.last, 236..244);
+    let (above, below) = (row_luma(&last, 180..210), row_luma(&last, 270..300));
+    let across = row_luma(&last, 236..244);
     eprintln!(
         "decoded luma: above the seam {above:.2}, on it {across:.2}, below {below:.2} \
          (the lenses alone: {:.1} and {:.1})",
