@@ -40,6 +40,16 @@ fn rings(s: &Value) -> (u64, u64) {
     )
 }
 
+/// The rings scored over the next `flying` (count, within 10 px of their mover), and the
+/// demo's score at its end.
+pub(crate) fn rings_over(serve: &Serve, flying: Duration) -> (u64, u64, Value) {
+    let before = rings(&score(serve));
+    std::thread::sleep(flying);
+    let last = score(serve);
+    let (count, within) = rings(&last);
+    (count - before.0, within - before.1, last)
+}
+
 /// Flies the demo for [`flight`] in each of layouts 4, 5 and 6 (a third each) and checks the
 /// score: 95% of the objects in the scans' fields on a mover, no entry later than 1 s, no
 /// tile on empty ground for more than 1 s, 95% of each layout's rings within 10 px of their
@@ -58,11 +68,8 @@ fn fly_and_score(loaded: bool) {
         );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         std::thread::sleep(Duration::from_millis(500));
-        let before = rings(&score(&serve));
-        std::thread::sleep(flight() / 3);
-        last = score(&serve);
-        let (count, within) = rings(&last);
-        let (count, within) = (count - before.0, within - before.1);
+        let (count, within, score) = rings_over(&serve, flight() / 3);
+        last = score;
         println!("{what}, layout {layout}: {within} of {count} rings within 10 px");
         assert!(count >= 30, "{what}, layout {layout}: {count} rings");
         assert!(

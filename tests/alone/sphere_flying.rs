@@ -7,44 +7,27 @@
 
 use crate::common;
 
+use crate::detect_flying::rings_over;
 use common::autopilot::free_udp_port;
-use common::gcs::{Gcs, REQUEST, accepted, cameras, http_get, params};
+use common::gcs::{Gcs, REQUEST, accepted, cameras, params};
 use common::serve::Serve;
+use common::thermal::luma;
 use common::viewer::Viewer;
 use digiview::modes::{LayoutMode, OverlayMode};
 use glam::{DQuat, EulerRot};
 use image::RgbImage;
 use mavlink::MessageData;
 use mavlink::dialects::common::*;
-use serde_json::Value;
 use std::time::Duration;
 
 const W: u32 = 1280;
 const H: u32 = 720;
 
-fn score(serve: &Serve) -> Value {
-    let url = format!("{}api/status", serve.http.as_ref().unwrap());
-    let (code, body) = http_get(&url);
-    assert_eq!(code, 200);
-    serde_json::from_slice::<Value>(&body).unwrap()["video"]["demo_score"].clone()
-}
-
-/// The rings scored so far: (count, within 10 px).
-fn rings(s: &Value) -> (u64, u64) {
-    let n = |k: &str| s["rings"][k].as_u64().unwrap_or(0);
-    (n("count"), n("within"))
-}
-
 /// BT.709 luma of each pixel of `img` within `rect`.
 fn lumas(img: &RgbImage, rect: digiview::layout::Rect) -> Vec<f64> {
-    let mut out = Vec::new();
-    for y in rect.y..rect.bottom() {
-        for x in rect.x..rect.right() {
-            let p = img.get_pixel(x, y).0.map(f64::from);
-            out.push(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
-        }
-    }
-    out
+    let rows = rect.y..rect.bottom();
+    rows.flat_map(|y| (rect.x..rect.right()).map(move |x| luma(img, x, y)))
+        .collect()
 }
 
 /// Camera 1's part of the composed stream, three times 2 s apart: the sky, all of it. No
@@ -125,11 +108,7 @@ fn through_the_pair_a_view_held_straight_up_shows_the_sky_while_the_demo_flies_a
 
     // The tracker through the pair: its rings on the movers, as the issue that built it asks
     // of one fisheye (95% within 10 px).
-    let before = rings(&score(&serve));
-    std::thread::sleep(Duration::from_secs(12));
-    let last = score(&serve);
-    let (count, within) = rings(&last);
-    let (count, within) = (count - before.0, within - before.1);
+    let (count, within, last) = rings_over(&serve, Duration::from_secs(12));
     println!("through the pair: {within} of {count} rings within 10 px; {last}");
     assert!(count >= 30, "{count} rings");
     assert!(
