@@ -267,7 +267,7 @@ impl Stitches {
     /// component by component, e.g. `second lens: luma x1.48, Cb +0.0, Cr -1.0 (each
     /// corrected halfway)`. Empty before a pair's first frame.
     pub fn said(&self) -> String {
-        let Some((_, layout, Some(_))) = &self.last else {
+        let Some((_, layout, Some(stitch))) = &self.last else {
             return String::new();
         };
         let names: &[&str] = match layout.format {
@@ -275,7 +275,8 @@ impl Stitches {
             PixelFormat::Nv12 | PixelFormat::I420 => &["luma", "Cb", "Cr"],
         };
         let parts: Vec<String> = self
-            .apart()
+            .matching
+            .apart(&stitch.components)
             .iter()
             .zip(names)
             .enumerate()
@@ -284,12 +285,13 @@ impl Stitches {
                 _ => format!("{name} {x:+.1}"),
             })
             .collect();
-        let how = match self.last.as_ref().and_then(|(_, _, s)| s.as_ref()) {
-            Some(stitch) if self.matching.beyond_reach(&stitch.components) => format!(
+        let how = if self.matching.beyond_reach(&stitch.components) {
+            format!(
                 "more than the match corrects: each lens moved {MOST_GAIN}x or {MOST_OFFSET} \
                  codes at most; is one covered?"
-            ),
-            _ => "each corrected halfway".to_string(),
+            )
+        } else {
+            "each corrected halfway".to_string()
         };
         format!("second lens: {} ({how})", parts.join(", "))
     }
