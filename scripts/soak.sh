@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Soak: `digiview serve` with everything on, for N minutes (default 60), as a drone flies it
 # (issue 56's hour):
-# - 1920x1080 out at 30 fps from the flying demo's 3840x2160 fisheye frames;
+# - 1920x1080 out at 30 fps from 3840x2160 fisheye frames: the flying demo's, or any --source
+#   (a camera's frames cost the head no CPU to make; the demo's are drawn on the CPU, so on a
+#   small machine a raw video file, e.g. `file:clip.y4m` of `synth` frames, stands in better);
 # - the autopilot: ArduPilot's MAVLink gimbal driver replayed from its source
 #   (tests/peers/gimbal_driver.py), sending the vehicle's state at 50 Hz and managing the views
 #   as gimbal devices (`--mavlink-gimbal device`), pointing view 0 somewhere new every 4 s
@@ -22,15 +24,21 @@
 # lived and exited cleanly, memory grew by less than 1%, nothing restarted, every recording
 # plays with at least 95% of its frames, and the rate held (median >= 29.5, 1st percentile
 # >= 25 fps).
-# Usage: scripts/soak.sh [minutes] [workdir] [output size] [demo frame size]   (scripts/setup.sh first: it makes .venv)
+# Usage: scripts/soak.sh [minutes] [workdir] [output size] [source]   (scripts/setup.sh first: it makes .venv)
+#   source: WxH for the demo drawn at that size (default 3840x2160), else a --source string.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 minutes=${1:-60}
 work=${2:-$(mktemp -d /tmp/digiview-soak.XXXX)}
 size=${3:-1920x1080}
 # The demo's fisheye frames are drawn on the CPU, which a camera's are not: at 4K that alone
-# takes most of a 2-core machine (give a smaller size there to soak the rest).
-demo=${4:-3840x2160}
+# takes most of a 2-core machine (give a smaller size, or a raw video file, there).
+source=${4:-3840x2160}
+if [[ "$source" =~ ^[0-9]+x[0-9]+$ ]]; then
+  source_flags=(--demo-size "$source") source_name="a $source demo"
+else
+  source_flags=(--source "$source") source_name="$source"
+fi
 mkdir -p "$work/captures"
 cargo build --release --quiet --bin digiview || exit 1
 [ -x .venv/bin/python ] || { echo "soak: no .venv: run scripts/setup.sh"; exit 1; }
@@ -42,11 +50,23 @@ payload=$(free_udp_port)
 ctl() { "$bin" ctl --addr "127.0.0.1:$control" "$@" >/dev/null; }
 seconds=$((minutes * 60))
 
+# The viewers (the page in Chromium, the FFmpeg clients and the relay) stand in for machines
+# on the ground: they run at the idle priority (SCHED_IDLE, which Chromium's own priority
+# changes keep), so that on a small machine they take the CPU time the head leaves, as on
+# their own machines they would not take the head's (Chromium decoding the page's preview
+# alone takes half a core here). The autopilot's, the ground station's and the payload app's
+# replays are light and keep the head's priority, so their rates stay as asked. What each
+# peer got (answers, frames, reconnects) is reported, so a starved one shows.
+# PEER_PRIORITY=same runs the viewers at the head's priority too.
+viewer() {
+  if [ "${PEER_PRIORITY:-idle}" = same ]; then "$@"; else chrt --idle 0 "$@"; fi
+}
+
 relay_loop() {  # a relay that decodes the published stream, again after each disconnect
   local n=0
   while :; do
     n=$((n + 1))
-    ffmpeg -nostdin -v error -i "srt://127.0.0.1:$relay?mode=listener" \
+    viewer ffmpeg -nostdin -v error -i "srt://127.0.0.1:$relay?mode=listener" \
       -progress "$work/relay.$n.progress" -f null - >>"$work/relay.log" 2>&1
     sleep 1
   done
@@ -55,7 +75,7 @@ relay_loop &
 
 RUST_LOG=info "$bin" serve --size "$size" --control "127.0.0.1:$control" --rtsp-port "$rtsp" \
   --http "127.0.0.1:$http" --mavlink "udpin:127.0.0.1:$mav" --capture-dir "$work/captures" \
-  --demo-size "$demo" --publish "srt://127.0.0.1:$relay" --mavlink-gimbal device \
+  "${source_flags[@]}" --publish "srt://127.0.0.1:$relay" --mavlink-gimbal device \
   --payload "udpin:127.0.0.1:$payload" --payload-view 3 >"$work/stdout" 2>"$work/serve.log" &
 pid=$!
 cleanup() {  # serve, then each loop and what it runs (an orphan would hold a port)
@@ -66,10 +86,14 @@ cleanup() {  # serve, then each loop and what it runs (an orphan would hold a po
   done
 }
 trap cleanup EXIT
-sleep 5
-url=$(sed -n 's/^rtsp serving //p' "$work/stdout")
+# The first start on a machine builds the GPU pipelines (tens of seconds on a slow one).
+for ((i = 0; i < 120; i++)); do
+  url=$(sed -n 's/^rtsp serving //p' "$work/stdout")
+  [ -n "$url" ] || ! kill -0 $pid 2>/dev/null && break
+  sleep 0.5
+done
 [ -n "$url" ] || { echo "soak: serve did not start"; cat "$work/serve.log"; exit 1; }
-echo "soak: $minutes min at $size from a $demo demo, pid $pid, $url, files in $work"
+echo "soak: $minutes min at $size from $source_name, pid $pid, $url, files in $work"
 
 .venv/bin/python scripts/soak_gcs.py "$mav" "$seconds" >"$work/gcs.log" 2>&1 &
 # The autopilot's gimbal driver: view 0 to a new angle every 4 s, the vehicle heading 0.
@@ -84,14 +108,14 @@ for ((i = 0; i < seconds / 5 + 1; i++)); do
   echo '{"command": [100, 527, 0, 0, 0, 0, 0, 0, 0]}'
   sleep 5
 done | .venv/bin/python tests/peers/payload_sdk.py "$payload" >"$work/payload.log" 2>&1 &
-chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
+viewer chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
   --disable-background-networking --disable-component-update --disable-sync \
   --user-data-dir="$work/chromium" --remote-debugging-port=0 "http://127.0.0.1:$http/" \
   >"$work/chromium.log" 2>&1 &
 
 watcher() {  # one view watched all along; a reconnect is counted
   while kill -0 $pid 2>/dev/null; do
-    ffmpeg -nostdin -v error -rtsp_transport tcp -i "$url/cam$1" -f null - >>"$work/view$1.log" 2>&1
+    viewer ffmpeg -nostdin -v error -rtsp_transport tcp -i "$url/cam$1" -f null - >>"$work/view$1.log" 2>&1
     # Not counted once the soak is ending: serve is being stopped then.
     kill -0 $pid 2>/dev/null && [ ! -e "$work/ending" ] &&
       echo "reconnect $(date +%s)" >>"$work/view$1.reconnects"
@@ -100,7 +124,7 @@ watcher() {  # one view watched all along; a reconnect is counted
 }
 client() {  # joins the composed stream for 5..60 s, leaves for 1..20 s
   while kill -0 $pid 2>/dev/null; do
-    timeout $((5 + RANDOM % 56)) ffmpeg -nostdin -v error -rtsp_transport tcp -i "$url" -f null - \
+    viewer timeout $((5 + RANDOM % 56)) ffmpeg -nostdin -v error -rtsp_transport tcp -i "$url" -f null - \
       >>"$work/client$1.log" 2>&1
     sleep $((1 + RANDOM % 20))
   done
@@ -136,22 +160,29 @@ sleep 2  # the ground station prints its summary when its time is up
 trap - EXIT
 cleanup
 
-# Memory: after warm-up (2 minutes, or a quarter of a short run), the median of the first
-# tenth of the samples against the median of the last tenth (RSS swings by tens of MB as 4K
-# frames come and go: growth is a trend, not one peak), and the largest sample.
+# Memory: after warm-up (2 minutes, or a quarter of a short run), the trend of the samples,
+# a least-squares line through them over the rest of the run, as a share of their median. RSS
+# swings by tens of MB as 4K frames and allocator blocks come and go: growth is a trend, not
+# one peak, and two medians of a few samples each catch a swing as growth. The medians of the
+# first and last tenth and the range are printed beside it.
 warm=$((minutes * 15 < 120 ? minutes * 15 : 120))
 python3 - "$work/rss.txt" "$warm" <<'PY'
 import statistics as st, sys
 rows = [tuple(map(int, l.split())) for l in list(open(sys.argv[1]))[1:]]
-kb = [r for t, r in rows if t >= int(sys.argv[2])]
-if len(kb) < 20:
+rows = [(t, kb) for t, kb in rows if t >= int(sys.argv[2])]
+if len(rows) < 20:
     print("soak: too short to judge memory")
     sys.exit(1)
+t = [r[0] for r in rows]
+kb = [r[1] for r in rows]
+slope, _ = st.linear_regression(t, kb)
+mid = st.median(kb)
+growth = 100 * slope * (t[-1] - t[0]) / mid
 tenth = max(len(kb) // 10, 6)
 first, last = st.median(kb[:tenth]), st.median(kb[-tenth:])
-growth = 100 * (last - first) / first
-print(f"soak: rss after warm-up {first / 1024:.1f} MB (median of the first {tenth} samples), "
-      f"{last / 1024:.1f} MB at the end ({growth:+.2f}%), "
+print(f"soak: rss after warm-up: trend {growth:+.2f}% over {(t[-1] - t[0]) / 60:.0f} min "
+      f"({slope * 3600 / 1024:+.1f} MB an hour, median {mid / 1024:.1f} MB); "
+      f"medians of the first and last {tenth} samples {first / 1024:.1f} and {last / 1024:.1f} MB; "
       f"{min(kb) / 1024:.1f} to {max(kb) / 1024:.1f} MB in all")
 sys.exit(0 if growth < 1.0 else 1)
 PY
