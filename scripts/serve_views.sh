@@ -7,11 +7,15 @@
 # (serve_config.sh).
 # Used by scripts/views_cost.sh and scripts/gpu_figures.sh.
 #
-# Usage: scripts/serve_views.sh DIGIVIEW STILL LOG PORT [KIND [CODEC [CLIENT]]]
+# Usage: scripts/serve_views.sh DIGIVIEW STILL LOG PORT [KIND [CODEC [CLIENT [PRIORITY]]]]
 #   KIND: the encoder (default auto); CODEC: h264 (default) or h265;
-#   CLIENT: ffmpeg (default) or gst (gst-launch-1.0's rtspsrc).
+#   CLIENT: ffmpeg (default) or gst (gst-launch-1.0's rtspsrc);
+#   PRIORITY: the clients' CPU priority: same (as serve's, the default) or idle (SCHED_IDLE:
+#   they take the CPU time serve leaves, as viewers on machines of their own would).
 set -uo pipefail
 dv=$1 still=$2 log=$3 port=$4 kind=${5:-auto} codec=${6:-h264} client=${7:-ffmpeg}
+priority=${8:-same}
+run_client() { if [[ $priority == idle ]]; then chrt --idle 0 "$@"; else "$@"; fi; }
 cfg=$(mktemp --suffix=.toml)
 trap 'rm -f "$cfg"' EXIT
 . "$(dirname "$0")/serve_config.sh"
@@ -25,11 +29,11 @@ pids=()
 for cam in 0 1 2 3; do
   uri="rtsp://127.0.0.1:$port/digiview/cam$cam"
   if [[ $client == gst ]]; then
-    gst-launch-1.0 -q rtspsrc location="$uri" protocols=tcp latency=0 ! fakesink sync=false \
+    run_client gst-launch-1.0 -q rtspsrc location="$uri" protocols=tcp latency=0 ! fakesink sync=false \
       >/dev/null 2>&1 &
   else
     # Each frame's timestamp (1/90000 s), for its stream's own rate: LOG.camN.
-    ffmpeg -nostdin -loglevel error -rtsp_transport tcp -i "$uri" -fps_mode passthrough \
+    run_client ffmpeg -nostdin -loglevel error -rtsp_transport tcp -i "$uri" -fps_mode passthrough \
       -enc_time_base:v 1:90000 -f framemd5 "$log.cam$cam" >/dev/null 2>&1 &
   fi
   pids+=($!)

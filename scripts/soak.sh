@@ -86,6 +86,7 @@ cleanup() {  # serve, then each loop and what it runs (an orphan would hold a po
   done
 }
 trap cleanup EXIT
+trap 'exit 1' INT TERM  # the EXIT trap then stops what the soak started
 # The first start on a machine builds the GPU pipelines (tens of seconds on a slow one).
 for ((i = 0; i < 120; i++)); do
   url=$(sed -n 's/^rtsp serving //p' "$work/stdout")
@@ -129,7 +130,9 @@ client() {  # joins the composed stream for 5..60 s, leaves for 1..20 s
     sleep $((1 + RANDOM % 20))
   done
 }
-for i in 0 3; do watcher $i & done
+# SOAK_VIEWS: the views watched all along (default "0 3"; "" for none, to see what they cost).
+views=${SOAK_VIEWS-0 3}
+for i in $views; do watcher $i & done
 for i in 1 2; do client $i & done
 
 end=$(($(date +%s) + seconds))
@@ -226,7 +229,7 @@ grep "health:" "$work/serve.log" | tail -1
 services=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1])).get("services") or {})' "$work/status.json" 2>/dev/null)
 restarts=$(grep -c -i 'restart' "$work/serve.log")
 echo "soak: services failed (last /api/status): ${services:-unknown}; log lines naming a restart: $restarts"
-for i in 0 3; do
+for i in $views; do
   echo "soak: view $i reconnects: $(cat "$work/view$i.reconnects" 2>/dev/null | wc -l)"
 done
 relay_frames=$(cat "$work"/relay.*.progress 2>/dev/null | awk -F= '/^frame=/{f=$2} /^progress=end/{s+=f; f=0} END{print s+f}')

@@ -7,15 +7,18 @@
 # counted by its FFmpeg client from the frames' timestamps. With several binaries (before
 # and after a change), each round runs each binary once, in turn, since this machine's speed
 # wanders; the table gives medians and ranges over every health line of every round.
+# A BIN written BIN@idle runs its FFmpeg clients at the idle priority (serve_views.sh's
+# PRIORITY): on a 2-core machine the four clients' decoding takes CPU time that viewers on the
+# ground would not take from the head; compare BIN against BIN@idle to see how much.
 #
-# Usage: scripts/views_cost.sh ROUNDS BIN [BIN...]   (needs ffmpeg; docs/performance.md)
+# Usage: scripts/views_cost.sh ROUNDS BIN[@idle] [BIN[@idle]...]   (needs ffmpeg; docs/performance.md)
 set -uo pipefail
 rounds=${1:?rounds}
 shift
 [[ $# -ge 1 ]] || { echo "usage: $0 ROUNDS BIN [BIN...]" >&2; exit 2; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-"$1" synth --out "$work/fish.png" >/dev/null 2>&1 || { echo "views_cost: synth failed" >&2; exit 1; }
+"${1%@idle}" synth --out "$work/fish.png" >/dev/null 2>&1 || { echo "views_cost: synth failed" >&2; exit 1; }
 port=18654
 here=$(dirname "$0")
 for round in $(seq "$rounds"); do
@@ -24,7 +27,10 @@ for round in $(seq "$rounds"); do
     i=$((i + 1))
     echo "views_cost: round $round, $dv" >&2
     : >"$work/serve-$i-$round.log"
-    "$here/serve_views.sh" "$dv" "$work/fish.png" "$work/serve-$i-$round.log" $port x264
+    priority=same
+    [[ $dv == *@idle ]] && priority=idle
+    "$here/serve_views.sh" "${dv%@idle}" "$work/fish.png" "$work/serve-$i-$round.log" $port x264 \
+      h264 ffmpeg $priority
     port=$((port + 1))
   done
 done

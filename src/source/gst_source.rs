@@ -312,17 +312,20 @@ fn to_frame(sample: &gst::Sample, pipeline: &gst::Pipeline) -> Result<Frame, Sou
         f => return Err(sample_error(format_args!("in the unexpected format {f:?}"))),
     };
     let layout = PlaneLayout::tight(format, info.width(), info.height())?;
-    let mut data = vec![0u8; layout.size as usize];
+    // Filled as it is copied, never zeroed first: a 4K frame is 12 MB written once, not twice.
+    let mut data = Vec::with_capacity(layout.size as usize);
     for (k, plane) in layout.planes().into_iter().enumerate() {
         let src = video.plane_data(k as u32).map_err(sample_error)?;
         let stride = video.plane_stride()[k] as usize;
         let (offset, row) = (plane.offset as usize, plane.bytes as usize);
         let dst_stride = plane.stride as usize;
+        data.resize(offset, 0);
         for y in 0..plane.rows as usize {
-            data[offset + y * dst_stride..offset + y * dst_stride + row]
-                .copy_from_slice(&src[y * stride..y * stride + row]);
+            data.extend_from_slice(&src[y * stride..y * stride + row]);
+            data.resize(offset + (y + 1) * dst_stride, 0);
         }
     }
+    data.resize(layout.size as usize, 0);
     Ok(Frame {
         data,
         layout,
