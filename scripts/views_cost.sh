@@ -15,7 +15,7 @@
 set -uo pipefail
 rounds=${1:?rounds}
 shift
-[[ $# -ge 1 ]] || { echo "usage: $0 ROUNDS BIN [BIN...]" >&2; exit 2; }
+[[ $# -ge 1 ]] || { echo "usage: $0 ROUNDS BIN[@idle] [BIN[@idle]...]" >&2; exit 2; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "${1%@idle}" synth --out "$work/fish.png" >/dev/null 2>&1 || { echo "views_cost: synth failed" >&2; exit 1; }
