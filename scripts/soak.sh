@@ -78,8 +78,9 @@ RUST_LOG=info "$bin" serve --size "$size" --control "127.0.0.1:$control" --rtsp-
   "${source_flags[@]}" --publish "srt://127.0.0.1:$relay" --mavlink-gimbal device \
   --payload "udpin:127.0.0.1:$payload" --payload-view 3 >"$work/stdout" 2>"$work/serve.log" &
 pid=$!
+peers=()  # the replays at the ends of pipelines, which are no job's children
 cleanup() {  # serve, then each loop and what it runs (an orphan would hold a port)
-  kill $pid 2>/dev/null
+  kill $pid "${peers[@]}" 2>/dev/null
   for j in $(jobs -p); do
     kids=$(pgrep -P "$j")
     kill "$j" $kids 2>/dev/null
@@ -102,6 +103,7 @@ for ((i = 0; i < seconds / 4 + 1; i++)); do
   echo "{\"do\": \"angle\", \"roll\": 0, \"pitch\": $((-10 - RANDOM % 60)), \"yaw\": $((RANDOM % 120 - 60)), \"earth\": $((i % 2)), \"for\": 4}"
 done | sed 's/"earth": 1/"earth": true/; s/"earth": 0/"earth": false/' |
   .venv/bin/python tests/peers/gimbal_driver.py "$mav" ardupilot 0 >"$work/gimbal.log" 2>&1 &
+peers+=($!)
 # The payload SDK's app: view 3's gimbal turned for 3 s, its zoom set, its status asked.
 for ((i = 0; i < seconds / 5 + 1; i++)); do
   echo "{\"gimbal\": {\"rate\": [$((RANDOM % 21 - 10)), 0, $((RANDOM % 41 - 20))], \"for\": 3}}"
@@ -109,6 +111,7 @@ for ((i = 0; i < seconds / 5 + 1; i++)); do
   echo '{"command": [100, 527, 0, 0, 0, 0, 0, 0, 0]}'
   sleep 5
 done | .venv/bin/python tests/peers/payload_sdk.py "$payload" >"$work/payload.log" 2>&1 &
+peers+=($!)
 viewer chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
   --disable-background-networking --disable-component-update --disable-sync \
   --user-data-dir="$work/chromium" --remote-debugging-port=0 "http://127.0.0.1:$http/" \
