@@ -3,10 +3,13 @@
 //! scans and crops (what a view costs and what the rest takes are followed as running
 //! means). That time is saved up from frame to frame as a credit, and once it covers every
 //! watched view they are drawn together, in one submission: the views show the same instant,
-//! and only the first shares the machine with the composed frame's encoding. Where the
-//! machine has time for every view every frame (a GPU), every view is drawn every frame;
-//! where it has not (a software rasterizer on two cores), the views' own streams run at a
-//! lower rate, but a view is never left undrawn for longer than [`MAX_GAP`].
+//! and only the first shares the machine with the composed frame's encoding. While the
+//! source's next frame already waits, the loop is a period behind its source and the views
+//! wait too: drawn then, they would let the frame after replace that one unshown (a composed
+//! frame dropped). Where the machine has time for every view every frame (a GPU), every view
+//! is drawn every frame; where it has not (a software rasterizer on two cores), the views'
+//! own streams run at a lower rate, but a view is never left undrawn for longer than
+//! [`MAX_GAP`].
 
 use crate::stream::rtsp::VIEW_MOUNTS;
 use std::collections::VecDeque;
@@ -39,12 +42,14 @@ fn mean(old: Option<f64>, new: f64) -> Option<f64> {
 }
 
 impl ViewPacing {
-    /// Of the views `watched`, those to draw with this frame, `period` long, at `now`.
+    /// Of the views `watched`, those to draw with this frame, `period` long, at `now`;
+    /// `behind`: the source's next frame already waits.
     pub fn pick(
         &mut self,
         watched: [bool; VIEW_MOUNTS],
         period: Duration,
         now: Instant,
+        behind: bool,
     ) -> [bool; VIEW_MOUNTS] {
         let waited = |i: usize| self.last[i].map_or(Duration::MAX, |t| now - t);
         let mut order: Vec<usize> = (0..VIEW_MOUNTS).filter(|&i| watched[i]).collect();
@@ -63,9 +68,9 @@ impl ViewPacing {
         let round = view * order.len() as f64;
         self.credit = (self.credit + left).clamp(-period_ms, round + left.max(0.0));
         // All together when the credit covers them all (one submission; the first drawn
-        // shares the machine with the composed frame's encoding, the rest do not), else
-        // those that waited MAX_GAP.
-        let all = self.credit >= view * order.len() as f64;
+        // shares the machine with the composed frame's encoding, the rest do not) and the
+        // loop is not behind its source, else those that waited MAX_GAP.
+        let all = self.credit >= view * order.len() as f64 && !behind;
         for i in order {
             if all || waited(i) >= MAX_GAP {
                 draw[i] = true;
@@ -146,9 +151,9 @@ mod tests {
     #[test]
     fn every_view_is_drawn_where_the_period_has_room_for_them_all() {
         let mut p = paced(5, 2);
-        assert_eq!(p.pick([true; 4], PERIOD, Instant::now()), [true; 4]);
+        assert_eq!(p.pick([true; 4], PERIOD, Instant::now(), false), [true; 4]);
         assert_eq!(
-            p.pick([false, true, false, true], PERIOD, Instant::now()),
+            p.pick([false, true, false, true], PERIOD, Instant::now(), false),
             [false, true, false, true]
         );
     }
@@ -163,7 +168,7 @@ mod tests {
         let mut drawn = [0; VIEW_MOUNTS];
         for frame in 0..30u32 {
             let now = start + PERIOD * frame;
-            let pick = p.pick([true; 4], PERIOD, now);
+            let pick = p.pick([true; 4], PERIOD, now, false);
             let views: Vec<usize> = (0..VIEW_MOUNTS).filter(|&i| pick[i]).collect();
             assert!(matches!(views.len(), 0 | 4), "frame {frame}: {pick:?}");
             views.iter().for_each(|&i| drawn[i] += 1);
@@ -185,7 +190,7 @@ mod tests {
         let (mut rounds, mut filled) = (0, 0.0);
         for frame in 1..=60u32 {
             let now = start + PERIOD * frame;
-            let pick = p.pick([true; 4], PERIOD, now);
+            let pick = p.pick([true; 4], PERIOD, now, false);
             let views: Vec<usize> = (0..VIEW_MOUNTS).filter(|&i| pick[i]).collect();
             rounds += (views.len() == 4) as u32;
             let took = Duration::from_millis(5 * views.len() as u64);
@@ -205,11 +210,35 @@ mod tests {
     fn with_no_time_left_a_view_still_gets_a_frame_every_max_gap() {
         let mut p = paced(40, 6);
         let start = Instant::now();
-        assert_eq!(p.pick([true; 4], PERIOD, start), [true; 4], "never drawn");
+        assert_eq!(
+            p.pick([true; 4], PERIOD, start, false),
+            [true; 4],
+            "never drawn"
+        );
         p.drawn(&[0, 1, 2, 3], Duration::from_millis(24), start);
         p.frame_done(Duration::from_millis(64));
-        assert_eq!(p.pick([true; 4], PERIOD, start + PERIOD), [false; 4]);
-        assert_eq!(p.pick([true; 4], PERIOD, start + MAX_GAP), [true; 4]);
+        assert_eq!(p.pick([true; 4], PERIOD, start + PERIOD, false), [false; 4]);
+        assert_eq!(p.pick([true; 4], PERIOD, start + MAX_GAP, false), [true; 4]);
+    }
+
+    #[test]
+    fn while_the_next_source_frame_waits_the_views_wait_unless_they_waited_max_gap() {
+        // Time enough for every view every frame, but the loop is behind its source.
+        let mut p = paced(5, 2);
+        let start = Instant::now();
+        p.last = [Some(start); VIEW_MOUNTS];
+        assert_eq!(p.pick([true; 4], PERIOD, start + PERIOD, true), [false; 4]);
+        // Caught up: the round saved up is drawn.
+        assert_eq!(
+            p.pick([true; 4], PERIOD, start + PERIOD * 2, false),
+            [true; 4]
+        );
+        // Behind, but view 2 last drawn MAX_GAP ago: it is drawn all the same.
+        p.drawn(&[0, 1, 3], Duration::from_millis(6), start + PERIOD * 2);
+        assert_eq!(
+            p.pick([true; 4], PERIOD, start + MAX_GAP, true),
+            [false, false, true, false]
+        );
     }
 
     #[test]

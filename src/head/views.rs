@@ -149,9 +149,9 @@ impl Head {
             }
         }
         let now = Instant::now();
-        let due = outs
-            .pacing
-            .pick(watched, Duration::from_secs_f64(1.0 / fps as f64), now);
+        let period = Duration::from_secs_f64(1.0 / fps as f64);
+        let behind = self.input.slot.pending();
+        let due = outs.pacing.pick(watched, period, now, behind);
         let wanted: Vec<usize> = (0..VIEW_MOUNTS)
             .filter(|&i| due[i] || stills.iter().any(|s| s.0 == i))
             .collect();
