@@ -22,10 +22,10 @@
 # recordings begin. Samples the server's memory and /api/status every 10 s, then reports the
 # composed rate (median and 1st percentile of all health lines, the start's included), frames
 # dropped, memory growth after warm-up, service restarts, viewers that had to reconnect, log
-# lines per minute, and each recording's frames against what 50 s at the rate asked holds. Exit status 0 only when serve
-# lived and exited cleanly, memory grew by less than 1%, nothing restarted, every recording
-# plays with at least 95% of its frames, and the rate held (median >= 29.5, 1st percentile
-# >= 25 fps).
+# lines per minute, and each recording's frames against what 50 s at the rate asked holds.
+# Exit status 0 only when serve lived and exited cleanly, memory grew by less than 1%,
+# nothing restarted, every recording plays with at least 95% of its frames, and the rate held
+# (median >= 29.5, 1st percentile >= 25 fps).
 # Usage: scripts/soak.sh [minutes] [workdir] [output size] [source]   (scripts/setup.sh first: it makes .venv)
 #   source: WxH for the demo drawn at that size (default 3840x2160), else a --source string.
 set -uo pipefail
