@@ -70,7 +70,7 @@ impl ViewPacing {
         // All together when the credit covers them all (one submission; the first drawn
         // shares the machine with the composed frame's encoding, the rest do not) and the
         // loop is not behind its source, else those that waited MAX_GAP.
-        let all = self.credit >= view * order.len() as f64 && !behind;
+        let all = self.credit >= round && !behind;
         for i in order {
             if all || waited(i) >= MAX_GAP {
                 draw[i] = true;
